@@ -1,0 +1,148 @@
+"""Command-line front ends (thin: parse arguments, call the library, print, exit).
+
+Errors a user can fix (bad files, columns, units, parameters, divergence) are printed as one
+line ``error: ...`` on stderr with exit status 2 and no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from .errors import DiffshipError
+
+__all__ = ["fit_main", "build_fit_parser"]
+
+
+def build_fit_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m diffship.fit",
+        description="Fit a manoeuvring model to measured runs by equation error and output error. "
+        "With no RUN files, fits the bundled example (SSPA zigzag for nomoto1/2, "
+        "synthetic USV runs for fossen3).",
+    )
+    p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
+    p.add_argument("--model", default="nomoto2", help="nomoto1, nomoto2 or fossen3 (default nomoto2)")
+    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"))
+    p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
+    p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
+    p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
+    p.add_argument("--init", nargs="*", default=[], metavar="NAME=VALUE", help="start values for output error")
+    p.add_argument("--rudder-sign", default="starboard", choices=("starboard", "port"),
+                   help="sign convention of delta in the files: starboard (positive turns to starboard) or port")
+    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN", help="map channel names to file columns")
+    p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN", help="columns given in degrees (deg/s)")
+    p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
+    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
+                   help="initial states of fitted channels: estimated per run (default) or taken from the data")
+    p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
+    p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
+    p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")
+    p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    return p
+
+
+def _progress(quiet: bool):
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if not quiet:
+            print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _load(args, paths):
+    from .data import load_runs
+    from .params import parse_assignments
+
+    columns = {k: v for k, v in (c.split("=", 1) if "=" in c else (c, "") for c in args.columns)}
+    bad = [k for k, v in columns.items() if not v]
+    if bad:
+        raise DiffshipError(f"--columns {bad[0]}: expected NAME=COLUMN, e.g. --columns psi=heading")
+    del parse_assignments
+    runs = load_runs(paths, columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+    if args.resample:
+        runs = [r.resample(args.resample) for r in runs]
+    return runs
+
+
+def _example(model_name: str, say):
+    from .data import example_runs
+
+    if model_name == "fossen3":
+        from .synthetic import usv_runs
+
+        say("no runs given: generating the bundled fossen3 example (seed-002 USV truth with added mass, "
+            "4 runs × 120 s at 10 Hz, realistic GNSS/heading/gyro noise; run usv_3 held out)")
+        runs = usv_runs(4, 120.0, 0.1, noise="realistic", seed=7)
+        return runs[:3], runs[3:]
+    say("no runs given: fitting the bundled SSPA zigzag 20/20 (model test, 50 Hz; Apache-2.0, see "
+        "src/diffship/examples/README.md), resampled to 10 Hz")
+    runs = [r.resample(0.1) for r in example_runs("sspa_zigzag")]
+    return runs, []
+
+
+def fit_main(argv: list[str] | None = None) -> int:
+    args = build_fit_parser().parse_args(argv)
+    say = _progress(args.quiet)
+    try:
+        return _fit(args, say)
+    except DiffshipError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _fit(args, say) -> int:
+    from .fit import fit_both
+    from .metrics import evaluate
+    from .models import get_model
+    from .params import parse_assignments
+    from .preprocess import Filter
+    from .report import plot_fit, text_report, to_json_dict, write_json
+
+    model = get_model(args.model)
+    fix = parse_assignments(args.fix, "--fix")
+    init = parse_assignments(args.init, "--init")
+    flt = Filter.parse(args.filter)
+    spec = model.spec()
+    for n in list(fix) + list(init):
+        spec[n]  # unknown names fail early, with the list of valid ones
+    spec = spec.free(args.free).fix(fix)
+    if args.runs:
+        train = _load(args, args.runs)
+        val = _load(args, args.validate) if args.validate else []
+    else:
+        train, val = _example(args.model, say)
+        if args.validate:
+            val = _load(args, args.validate)
+    methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
+               "equation-error": ("equation_error",)}[args.method]
+    results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
+                       estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels, progress=say)
+    say("simulating every run over its whole horizon for the metrics...")
+    ev_train, ev_val = {}, {}
+    for m, r in results.items():
+        x0 = r.initial_states if m == "output_error" else None
+        ev_train[m] = evaluate(r.model, train, x0, flt=flt)
+        if val:
+            ev_val[m] = evaluate(r.model, val, flt=flt)
+    report = text_report(model.name, results, ev_train, ev_val, train, val)
+    print(report)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.txt").write_text(report + "\n")
+        plot_fit(model.name, train, val, ev_train, ev_val, out / "fit.png")
+        write_json(to_json_dict(model.name, results, ev_train, ev_val), out / "fit.json")
+        say(f"wrote {out / 'report.txt'}, {out / 'fit.png'} and {out / 'fit.json'}")
+    if args.json:
+        write_json(to_json_dict(model.name, results, ev_train, ev_val), args.json)
+        say(f"wrote {args.json}")
+    if not any(r.converged for r in results.values()):
+        print("error: no fit converged (see the statuses above)", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,8 @@
+"""``python -m diffship.fit``: fit a model to runs by equation error and output error."""
+
+import sys
+
+from ..cli import fit_main
+
+if __name__ == "__main__":
+    sys.exit(fit_main())

@@ -1,0 +1,118 @@
+"""From runs to padded arrays that one compiled simulation can batch over.
+
+Runs may differ in length and sampling. They are stacked into arrays of shape ``(R, N, ...)``
+with ``N`` the longest run; shorter runs are continued with their last time step and last
+input, and a mask removes the padded samples from every residual and metric.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..data import Run
+from ..errors import DataError
+from ..models._base import AbstractModel
+from ..preprocess import Filter, smooth_and_derivative
+
+__all__ = ["Batch", "make_batch", "default_channels", "model_inputs", "initial_state"]
+
+#: Channels not fitted by default: absolute positions drift over long runs and put LM in
+#: local minima from poor starts (fit velocities and heading; positions on request).
+NOT_FITTED_BY_DEFAULT = ("x0", "y0")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Batch:
+    names: tuple[str, ...]
+    channels: tuple[str, ...]
+    ts: np.ndarray  # (R, N)
+    us: np.ndarray  # (R, N, n_u)
+    ys: np.ndarray  # (R, N, n_c)
+    mask: np.ndarray  # (R, N)
+    x0: np.ndarray  # (R, n_x)
+    lengths: tuple[int, ...]
+
+    @property
+    def n_residuals(self) -> int:
+        return int(self.mask.sum()) * len(self.channels)
+
+
+def default_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, ...]:
+    chans = tuple(
+        c for c in model.output_names if c not in NOT_FITTED_BY_DEFAULT and all(r.has(c) for r in runs)
+    )
+    if not chans:
+        raise DataError(
+            f"model {model.name} predicts {', '.join(model.output_names)}, but none of these channels is in every run "
+            f"({', '.join(r.name for r in runs)}); map your columns with --columns, e.g. --columns psi=heading"
+        )
+    return chans
+
+
+def model_inputs(model: AbstractModel, run: Run) -> np.ndarray:
+    run.require(model.input_names, f"the inputs of model {model.name}")
+    return np.stack([np.asarray(run[n], dtype=np.float64) for n in model.input_names], axis=1)
+
+
+def initial_state(model: AbstractModel, run: Run, flt: Filter = Filter()) -> np.ndarray:
+    """Initial state from the low-pass filtered measurements at the first sample."""
+    y0 = {}
+    t = np.asarray(run.time)
+    for c in set(model.state_names) | set(model.output_names):
+        if run.has(c):
+            y = np.asarray(run[c])
+            if c == "psi":
+                y = np.unwrap(y)
+            try:
+                ys, yd = smooth_and_derivative(t, y, flt, f"run {run.name}, column {c}")
+            except DataError:
+                ys, yd = y, np.gradient(y, t)
+            y0[c] = float(ys[0])
+            y0[c + "_dot"] = float(yd[0])
+    return model.initial_state(y0)
+
+
+def make_batch(
+    model: AbstractModel,
+    runs: Sequence[Run],
+    channels: Sequence[str] | None = None,
+    flt: Filter = Filter(),
+    x0: Sequence[np.ndarray] | None = None,
+) -> Batch:
+    if not runs:
+        raise DataError("no runs given")
+    channels = tuple(channels) if channels else default_channels(model, runs)
+    unknown = [c for c in channels if c not in model.output_names]
+    if unknown:
+        raise DataError(
+            f"channel(s) {', '.join(unknown)} are not outputs of model {model.name} "
+            f"(it predicts {', '.join(model.output_names)})"
+        )
+    for r in runs:
+        r.require(channels, f"fitting channels {', '.join(channels)}")
+    n = max(r.n for r in runs)
+    R = len(runs)
+    ts = np.zeros((R, n))
+    us = np.zeros((R, n, len(model.input_names)))
+    ys = np.zeros((R, n, len(channels)))
+    mask = np.zeros((R, n), dtype=bool)
+    for i, r in enumerate(runs):
+        k = r.n
+        t = np.asarray(r.time, dtype=np.float64)
+        last_dt = t[-1] - t[-2]
+        ts[i, :k] = t
+        ts[i, k:] = t[-1] + last_dt * np.arange(1, n - k + 1)
+        u = model_inputs(model, r)
+        us[i, :k] = u
+        us[i, k:] = u[-1]
+        for j, c in enumerate(channels):
+            y = np.asarray(r[c], dtype=np.float64)
+            ys[i, :k, j] = np.unwrap(y) if c in model.angle_outputs else y
+        mask[i, :k] = True
+    x0s = np.stack([np.asarray(v, dtype=np.float64) for v in x0]) if x0 is not None else np.stack(
+        [initial_state(model, r, flt) for r in runs]
+    )
+    return Batch(tuple(r.name for r in runs), channels, ts, us, ys, mask, x0s, tuple(r.n for r in runs))

@@ -1,0 +1,23 @@
+"""Models as pure JAX vector fields (one module per model family)."""
+
+from ._base import AbstractModel as AbstractModel
+from .actuators import ForceInput as ForceInput, WaterJet as WaterJet
+from .fossen3 import Fossen3 as Fossen3, USV_STANDARD as USV_STANDARD, usv_standard as usv_standard
+from .nomoto import Nomoto1 as Nomoto1, Nomoto2 as Nomoto2
+
+#: Models selectable by name (``--model NAME``).
+MODELS: dict[str, type[AbstractModel]] = {
+    "nomoto1": Nomoto1,
+    "nomoto2": Nomoto2,
+    "fossen3": Fossen3,
+}
+
+
+def get_model(name: str) -> AbstractModel:
+    """A model instance with its reference (default) parameter values, by name."""
+    from ..errors import ModelError
+
+    try:
+        return MODELS[name]()
+    except KeyError:
+        raise ModelError(f"unknown model {name!r}; choose one of: {', '.join(MODELS)}") from None

@@ -1,0 +1,237 @@
+"""Named model parameters: value, free/fixed, bounds and scale.
+
+A model is an :class:`equinox.Module` whose parameters are scalar fields (``m``, ``Xu``, ``K``,
+...). What a fit needs to know about them beyond their values lives here, in a
+:class:`ParamSpec`: which are free, their bounds, their typical magnitude (scale), their unit.
+
+Fits run in a *scaled, unconstrained* space ``z`` (one entry per free parameter)::
+
+    no bounds        θ = s·z
+    lower bound a    θ = a + s·exp(z)
+    upper bound b    θ = b − s·exp(z)
+    both a < b       θ = a + (b − a)·sigmoid(z)
+
+so that every entry of ``z`` is O(1) near the solution (Levenberg–Marquardt damps with λI and
+does not converge on raw hydrodynamic coefficients that span eight orders of magnitude), and
+sign constraints such as ``X_u < 0`` hold by construction. Standard errors are mapped back by
+the delta method, ``σ_θ = |dθ/dz|·σ_z``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .errors import ModelError
+
+__all__ = ["Param", "ParamSpec", "parse_assignments"]
+
+_LINEAR, _LOWER, _UPPER, _BOTH = 0, 1, 2, 3
+
+
+@dataclasses.dataclass(frozen=True)
+class Param:
+    """One named parameter.
+
+    Attributes:
+        name: identifier, e.g. ``"Xu"`` (SNAME notation) or ``"T1"``.
+        value: current value in the model's SI units.
+        free: estimated by a fit (``True``) or held at ``value`` (``False``).
+        lower, upper: open bounds (``±inf`` for none). A value on a bound is rejected.
+        scale: typical magnitude, used to scale the fit variable (must be > 0).
+        unit: SI unit, for reports.
+        description: one line for reports.
+    """
+
+    name: str
+    value: float
+    free: bool = True
+    lower: float = -math.inf
+    upper: float = math.inf
+    scale: float = 1.0
+    unit: str = ""
+    description: str = ""
+
+    def __post_init__(self):
+        if not self.scale > 0 or not math.isfinite(self.scale):
+            raise ModelError(f"parameter {self.name}: scale must be a positive finite number, got {self.scale}")
+        if not self.lower < self.upper:
+            raise ModelError(f"parameter {self.name}: lower bound {self.lower} must be below upper bound {self.upper}")
+
+    @property
+    def kind(self) -> int:
+        lo, hi = math.isfinite(self.lower), math.isfinite(self.upper)
+        return _BOTH if lo and hi else _LOWER if lo else _UPPER if hi else _LINEAR
+
+    def check_value(self, value: float, what: str = "value") -> None:
+        """Raise :class:`ModelError` unless ``value`` is finite and strictly inside the bounds."""
+        if not math.isfinite(value):
+            raise ModelError(f"parameter {self.name}: {what} {value} is not finite")
+        if self.free and not (self.lower < value < self.upper):
+            raise ModelError(
+                f"parameter {self.name}: {what} {value:g} {self.unit} is not strictly inside its bounds "
+                f"({self.lower:g}, {self.upper:g}); start from a value inside them, or fix it with "
+                f"--fix {self.name}=VALUE"
+            )
+
+
+@dataclasses.dataclass(frozen=True)
+class ParamSpec:
+    """An ordered, immutable set of :class:`Param`.
+
+    Hashable apart from the values: :meth:`structure` is the key used to share compiled fits
+    between problems that differ only in parameter values.
+    """
+
+    params: tuple[Param, ...]
+
+    def __post_init__(self):
+        names = [p.name for p in self.params]
+        if len(set(names)) != len(names):
+            raise ModelError(f"duplicate parameter names in {names}")
+
+    # -- access ------------------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    @property
+    def free_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params if p.free)
+
+    @property
+    def fixed_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params if not p.free)
+
+    def __getitem__(self, name: str) -> Param:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise ModelError(f"unknown parameter {name!r}; this model has: {', '.join(self.names)}")
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names
+
+    def values(self) -> dict[str, float]:
+        return {p.name: p.value for p in self.params}
+
+    def structure(self) -> tuple:
+        """Everything but the values: a hashable key for compiled-function caches."""
+        return tuple((p.name, p.free, p.lower, p.upper, p.scale) for p in self.params)
+
+    # -- functional updates ---------------------------------------------------------------
+    def _replace(self, name: str, **changes) -> ParamSpec:
+        self[name]  # raises a clear error for unknown names
+        return ParamSpec(tuple(dataclasses.replace(p, **changes) if p.name == name else p for p in self.params))
+
+    def with_values(self, values: Mapping[str, float]) -> ParamSpec:
+        spec = self
+        for name, v in values.items():
+            spec = spec._replace(name, value=float(v))
+        return spec
+
+    def fix(self, values: Mapping[str, float] | Iterable[str]) -> ParamSpec:
+        """Hold parameters fixed, optionally at new values (a mapping) or at their current ones."""
+        if isinstance(values, Mapping):
+            spec = self.with_values(values)
+            names = list(values)
+        else:
+            spec, names = self, list(values)
+        for n in names:
+            spec = spec._replace(n, free=False)
+        return spec
+
+    def free(self, names: Iterable[str]) -> ParamSpec:
+        spec = self
+        for n in names:
+            spec = spec._replace(n, free=True)
+        return spec
+
+    def only_free(self, names: Iterable[str]) -> ParamSpec:
+        """Free exactly ``names``; fix every other parameter at its current value."""
+        names = set(names)
+        for n in names:
+            self[n]
+        return ParamSpec(tuple(dataclasses.replace(p, free=p.name in names) for p in self.params))
+
+    # -- scaled space -----------------------------------------------------------------
+    def _free_arrays(self):
+        free = [p for p in self.params if p.free]
+        kind = np.array([p.kind for p in free], dtype=np.int64)
+        lo = np.array([p.lower if math.isfinite(p.lower) else 0.0 for p in free])
+        hi = np.array([p.upper if math.isfinite(p.upper) else 0.0 for p in free])
+        s = np.array([p.scale for p in free])
+        return kind, lo, hi, s
+
+    def free_index(self) -> np.ndarray:
+        return np.array([i for i, p in enumerate(self.params) if p.free], dtype=np.int64)
+
+    def to_z(self, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """Scaled unconstrained vector of the free parameters (NumPy, float64)."""
+        vals = self.values() if values is None else {**self.values(), **values}
+        out = []
+        for p in self.params:
+            if not p.free:
+                continue
+            v = float(vals[p.name])
+            p.check_value(v, "start value")
+            k = p.kind
+            if k == _LINEAR:
+                out.append(v / p.scale)
+            elif k == _LOWER:
+                out.append(math.log((v - p.lower) / p.scale))
+            elif k == _UPPER:
+                out.append(math.log((p.upper - v) / p.scale))
+            else:
+                f = (v - p.lower) / (p.upper - p.lower)
+                out.append(math.log(f / (1.0 - f)))
+        return np.asarray(out, dtype=np.float64)
+
+    def from_z(self, z: Float[Array, " n_free"]) -> Float[Array, " n_free"]:
+        """Free parameter values (model units) from the scaled vector; jittable."""
+        kind, lo, hi, s = self._free_arrays()
+        if kind.size == 0:
+            return jnp.zeros((0,), dtype=z.dtype)
+        # Clamp the exponent argument so that a wild trial step cannot overflow to inf.
+        ez = jnp.exp(jnp.clip(z, -50.0, 50.0))
+        lin = s * z
+        lower = lo + s * ez
+        upper = hi - s * ez
+        both = lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0))))
+        return jnp.where(kind == _LINEAR, lin, jnp.where(kind == _LOWER, lower, jnp.where(kind == _UPPER, upper, both)))
+
+    def dtheta_dz(self, z: np.ndarray) -> np.ndarray:
+        """Derivative of each free value with respect to its scaled variable (NumPy)."""
+        kind, lo, hi, s = self._free_arrays()
+        z = np.asarray(z, dtype=np.float64)
+        ez = np.exp(np.clip(z, -50, 50))
+        sig = 1.0 / (1.0 + np.exp(-np.clip(z, -50, 50)))
+        return np.where(
+            kind == _LINEAR, s, np.where(kind == _LOWER, s * ez, np.where(kind == _UPPER, -s * ez, (hi - lo) * sig * (1 - sig)))
+        )
+
+    def full_values(self, z: Float[Array, " n_free"], base: Float[Array, " n"]) -> Float[Array, " n"]:
+        """All parameter values: ``base`` (all values) with the free entries taken from ``z``."""
+        idx = self.free_index()
+        if idx.size == 0:
+            return base
+        return base.at[idx].set(self.from_z(z))
+
+
+def parse_assignments(items: Sequence[str] | None, what: str = "--fix") -> dict[str, float]:
+    """Parse ``["NAME=VALUE", ...]`` from the command line into a dict of floats."""
+    out: dict[str, float] = {}
+    for item in items or ():
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ModelError(f"{what} {item!r}: expected NAME=VALUE, e.g. {what} T1=5.0")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ModelError(f"{what} {item!r}: {value!r} is not a number") from None
+    return out

@@ -1,0 +1,199 @@
+"""Reports of fits: a text table, a matplotlib figure, and JSON.
+
+Angles are shown in degrees in the text and figures (labelled), and kept in radians (SI) in
+JSON and everywhere in the library.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .data import Run
+from .fit.result import FitResult
+from .metrics import Evaluation
+
+__all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS"]
+
+_DEG = 180.0 / math.pi
+CHANNEL_UNITS = {"x0": ("m", 1.0), "y0": ("m", 1.0), "psi": ("deg", _DEG), "u": ("m/s", 1.0), "v": ("m/s", 1.0),
+                 "r": ("deg/s", _DEG), "delta": ("deg", _DEG), "p": ("deg/s", _DEG), "phi": ("deg", _DEG)}
+_LABEL = {"equation_error": "equation error", "output_error": "output error"}
+HORIZON_NOTE = "metrics: whole-horizon simulation of every run from its initial state (no one-step prediction)"
+
+
+def _fmt(v: float) -> str:
+    return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.5g}"
+
+
+def text_report(
+    model_name: str,
+    results: Mapping[str, FitResult],
+    train: Mapping[str, Evaluation],
+    validation: Mapping[str, Evaluation],
+    train_runs: Sequence[Run],
+    val_runs: Sequence[Run],
+) -> str:
+    """A short plain-text report: parameters side by side, then metrics."""
+    methods = list(results)
+    w = 26
+    lines = [
+        f"diffship fit — model {model_name}",
+        f"training runs: {', '.join(r.name for r in train_runs)}",
+        f"validation runs: {', '.join(r.name for r in val_runs) if val_runs else 'none (pass --validate RUN.csv)'}",
+        "",
+        f"{'parameter':<12}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
+    ]
+    free = []
+    for m in methods:
+        free += [n for n in results[m].free if n not in free]
+    for n in free:
+        row = f"{n:<12}"
+        for m in methods:
+            r = results[m]
+            if n in r.free:
+                row += f"{_fmt(r.params[n]) + ' ± ' + _fmt(r.stderr.get(n, float('nan'))):>{w}}"
+            else:
+                row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
+        lines.append(row)
+    lines.append("")
+    for m in methods:
+        r = results[m]
+        lines.append(f"{_LABEL.get(m, m)}: {r.status}; {r.iterations} iterations; fit {r.fit_seconds:.2f} s, "
+                     f"compile {r.compile_seconds:.2f} s")
+        for msg in r.messages:
+            lines.append(f"  note: {msg}")
+    lines += ["", HORIZON_NOTE]
+    for title, evs in (("training", train), ("validation", validation)):
+        if not evs:
+            continue
+        chans = next(iter(evs.values())).channels
+        lines.append(f"{title} RMSE" + " " * 6 + "".join(f"{c + ' [' + CHANNEL_UNITS.get(c, ('', 1))[0] + ']':>14}" for c in chans))
+        for m, ev in evs.items():
+            row = f"  {_LABEL.get(m, m):<20}"
+            for c in chans:
+                unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
+                row += f"{ev.rmse[c] * k:>14.4g}"
+            lines.append(row + ("" if ev.ok else "   (simulation blew up)"))
+        lines.append(f"{title} fit %" + " " * 7 + "".join(f"{c:>14}" for c in chans))
+        for m, ev in evs.items():
+            lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans))
+    return "\n".join(lines)
+
+
+def plot_fit(
+    model_name: str,
+    train_runs: Sequence[Run],
+    val_runs: Sequence[Run],
+    train: Mapping[str, Evaluation],
+    validation: Mapping[str, Evaluation],
+    path: str | Path | None = None,
+    max_runs: int = 4,
+):
+    """Measured vs simulated channels (both methods) per run, plus the track where available."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [(r, "train", train) for r in train_runs] + [(r, "validation", validation) for r in val_runs]
+    rows = rows[:max_runs]
+    evs = train or validation
+    chans = list(next(iter(evs.values())).channels)
+    plot_chans = [c for c in chans if c not in ("x0", "y0")]
+    track = "x0" in chans and "y0" in chans
+    ncol = len(plot_chans) + (1 if track else 0) + 1
+    fig, axes = plt.subplots(len(rows), ncol, figsize=(3.6 * ncol, 2.6 * len(rows)), squeeze=False)
+    colors = {"equation_error": "tab:orange", "output_error": "tab:blue"}
+    for i, (run, kind, ev_map) in enumerate(rows):
+        t = np.asarray(run.time)
+        for j, c in enumerate(plot_chans):
+            ax = axes[i, j]
+            unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
+            y = np.asarray(run[c])
+            y = np.unwrap(y) if c == "psi" else y
+            ax.plot(t, y * k, color="0.4", lw=1.0, label="measured")
+            for m, ev in ev_map.items():
+                ax.plot(t, ev.simulated[run.name][c] * k, color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-",
+                        label=f"{_LABEL.get(m, m)} (RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+            ax.set_title(f"{run.name} ({kind}): {c}", fontsize=9)
+            ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
+            ax.legend(fontsize=6, loc="best")
+            ax.grid(alpha=0.3)
+            if i == len(rows) - 1:
+                ax.set_xlabel("time [s]", fontsize=8)
+        j = len(plot_chans)
+        if track:
+            ax = axes[i, j]
+            ax.plot(run["y0"], run["x0"], color="0.4", lw=1.0, label="measured")
+            for m, ev in ev_map.items():
+                s = ev.simulated[run.name]
+                ax.plot(s["y0"], s["x0"], color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-", label=_LABEL.get(m, m))
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_xlabel("y0 (east/starboard) [m]", fontsize=8)
+            ax.set_ylabel("x0 (north/ahead) [m]", fontsize=8)
+            ax.set_title(f"{run.name}: track", fontsize=9)
+            ax.grid(alpha=0.3)
+            j += 1
+        ax = axes[i, j]
+        for n in [n for n in run.channel_names if n in ("delta", "tau_x", "tau_y", "tau_z", "delta_n", "rpm")]:
+            unit, k = CHANNEL_UNITS.get(n, ("", 1.0))
+            y = np.asarray(run[n]) * k
+            scale = np.max(np.abs(y)) or 1.0
+            ax.plot(t, y / scale, lw=1.0, label=f"{n} / {scale:.3g} {unit}")
+        ax.set_title(f"{run.name}: inputs (normalised)", fontsize=9)
+        ax.legend(fontsize=6)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)", fontsize=11)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def _metrics(ev: Evaluation | None) -> dict:
+    if ev is None:
+        return {"rmse": {}, "fit_percent": {}}
+    return {"rmse": dict(ev.rmse), "fit_percent": dict(ev.fit_percent), "ok": ev.ok,
+            "per_run": {k: {"rmse": v["rmse"], "fit_percent": v["fit_percent"], "ok": v["ok"]} for k, v in ev.per_run.items()}}
+
+
+def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mapping[str, Evaluation],
+                 validation: Mapping[str, Evaluation], extra: Mapping | None = None) -> dict:
+    """The ``--json`` document: parameters in the model's SI units, metrics per channel (SI, rad)."""
+    methods = {}
+    for m, r in results.items():
+        methods[m] = {
+            "params": r.params,
+            "stderr": r.stderr,
+            "free": list(r.free),
+            "converged": r.converged,
+            "status": r.status,
+            "iterations": r.iterations,
+            "cost": r.cost,
+            "fit_seconds": r.fit_seconds,
+            "compile_seconds": r.compile_seconds,
+            "train": _metrics(train.get(m)),
+            "validation": _metrics(validation.get(m)),
+            "messages": list(r.messages),
+        }
+    doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}
+    if extra:
+        doc.update(extra)
+    return doc
+
+
+def write_json(doc: dict, path: str | Path) -> None:
+    def default(o):
+        if isinstance(o, (np.floating, np.integer)):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        return str(o)
+
+    Path(path).write_text(json.dumps(doc, indent=2, default=default, allow_nan=True))
