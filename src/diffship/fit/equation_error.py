@@ -62,6 +62,8 @@ def equation_data(model: AbstractModel, run: Run, flt: Filter) -> tuple[np.ndarr
 
     ``z`` holds the measured dynamic states, ``zdot``/``zddot`` their filtered derivatives.
     """
+    if hasattr(model, "equation_data"):
+        return model.equation_data(run, flt)
     u = model_inputs(model, run)
     if isinstance(model, (Nomoto1, Nomoto2)):
         if run.has("r"):
@@ -84,7 +86,15 @@ def equation_data(model: AbstractModel, run: Run, flt: Filter) -> tuple[np.ndarr
 
 
 def _residual_fn(model: AbstractModel):
-    """Per-sample equation residual ``e(model, z, zd, zdd, u)``."""
+    """Per-sample equation residual ``e(model, z, zd, zdd, u)`` and the equation names.
+
+    A model can provide its own baseline with two methods: ``equation_data(run, flt) ->
+    (z, zd, zdd, u)`` (NumPy arrays, one row per sample) and
+    ``equation_residual(z, zd, zdd, u) -> e`` (JAX, one sample), plus a class variable
+    ``EQUATIONS`` naming the entries of ``e``.
+    """
+    if hasattr(model, "equation_residual"):
+        return (lambda m, z, zd, zdd, u: m.equation_residual(z, zd, zdd, u)), tuple(model.EQUATIONS)
     if isinstance(model, Nomoto1):
         def e(m, z, zd, zdd, u):
             return jnp.atleast_1d(zd[0] - (m.K * (u[0] + m.delta0) - z[0]) / m.T1)
