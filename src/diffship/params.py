@@ -124,6 +124,10 @@ class ParamSpec:
         """Everything but the values: a hashable key for compiled-function caches."""
         return tuple((p.name, p.free, p.lower, p.upper, p.scale) for p in self.params)
 
+    def structural(self) -> ParamSpec:
+        """The same spec with every value set to 0: equal for problems that differ only in values."""
+        return ParamSpec(tuple(dataclasses.replace(p, value=0.0) for p in self.params))
+
     # -- functional updates ---------------------------------------------------------------
     def _replace(self, name: str, **changes) -> ParamSpec:
         self[name]  # raises a clear error for unknown names

@@ -96,7 +96,7 @@ class _Problem(eqx.Module):
         return e.reshape(-1)
 
     def solve(self, z0, args, max_steps, rtol, atol, callback):
-        solver = MaterialisedLM(rtol=rtol, atol=atol, callback=callback, norm=rms_norm)
+        solver = MaterialisedLM(rtol=rtol, atol=atol, callback=callback, norm=rms_norm, ftol=1e-9)
         sol = optx.least_squares(self.residuals, solver, z0, args=args, max_steps=max_steps, throw=False)
         r = self.residuals(sol.value, args)
         return sol.value, sol.result, sol.stats["num_steps"], r
@@ -176,7 +176,7 @@ def fit_output_error(
         raise FitError("no free parameters: free at least one (remove it from --fix)")
     x0_idx = tuple(model.state_names.index(s) for s in estimate_x0)
     problem = _Problem(
-        spec=spec,
+        spec=spec.structural(),
         out_idx=tuple(model.output_names.index(c) for c in batch.channels),
         angle=tuple(c in model.angle_outputs for c in batch.channels),
         x0_idx=x0_idx,
@@ -253,7 +253,8 @@ def fit_output_error(
     iterations = int(steps)
     passes = [result]
     if weights == "noise" and not channel_scales:
-        sigma = _channel_rms(r, batch, np.asarray(scales))
+        # floor: on noise-free data the residuals are round-off, which must not set the weights
+        sigma = np.maximum(_channel_rms(r, batch, np.asarray(scales)), 1e-6 * spread)
         args = args_with(sigma)
         scales = sigma
         z, result, steps, r = solve_fn(z, args)

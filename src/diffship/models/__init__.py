@@ -4,12 +4,23 @@ from ._base import AbstractModel as AbstractModel
 from .actuators import ForceInput as ForceInput, WaterJet as WaterJet
 from .fossen3 import Fossen3 as Fossen3, USV_STANDARD as USV_STANDARD, usv_standard as usv_standard
 from .nomoto import Nomoto1 as Nomoto1, Nomoto2 as Nomoto2
+from .mmg import MMG as MMG, kvlcc2_mmg as kvlcc2_mmg
+from .vmm import VMMAbkowitz as VMMAbkowitz, VMMLinear as VMMLinear, VMMSimple as VMMSimple
+from .fossen6 import Fossen6 as Fossen6
+from ..decay import Decay1 as Decay1, Decay2 as Decay2
 
 #: Models selectable by name (``--model NAME``).
 MODELS: dict[str, type[AbstractModel]] = {
     "nomoto1": Nomoto1,
     "nomoto2": Nomoto2,
     "fossen3": Fossen3,
+    "mmg": MMG,
+    "vmm_linear": VMMLinear,
+    "vmm_simple": VMMSimple,
+    "vmm_abkowitz": VMMAbkowitz,
+    "fossen6": Fossen6,
+    "decay1": Decay1,
+    "decay2": Decay2,
 }
 
 

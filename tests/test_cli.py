@@ -1,0 +1,135 @@
+"""The command line: the bundled example, JSON contract, and every bad input named in the issue."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from diffship.cli import fit_main
+from diffship.synthetic import nomoto_runs
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def nomoto_csvs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("runs")
+    from diffship.models import Nomoto1
+
+    runs = nomoto_runs(Nomoto1(K=0.2, T1=8.0, delta0=0.01), n_runs=3, duration=40.0, dt=0.2, noise="realistic")
+    paths = []
+    for r in runs:
+        p = d / f"{r.name}.csv"
+        r.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    return paths
+
+
+def test_fit_json_contract(nomoto_csvs, tmp_path, capsys):
+    js = tmp_path / "fit.json"
+    code = fit_main(nomoto_csvs[:2] + ["--model", "nomoto1", "--validate", nomoto_csvs[2], "--json", str(js),
+                                       "--out", str(tmp_path / "out"), "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    doc = json.loads(js.read_text())
+    assert doc["model"] == "nomoto1"
+    for m in ("output_error", "equation_error"):
+        d = doc["methods"][m]
+        for key in ("params", "stderr", "converged", "iterations", "fit_seconds", "compile_seconds", "train", "validation"):
+            assert key in d, (m, key)
+        assert set(d["validation"]["rmse"]) == {"psi", "r"}
+    oe = doc["methods"]["output_error"]
+    assert oe["converged"]
+    assert oe["params"]["T1"] == pytest.approx(8.0, rel=0.1)
+    assert (tmp_path / "out" / "fit.png").stat().st_size > 10_000
+    assert "whole-horizon simulation" in out
+
+
+def test_fix_and_init(nomoto_csvs, capsys, tmp_path):
+    js = tmp_path / "f.json"
+    code = fit_main(nomoto_csvs[:1] + ["--model", "nomoto1", "--fix", "delta0=0.01", "--init", "T1=5",
+                                       "--method", "output-error", "--json", str(js), "--quiet"])
+    assert code == 0, capsys.readouterr()
+    doc = json.loads(js.read_text())["methods"]["output_error"]
+    assert doc["params"]["delta0"] == 0.01 and "delta0" not in doc["stderr"]
+
+
+def _write(tmp_path, name, df, sep=","):
+    p = tmp_path / name
+    df.to_csv(p, index=False, sep=sep)
+    return str(p)
+
+
+def _good_df(n=50):
+    t = np.arange(n) * 0.1
+    return pd.DataFrame({"time": t, "psi": 0.01 * t, "r": np.full(n, 0.01), "delta": np.full(n, 0.05)})
+
+
+def _bad_inputs(tmp_path):
+    df = _good_df()
+    unsorted = df.copy()
+    unsorted.loc[[3, 4], "time"] = unsorted.loc[[4, 3], "time"].values
+    repeated = df.copy()
+    repeated.loc[5, "time"] = repeated.loc[4, "time"]
+    nan = df.copy()
+    nan.loc[7, "r"] = np.nan
+    inf = df.copy()
+    inf.loc[8, "psi"] = np.inf
+    text = df.astype({"delta": object})
+    text.loc[9, "delta"] = "port"
+    deg = df.copy()
+    deg["delta"] = 20.0
+    empty = tmp_path / "empty.csv"
+    empty.write_text("")
+    garbage = tmp_path / "garbage.csv"
+    garbage.write_bytes(bytes(range(256)) * 4)
+    return {
+        "unsorted": ([_write(tmp_path, "unsorted.csv", unsorted)], "backwards|sort"),
+        "repeated": ([_write(tmp_path, "repeated.csv", repeated)], "repeated"),
+        "nan": ([_write(tmp_path, "nan.csv", nan)], "'r'"),
+        "inf": ([_write(tmp_path, "inf.csv", inf)], "'psi'"),
+        "text": ([_write(tmp_path, "text.csv", text)], "delta"),
+        "missing_column": ([_write(tmp_path, "nodelta.csv", df.drop(columns=["delta"]))], "delta"),
+        "missing_file": ([str(tmp_path / "nope.csv")], "nope.csv"),
+        "empty": ([str(empty)], "empty.csv"),
+        "garbage": ([str(garbage)], "garbage.csv"),
+        "too_short": ([_write(tmp_path, "short.csv", df.iloc[:5])], "too few samples"),
+        "degrees": ([_write(tmp_path, "deg.csv", deg)], "degrees"),
+        "bad_fix": ([_write(tmp_path, "ok.csv", df), "--fix", "T9=1"], "unknown parameter 'T9'"),
+    }
+
+
+def test_every_bad_input_is_one_clear_line(tmp_path, capsys):
+    for label, (argv, pattern) in _bad_inputs(tmp_path).items():
+        code = fit_main(argv + ["--model", "nomoto1", "--quiet"])
+        err = capsys.readouterr().err
+        assert code == 2, (label, err)
+        assert err.startswith("error: ") and "Traceback" not in err, (label, err)
+        import re
+
+        assert re.search(pattern, err), (label, pattern, err)
+
+
+def test_model_that_diverges_from_every_start(tmp_path, capsys):
+    from diffship.synthetic import usv_runs
+
+    run = usv_runs(1, 20.0, 0.1, noise="none")[0]
+    path = _write(tmp_path, "usv.csv", run.to_dataframe())
+    # Xu = -1e9 N s/m makes the surge time constant ~5 µs: explicit RK4 at 0.1 s explodes.
+    code = fit_main([path, "--model", "fossen3", "--method", "output-error", "--init", "Xu=-1e9", "Xudot=-1e9",
+                     "--fix", "Xu=-1e9", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and "diverges from every start" in err, err
+
+
+def test_subprocess_exit_code_and_no_traceback(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,psi,r,delta\n0,0,0,0\n0,0,0,0\n")
+    p = subprocess.run([sys.executable, "-m", "diffship.fit", str(bad), "--model", "nomoto1", "--quiet"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr and "bad.csv" in p.stderr
