@@ -37,15 +37,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import ClassVar
 
-import jax.numpy as jnp
 import numpy as np
 from scipy import optimize
 
 from .errors import DataError
-from .models._base import AbstractModel, scalar
-from .params import Param
+from .models.decay import Decay1, Decay2
 
 __all__ = ["FirstOrderDecay", "SecondOrderDecay", "fit_first_order_decay", "fit_second_order_decay",
            "Decay1", "Decay2", "decay_run"]
@@ -187,61 +184,6 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
         zeta_stderr=float(math.sqrt(max(gz @ cov2 @ gz, 0.0))), omega_n_stderr=float(math.sqrt(max(gw @ cov2 @ gw, 0.0))),
         method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))),
     )
-
-
-class Decay1(AbstractModel):
-    r"""First-order 1-DOF model :math:`m\dot x + Dx = \tau` (state/channel ``velocity``, input ``tau``).
-
-    ``m`` fixed (total inertia, given), ``D`` > 0 free."""
-
-    name: ClassVar[str] = "decay1"
-    state_names: ClassVar[tuple[str, ...]] = ("velocity",)
-    output_names: ClassVar[tuple[str, ...]] = ("velocity",)
-    angle_outputs: ClassVar[tuple[str, ...]] = ()
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("m", 1.0, free=False, lower=0.0, scale=1.0, unit="kg", description="total inertia (rigid + added)"),
-        Param("D", 1.0, lower=0.0, scale=1.0, unit="kg/s", description="linear damping"),
-    )
-    m: jnp.ndarray = scalar(1.0)
-    D: jnp.ndarray = scalar(1.0)
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        return ("tau",)
-
-    def vector_field(self, t, x, u):
-        return jnp.stack([(u[0] - self.D * x[0]) / self.m])
-
-
-class Decay2(AbstractModel):
-    r"""Second-order 1-DOF model :math:`I\ddot\phi + b\dot\phi + k\phi = \tau` (states ``angle``, ``rate``).
-
-    ``I`` and ``k`` fixed (given), ``b`` > 0 free; free ``k`` instead when the stiffness is
-    unknown and the inertia trusted."""
-
-    name: ClassVar[str] = "decay2"
-    state_names: ClassVar[tuple[str, ...]] = ("angle", "rate")
-    output_names: ClassVar[tuple[str, ...]] = ("angle", "rate")
-    angle_outputs: ClassVar[tuple[str, ...]] = ()
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("I", 1.0, free=False, lower=0.0, scale=1.0, unit="kg m2", description="total inertia (rigid + added)"),
-        Param("b", 0.1, lower=0.0, scale=1.0, unit="kg m2/s", description="linear damping"),
-        Param("k", 1.0, free=False, lower=0.0, scale=1.0, unit="N m/rad", description="restoring stiffness"),
-    )
-    I: jnp.ndarray = scalar(1.0)  # noqa: E741
-    b: jnp.ndarray = scalar(0.1)
-    k: jnp.ndarray = scalar(1.0)
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        return ("tau",)
-
-    def vector_field(self, t, x, u):
-        return jnp.stack([x[1], (u[0] - self.b * x[1] - self.k * x[0]) / self.I])
-
-    def states_for_channels(self, channels) -> tuple[str, ...]:
-        # the initial rate shapes the whole angle trace: estimate it with the angle
-        return ("angle", "rate") if "angle" in channels else tuple(c for c in channels if c in self.state_names)
 
 
 def decay_run(model: Decay1 | Decay2, duration: float, dt: float, x0, *, noise: float = 0.0, seed: int = 0,

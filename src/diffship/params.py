@@ -128,6 +128,30 @@ class ParamSpec:
         """The same spec with every value set to 0: equal for problems that differ only in values."""
         return ParamSpec(tuple(dataclasses.replace(p, value=0.0) for p in self.params))
 
+    def nudged(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+        """Move free start values that sit on (or beyond) a bound just inside it.
+
+        A reference value of exactly zero for a sign-constrained derivative (e.g. the zero added
+        masses of the seed-002 USV) cannot start a log-scaled fit; it becomes ``−0.01·scale``.
+        Returns the new values and one note per change.
+        """
+        out, notes = dict(values), []
+        for p in self.params:
+            if not p.free:
+                continue
+            v = float(out[p.name])
+            if p.lower < v < p.upper:
+                continue
+            if p.kind == _BOTH:
+                new = 0.5 * (p.lower + p.upper)
+            elif p.kind == _LOWER:
+                new = p.lower + 0.01 * p.scale
+            else:
+                new = p.upper - 0.01 * p.scale
+            out[p.name] = new
+            notes.append(f"start value of {p.name} ({v:g}) moved inside its bound to {new:g}")
+        return out, notes
+
     # -- functional updates ---------------------------------------------------------------
     def _replace(self, name: str, **changes) -> ParamSpec:
         self[name]  # raises a clear error for unknown names

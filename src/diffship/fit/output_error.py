@@ -210,6 +210,8 @@ def fit_output_error(
     res_fn, c_res = _compiled(problem, "residuals", (z_example, args), {})
     best = None
     for label, vals in candidates:
+        vals, notes = spec.nudged(vals)
+        messages.extend(f"start '{label}': {n}" for n in notes)
         try:
             z = np.concatenate([spec.to_z(vals), np.zeros(n_x0)])
         except Exception as exc:  # start outside bounds

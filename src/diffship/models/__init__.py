@@ -7,7 +7,7 @@ from .nomoto import Nomoto1 as Nomoto1, Nomoto2 as Nomoto2
 from .mmg import MMG as MMG, kvlcc2_mmg as kvlcc2_mmg
 from .vmm import VMMAbkowitz as VMMAbkowitz, VMMLinear as VMMLinear, VMMSimple as VMMSimple
 from .fossen6 import Fossen6 as Fossen6
-from ..decay import Decay1 as Decay1, Decay2 as Decay2
+from .decay import Decay1 as Decay1, Decay2 as Decay2
 
 #: Models selectable by name (``--model NAME``).
 MODELS: dict[str, type[AbstractModel]] = {
