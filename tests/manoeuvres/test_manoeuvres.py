@@ -96,7 +96,7 @@ def test_closed_loop_is_jittable_and_differentiable():
 
 
 def test_spiral_and_pull_out_of_a_stable_nomoto_ship():
-    res = M.spiral(Nomoto1(K=K, T1=T), {}, rudder_deg=(10, 5, 0, -5, -10), hold_s=80.0, dt=0.1,
+    res = M.spiral(Nomoto1(K=K, T1=T), {}, rudder_deg=(10, 5, 0, -5, -10), hold_s=120.0, dt=0.1,
                    rudder_rate_deg_s=FAST)
     np.testing.assert_allclose(res.r_steady, K * np.radians(res.delta_deg), atol=1e-5)
     po = M.pull_out(Nomoto1(K=K, T1=T), {}, rudder_deg=20.0, turn_s=80.0, settle_s=100.0, dt=0.1)

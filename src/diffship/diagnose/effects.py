@@ -620,9 +620,25 @@ class Augmented(AbstractModel):
         return (cur[0] if cur else None), (hb[0] if hb else None)
 
     def vector_field(self, t, x, u):
+        r"""With a current the velocity states are **over ground** (what GNSS measures, so the
+        initial state does not depend on the current): the hydrodynamics see
+        :math:`\nu_r = \nu_g - R^\top(\psi_t) v_c` and, for a constant current,
+        :math:`\dot\nu_g = \dot\nu_r + \tfrac{d}{dt}R^\top v_c = \dot\nu_r + r\,(v_{c,y}^b, -v_{c,x}^b, 0)`;
+        positions follow :math:`\dot\eta_{1:2} = R(\psi_t)\nu_g` with true heading
+        :math:`\psi_t = \psi - b_\psi`."""
         base = self.base
         xb, xes = self._split_x(x)
         ub, uext = self._split_u(u)
+        cur, hb = self._kin()
+        kin = (cur is not None or hb is not None) and is_ship3(base)
+        xg = xb
+        if kin:
+            ip, iu = base.state_names.index("psi"), base.state_names.index("u")
+            psi_t = xb[ip] - hb.b_psi if hb is not None else xb[ip]
+            c, s = jnp.cos(psi_t), jnp.sin(psi_t)
+            if cur is not None:
+                vcb_x, vcb_y = c * cur.Vcx + s * cur.Vcy, -s * cur.Vcx + c * cur.Vcy
+                xb = xb.at[iu].add(-vcb_x).at[iu + 1].add(-vcb_y)  # through-water velocities
         extra_dots = []
         for e, xe in zip(self.effects, xes):
             if e.hook == "input":
@@ -636,32 +652,18 @@ class Augmented(AbstractModel):
             for f in forces[1:]:
                 dtau = dtau + f
             dx = dx.at[i:i + 3].add(base.solve_mass(dtau))
-        cur, hb = self._kin()
-        if (cur is not None or hb is not None) and is_ship3(base):
-            ip = base.state_names.index("psi")
-            u_, v_, _ = _nu(base, xb)
-            psi = xb[ip] - hb.b_psi if hb is not None else xb[ip]
-            c, s = jnp.cos(psi), jnp.sin(psi)
-            xd, yd = c * u_ - s * v_, s * u_ + c * v_
-            if cur is not None:
-                xd, yd = xd + cur.Vcx, yd + cur.Vcy
+        if kin:
+            ug, vg, rg = _nu(base, xg)
+            xd, yd = c * ug - s * vg, s * ug + c * vg
             dx = dx.at[base.state_names.index("x0")].set(xd).at[base.state_names.index("y0")].set(yd)
+            if cur is not None:
+                dx = dx.at[iu].add(rg * vcb_y).at[iu + 1].add(-rg * vcb_x)
         return jnp.concatenate([dx] + [d for d in extra_dots if d.size]) if any(d.size for d in extra_dots) else dx
 
     def observe(self, x, u):
-        base = self.base
         xb, _ = self._split_x(x)
         ub, _ = self._split_u(u)
-        y = base.observe(xb, ub)
-        cur, hb = self._kin()
-        if cur is not None and is_ship3(base) and "u" in base.output_names and "v" in base.output_names:
-            psi = xb[base.state_names.index("psi")]
-            if hb is not None:
-                psi = psi - hb.b_psi
-            c, s = jnp.cos(psi), jnp.sin(psi)
-            iu, iv = base.output_names.index("u"), base.output_names.index("v")
-            y = y.at[iu].add(cur.Vcx * c + cur.Vcy * s).at[iv].add(-cur.Vcx * s + cur.Vcy * c)
-        return y
+        return self.base.observe(xb, ub)
 
     def initial_state(self, y0: Mapping[str, float]) -> np.ndarray:
         xb = np.asarray(self.base.initial_state(y0), dtype=np.float64)
