@@ -72,7 +72,7 @@ from .models._base import AbstractModel
 __all__ = [
     "ZigzagLaw", "ScheduleLaw", "closed_loop", "zigzag", "turning_circle", "pull_out", "spiral",
     "ZigzagMetrics", "TurningMetrics", "SpiralResult", "zigzag_metrics", "turning_metrics",
-    "pullout_metrics", "imo_metrics",
+    "pullout_metrics", "imo_metrics", "first_execute",
 ]
 
 
@@ -82,8 +82,11 @@ __all__ = [
 class ZigzagLaw(eqx.Module):
     """Zigzag autopilot: rudder ``side·rudder`` from ``t_execute``, reversed at ``±switch``.
 
-    All angles in radians; ``side`` is +1 (first rudder to starboard) or −1 (port). The latch
-    is the current target rudder angle (0 before the execute).
+    All angles in radians; ``side`` is +1 (first rudder to starboard) or −1 (port); ``delay``
+    [s] is the time between the heading reaching the switch angle and the rudder order (0 for
+    the ideal IMO manoeuvre; about 0.3 s for the HSVA autopilot). The latch holds the current
+    target rudder angle (0 before the execute) and the time the pending switch was detected
+    (``NEVER`` when none is pending).
     """
 
     rudder: Float[Array, ""]
@@ -91,14 +94,23 @@ class ZigzagLaw(eqx.Module):
     side: Float[Array, ""]
     t_execute: Float[Array, ""]
     psi0: Float[Array, ""]
+    delay: Float[Array, ""] = eqx.field(default_factory=lambda: jnp.zeros(()))
+
+    NEVER = 1e30
+
+    def init_latch(self):
+        return jnp.array([0.0, self.NEVER])
 
     def __call__(self, t, psi, latch):
-        started = t >= self.t_execute
-        latch = jnp.where(started & (latch == 0.0), self.side * self.rudder, latch)
+        target, t_hit = latch[0], latch[1]
+        target = jnp.where((t >= self.t_execute) & (target == 0.0), self.side * self.rudder, target)
         h = psi - self.psi0
-        latch = jnp.where((latch > 0.0) & (h >= self.switch), -self.rudder, latch)
-        latch = jnp.where((latch < 0.0) & (h <= -self.switch), self.rudder, latch)
-        return latch, latch
+        crossed = ((target > 0.0) & (h >= self.switch)) | ((target < 0.0) & (h <= -self.switch))
+        t_hit = jnp.where(crossed & (t_hit >= self.NEVER), t, t_hit)
+        flip = t >= t_hit + self.delay
+        target = jnp.where(flip, -target, target)
+        t_hit = jnp.where(flip, self.NEVER, t_hit)
+        return target, jnp.stack([target, t_hit])
 
 
 class ScheduleLaw(eqx.Module):
@@ -111,6 +123,9 @@ class ScheduleLaw(eqx.Module):
         i = jnp.clip(jnp.sum(t >= self.times) - 1, 0, self.levels.shape[0] - 1)
         target = jnp.where(t >= self.times[0], self.levels[i], self.levels[0])
         return target, latch
+
+    def init_latch(self):
+        return jnp.zeros(())
 
 
 # ----------------------------------------------------------------------------------------
@@ -171,7 +186,7 @@ def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Arr
         y = jnp.where(good, y, x)
         return (y, d1, latch, good), (y, d1, good)
 
-    carry0 = (x0, delta_start, jnp.zeros(()), jnp.array(True))
+    carry0 = (x0, delta_start, law.init_latch(), jnp.array(True))
     _, (xs, ds, valid) = jax.lax.scan(step, carry0, (ts[:-1], ts[1:]))
     xs = jnp.concatenate([x0[None], xs])
     ds = jnp.concatenate([delta_start[None], ds])
@@ -226,7 +241,7 @@ def _side(first: str) -> float:
 def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_deg: float | None = None,
            first: str = "starboard", inputs: Mapping[str, float] | None = None, duration: float = 100.0,
            dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-           substeps: int = 2, name: str | None = None) -> Run:
+           switch_delay_s: float = 0.0, substeps: int = 2, name: str | None = None) -> Run:
     """Simulate a ``rudder_deg``/``switch_deg`` zigzag (switch defaults to the rudder angle).
 
     Args:
@@ -238,18 +253,19 @@ def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_de
         t_execute: time of the first rudder order [s].
         rudder_rate_deg_s: steering-gear rate [°/s] (IMO: ≥ 2.32 °/s at full scale).
         max_rudder_deg: rudder saturation [°].
+        switch_delay_s: autopilot delay between the heading reaching ±ψ_s and the rudder order [s].
     """
     switch_deg = rudder_deg if switch_deg is None else switch_deg
     psi0 = float(_x0_vector(model, initial)[model.state_names.index("psi")])
     law = ZigzagLaw(*(jnp.asarray(v, dtype=jnp.float64) for v in (
-        math.radians(rudder_deg), math.radians(switch_deg), _side(first), t_execute, psi0)))
+        math.radians(rudder_deg), math.radians(switch_deg), _side(first), t_execute, psi0, switch_delay_s)))
     tag = f"{rudder_deg:g}/{switch_deg:g} zigzag ({first} first)"
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=duration, dt=dt,
                           rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, substeps=substeps,
                           name=name or f"{model.name} {tag}",
                           metadata={"manoeuvre": "zigzag", "rudder_angle_deg": float(rudder_deg),
                                     "switch_heading_deg": float(switch_deg), "first_rudder": first,
-                                    "t_execute": float(t_execute)})
+                                    "t_execute": float(t_execute), "switch_delay_s": float(switch_delay_s)})
 
 
 def _schedule(times, levels_deg):
@@ -333,7 +349,7 @@ def _smooth(y: np.ndarray, dt: float, window_s: float) -> np.ndarray:
     return np.convolve(ypad, w, mode="valid")
 
 
-def _first_execute(run: Run) -> tuple[int, float]:
+def first_execute(run: Run) -> tuple[int, float]:
     """Index of the first rudder execute and the side (+1 starboard, −1 port)."""
     run.require(("delta",), "finding the first rudder execute")
     d = np.asarray(run["delta"], dtype=np.float64)
@@ -401,7 +417,7 @@ def zigzag_metrics(run: Run, *, switch_deg: float | None = None, rudder_deg: flo
     if rudder_deg is None:
         rudder_deg = run.metadata.get("rudder_angle_deg", float(np.degrees(np.max(np.abs(run["delta"])))))
     t = np.asarray(run.time, dtype=np.float64)
-    i0, side = _first_execute(run)
+    i0, side = first_execute(run)
     psi = _smooth(np.unwrap(np.asarray(run["psi"], dtype=np.float64)), run.dt, smooth_s)
     psi0 = float(psi[i0])
     h = np.degrees(side * (psi - psi0))
@@ -474,7 +490,7 @@ def turning_metrics(run: Run, *, length: float | None = None, smooth_s: float = 
     """IMO turning-circle metrics of a Run with ``time, x0, y0, psi, delta`` (see module docstring)."""
     run.require(("x0", "y0", "psi", "delta"), "turning-circle metrics")
     t = np.asarray(run.time, dtype=np.float64)
-    i0, side = _first_execute(run)
+    i0, side = first_execute(run)
     psi = _smooth(np.unwrap(np.asarray(run["psi"], dtype=np.float64)), run.dt, smooth_s)
     psi0 = float(psi[i0])
     h = np.degrees(side * (psi - psi0))

@@ -143,6 +143,7 @@ def fit_output_error(
     atol: float = 1e-6,
     flt: Filter = Filter(),
     choose: str = "best",
+    warmup: float = 0.25,
     progress: Callable[[str], None] | None = None,
 ) -> FitResult:
     """Fit ``model`` to ``runs`` by output error.
@@ -165,6 +166,8 @@ def fit_output_error(
         flt: filter used to take initial states from the data.
         choose: ``"best"`` takes the finite start with the lowest cost; ``"first"`` the first
             start (the spec's values, then ``starts`` in order) whose simulation stays finite.
+        warmup: fraction of every run fitted first (growing horizon) when that is at least
+            200 samples; ``0`` fits the whole runs from the start.
         progress: optional ``progress(text)`` for people watching.
     """
     say = progress or (lambda s: None)
@@ -245,25 +248,52 @@ def fit_output_error(
             say(f"  LM step {t_steps[0]}: cost {float(cost):.6g}")
 
     kw = dict(max_steps=max_steps, rtol=rtol, atol=atol, callback=cb if progress else None)
+    n_full = batch.ts.shape[1]
+    n_warm = int(warmup * n_full) if warmup and warmup < 1 and warmup * n_full >= 200 else 0
     say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
         f"{batch.n_residuals} residuals)...")
     solve_fn, c_solve = _compiled(problem, "solve", (jnp.asarray(z0), args), kw)
     compile_s = c_res + c_solve
+    passes, steps_per_pass = [], []
     t0 = time.perf_counter()
-    z, result, steps, r = solve_fn(jnp.asarray(z0), args)
+    z = jnp.asarray(z0)
+    noise_pass = weights == "noise" and not channel_scales
+    if n_warm:
+        # Growing horizon: converge on the first part of every run (cheap steps, and a short
+        # horizon keeps LM out of the local minima of long simulations), then the whole runs.
+        args_w = args[:1] + tuple(a[:, :n_warm] for a in args[1:5]) + args[5:]
+        t_c = time.perf_counter()
+        solve_w, c_w = _compiled(problem, "solve", (z, args_w), kw)
+        compile_s += c_w
+        t0 += time.perf_counter() - t_c
+        zw, result, steps, rw = solve_w(z, args_w)
+        passes.append(result)
+        steps_per_pass.append(int(steps))
+        r_full = np.asarray(res_fn(zw, args))
+        if not np.any(np.abs(r_full) >= PENALTY):
+            z = zw
+            if noise_pass:
+                sigma = _channel_rms(np.asarray(rw), batch.mask[:, :n_warm], np.asarray(scales))
+                scales = np.maximum(sigma, 1e-6 * spread)
+                args = args_with(scales)
+                noise_pass = False
+        else:
+            messages.append(f"the fit on the first {n_warm} samples blows up on the whole runs; restarted")
+        say(f"output error: first {n_warm} samples of each run fitted in {steps_per_pass[-1]} steps; now the whole runs")
+    z, result, steps, r = solve_fn(z, args)
     r = np.asarray(r)
-    iterations = int(steps)
-    passes = [result]
-    if weights == "noise" and not channel_scales:
+    passes.append(result)
+    steps_per_pass.append(int(steps))
+    if noise_pass:
         # floor: on noise-free data the residuals are round-off, which must not set the weights
-        sigma = np.maximum(_channel_rms(r, batch, np.asarray(scales)), 1e-6 * spread)
+        sigma = np.maximum(_channel_rms(r, batch.mask, np.asarray(scales)), 1e-6 * spread)
         args = args_with(sigma)
         scales = sigma
         z, result, steps, r = solve_fn(z, args)
         r = np.asarray(r)
-        info_steps = (iterations, int(steps))
-        iterations += int(steps)
         passes.append(result)
+        steps_per_pass.append(int(steps))
+    iterations = sum(steps_per_pass)
     jax.block_until_ready(z)
     fit_s = time.perf_counter() - t0
 
@@ -293,9 +323,9 @@ def fit_output_error(
     x0_fit = np.asarray(batch.x0).copy()
     if x0_idx:
         x0_fit[:, list(x0_idx)] += z[n_p:].reshape(len(runs), len(x0_idx)) * x0_scale
-    noise = _channel_rms(r, batch, np.asarray(scales))
-    converged = all(p == optx.RESULTS.successful for p in passes)
-    status = "converged" if converged else result_message(passes[-1] if passes[-1] != optx.RESULTS.successful else passes[0])
+    noise = _channel_rms(r, batch.mask, np.asarray(scales))
+    converged = passes[-1] == optx.RESULTS.successful
+    status = "converged" if converged else result_message(passes[-1])
     if np.any(np.abs(r) >= PENALTY):
         converged, status = False, "the simulation blows up at the final parameters"
     say(f"output error: {status} after {iterations} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
@@ -319,7 +349,7 @@ def fit_output_error(
         covariance=cov,
         messages=tuple(messages),
         info={"weights": weights, "solver": solver, "substeps": substeps, "residual_variance": s2,
-              "n_residuals": m_res, "steps_per_pass": locals().get("info_steps", (iterations,)), "estimate_x0": tuple(estimate_x0)},
+              "n_residuals": m_res, "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": tuple(estimate_x0)},
     )
 
 
@@ -332,11 +362,12 @@ def _swap_names(old, new, free):
     return out
 
 
-def _channel_rms(r: np.ndarray, batch: Batch, scales: np.ndarray) -> np.ndarray:
-    e = r.reshape(batch.mask.shape + (len(batch.channels),))
-    m = batch.mask
+def _channel_rms(r: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    n_c = len(scales)
+    e = r.reshape(mask.shape + (n_c,))
+    m = mask
     out = []
-    for j in range(len(batch.channels)):
+    for j in range(n_c):
         v = e[..., j][m] * scales[j]
         out.append(max(float(np.sqrt(np.mean(v * v))), 1e-12))
     return np.asarray(out)

@@ -36,7 +36,7 @@ from ..data import Run, kvlcc2_runs
 from ..errors import DataError
 from ..fit import FitResult, fit_output_error
 from ..fit.problem import initial_state, model_inputs
-from ..manoeuvres import zigzag, zigzag_metrics
+from ..manoeuvres import first_execute, zigzag, zigzag_metrics
 from ..models.mmg import MMG, kvlcc2_mmg
 from ..simulate import simulate
 
@@ -46,6 +46,8 @@ __all__ = ["DEFAULT_TRAIN", "DEFAULT_FREE", "HELM_RATE_DEG_S", "KVLCC2Study", "k
 DEFAULT_TRAIN = ("Z_10_05", "Z_20_05", "Z_35_05", "Z_20_10_S")
 #: Free MMG parameters of the default fit.
 DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Nvvr", "Nrrr", "R0", "delta0")
+#: Fitted channels (``None``: every measured model output except positions).
+DEFAULT_CHANNELS = ("psi", "u", "v", "r")
 #: Helm rate of the HSVA model tests [°/s] (data README).
 HELM_RATE_DEG_S = 15.8
 
@@ -93,10 +95,8 @@ def open_loop_run(model: MMG, run: Run) -> Run:
 def closed_loop_run(model: MMG, run: Run, *, dt: float = 0.1, duration: float = 100.0,
                     helm_rate_deg_s: float = HELM_RATE_DEG_S) -> Run:
     """The zigzag of ``run`` flown by ``model`` with the autopilot (same start, side, angles)."""
-    from ..manoeuvres import _first_execute
-
     meta = run.metadata
-    i0, _ = _first_execute(run)
+    i0, _ = first_execute(run)
     x0 = initial_state(model, run)
     return zigzag(model, x0, rudder_deg=float(meta["rudder_angle_deg"]), switch_deg=float(meta["switch_heading_deg"]),
                   first=str(meta["first_rudder"]), inputs={"n": float(np.mean(run["n"]))}, duration=duration, dt=dt,
@@ -126,7 +126,8 @@ def predict_zigzags(model: MMG, runs: Sequence[Run], roles: dict[str, str] | Non
 
 
 def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str] | None = None,
-                 free: Sequence[str] = DEFAULT_FREE, dt: float = 0.2, horizon: float = 100.0, max_steps: int = 60,
+                 free: Sequence[str] = DEFAULT_FREE, channels: Sequence[str] | None = DEFAULT_CHANNELS,
+                 dt: float = 0.2, horizon: float = 100.0, max_steps: int = 60,
                  root=None, model: MMG | None = None, progress: Callable[[str], None] | None = None) -> KVLCC2Study:
     """Fit the MMG model to training zigzags and predict the overshoots of all (see module docstring).
 
@@ -134,6 +135,7 @@ def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str
         train: training tests (names as ``"Z_10_05"``; see the data README).
         validate: validation tests (default: every other test).
         free: free MMG parameters (every other one is fixed at the published value).
+        channels: measured channels fitted.
         dt: sample interval of the fit [s] (the data are 20 Hz); horizon: fitted seconds per run.
         max_steps: Levenberg–Marquardt steps per pass.
         root: folder of the tidy CSVs (default: the shared data folder).
@@ -147,7 +149,7 @@ def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str
     model = model or kvlcc2_mmg()
     spec = model.spec().only_free(list(free))
     tr = [runs[k].resample(dt).slice(None, runs[k].time[0] + horizon) for k in train]
-    fit = fit_output_error(model, tr, spec=spec, max_steps=max_steps, progress=progress)
+    fit = fit_output_error(model, tr, spec=spec, channels=channels, max_steps=max_steps, progress=progress)
     roles = {**{k: "train" for k in train}, **{k: "validate" for k in validate}}
     table, cl, ol = predict_zigzags(fit.model, [runs[k] for k in (*train, *validate)], roles)
     return KVLCC2Study(fit=fit, train=tuple(train), validate=validate, table=table,

@@ -1,0 +1,220 @@
+"""Diagnosis report: a three-line verdict (where, which, how far), tables, figures, JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["verdict_lines", "to_markdown", "plot_all", "write_report"]
+
+
+def _fmt_params(p: dict, se: dict | None = None) -> str:
+    out = []
+    for k, v in p.items():
+        s = (se or {}).get(k)
+        out.append(f"{k} = {v:.4g}" + (f" ± {1.96 * s:.2g}" if s is not None and math.isfinite(s) else ""))
+    return ", ".join(out)
+
+
+def verdict_lines(d) -> list[str]:
+    """Where, which, how far — one line each."""
+    pc = d.where["per_channel"]
+    worst = max(pc, key=lambda c: pc[c]["share"])
+    ph = d.where.get("per_phase", {})
+    worst_phase = max(ph, key=lambda p: ph[p]["E"]) if ph else "-"
+    struct = d.gap["share_struct"]
+    where = (f"Where: validation error {d.E_before:.2f}× the noise floor ({100 * struct:.0f} % structural); "
+             f"mostly in {worst} ({100 * pc[worst]['share']:.0f} % of the error), worst phase: {worst_phase}.")
+    if d.E_before < 1.2:
+        which = "Which: no structural gap detected (validation error within 20 % of the noise floor); no effect attributed."
+    elif not d.selected:
+        which = ("Which: gap unexplained by the library — no candidate passed the validation rule "
+                 "(see the ranking for near misses and effects not identifiable from these runs).")
+    else:
+        r = {x["effect"]: x for x in d.ranking}
+        w = d.selected[0]
+        conf = [x["effect"] for x in d.ranking if x["verdict"].startswith("confusable")]
+        rej = [x["effect"] for x in d.ranking if x["verdict"].startswith("rejected on validation")]
+        which = (f"Which: {w} ({_fmt_params(r[w]['params'], r[w].get('stderr'))})"
+                 + (" then " + ", ".join(d.selected[1:]) if len(d.selected) > 1 else "")
+                 + (f"; confusable: {', '.join(conf)}" if conf else "")
+                 + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")
+    how = (f"How far: validation error {d.E_before:.2f} → {d.E_after:.2f} × noise floor; "
+           f"{100 * d.shrink:.0f} % of the structural gap removed"
+           + (f" ({', '.join(d.selected)})." if d.selected else "."))
+    return [where, which, how]
+
+
+def to_markdown(d) -> str:
+    L = ["# Gap diagnosis: " + d.model_name, ""]
+    L += [f"> {x}  " for x in d.verdict] + [""]
+    L += ["## Gap budget (validation, normalised by the noise floor)", "",
+          "| total E | noise | parameter | structural |", "|---|---|---|---|",
+          f"| {d.gap['E_total']:.3g} | {d.gap['E_noise']:.3g} | {d.gap['E_param']:.3g} | {d.gap['E_struct']:.3g} |", ""]
+    L += ["## Where", "", "| channel | RMSE before | RMSE after | noise floor | share of error |", "|---|---|---|---|---|"]
+    for c, v in d.where["per_channel"].items():
+        L.append(f"| {c} | {d.rmse_before[c]:.4g} | {d.rmse_after[c]:.4g} | {v['noise_floor']:.3g} | {100 * v['share']:.0f} % |")
+    L += ["", "| phase | time share | E |", "|---|---|---|"]
+    for p, v in d.where["per_phase"].items():
+        L.append(f"| {p} | {100 * v['fraction_of_time']:.0f} % | {v['E']:.3g} |")
+    L += ["", "| run | E |", "|---|---|"] + [f"| {k} | {v['E']:.3g} |" for k, v in d.where["per_run"].items()]
+    L += ["", "| region | bins (E per quartile) |", "|---|---|"]
+    for k, bins in d.where["per_region"].items():
+        L.append(f"| {k} | " + ", ".join(f"[{b['low']:.3g}, {b['high']:.3g}]: {b['E']:.3g}" for b in bins) + " |")
+    L += ["", "| channel | residual white | independent of input | CCF(input rate) peak lag [s] |", "|---|---|---|---|"]
+    for c, v in d.where["residual_tests"].items():
+        L.append(f"| {c} | {'yes' if v['white'] else 'no'} | {'yes' if v['independent_of_input'] else 'no'} | {v['ccf_peak_lag_s']:.2f} |")
+    if d.where.get("force_residuals"):
+        L += ["", "Inverse-dynamics force residuals (RMS, mean): " + ", ".join(
+            f"{k}: {v['rms']:.3g}, {v['mean']:.3g}" for k, v in d.where["force_residuals"].items())]
+    L += ["", "## Which (candidates, selected on validation)", "",
+          "| effect | screen f_k | o_k | fitted parameters (95 %) | validation gain | shrink | verdict |",
+          "|---|---|---|---|---|---|---|"]
+    for r in d.ranking:
+        L.append(f"| {r['effect']} | {r.get('screen_fraction', float('nan')):.3g} | {r.get('orthogonal_fraction', float('nan')):.2g} | "
+                 f"{_fmt_params(r.get('params', {}), r.get('stderr'))} | {100 * r['validation_gain']:.1f} % | "
+                 f"{r['shrink']:.2f} | {r['verdict']} |")
+    L += ["", "## How far (greedy path)", "", "| step | effect | E before | E after | shrink of structural gap |", "|---|---|---|---|---|"]
+    for i, s in enumerate(d.path):
+        L.append(f"| {i + 1} | {s['effect']} | {s['E_before']:.3g} | {s['E_after']:.3g} | {s['shrink_of_structural_gap']:.2f} |")
+    L += ["", "Timings [s]: " + ", ".join(f"{k} {v:.1f}" for k, v in d.timings.items()), ""]
+    return "\n".join(L)
+
+
+def plot_all(d, out: Path) -> list[Path]:
+    """Residuals with phases shaded, ACF/CCF panels, regime heatmap, before/after overlays, waterfall."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    files = []
+    res, lab = d.where["_residuals"], d.where["_phases"]
+    colors = {"approach": "0.9", "transient": "#fdd", "steady_turn": "#dfd", "counter_steer": "#ddf", "straight": "white"}
+    # 1. residual time series with phases shaded
+    runs = list(d.val_runs)
+    fig, axes = plt.subplots(len(d.channels), len(runs), figsize=(5 * len(runs), 2.2 * len(d.channels)), squeeze=False)
+    for j, run in enumerate(runs):
+        t = np.asarray(run.time)
+        for i, c in enumerate(d.channels):
+            ax = axes[i, j]
+            lb = lab[run.name]
+            k0 = 0
+            for k in range(1, t.size + 1):
+                if k == t.size or lb[k] != lb[k0]:
+                    ax.axvspan(t[k0], t[k - 1], color=colors.get(lb[k0], "white"), lw=0)
+                    k0 = k
+            ax.plot(t, res[run.name][c], lw=0.8, color="k")
+            ax.set_ylabel(f"{c} residual")
+            if i == 0:
+                ax.set_title(f"{run.name} (red transient, green turn, blue counter-steer)", fontsize=8)
+            if i == len(d.channels) - 1:
+                ax.set_xlabel("time [s]")
+    fig.tight_layout()
+    files.append(out / "residuals.png")
+    fig.savefig(files[-1], dpi=90)
+    plt.close(fig)
+    # 2. ACF / CCF
+    tests = d.where["residual_tests"]
+    fig, axes = plt.subplots(2, len(d.channels), figsize=(3.2 * len(d.channels), 5), squeeze=False)
+    for i, c in enumerate(d.channels):
+        v = tests[c]
+        lags = np.arange(len(v["acf"])) * v["lag_s"]
+        for row, (key, title) in enumerate((("acf", "ACF"), ("ccf_input_rate", "CCF with input rate"))):
+            ax = axes[row, i]
+            ax.plot(lags, v[key], color="k", lw=1)
+            ax.axhspan(-v["band"], v["band"], color="tab:blue", alpha=0.2, label="95 % band")
+            ax.set_title(f"{title}: {c}", fontsize=9)
+            ax.set_xlabel("lag [s]")
+    fig.tight_layout()
+    files.append(out / "acf_ccf.png")
+    fig.savefig(files[-1], dpi=90)
+    plt.close(fig)
+    # 3. regime heatmap
+    reg = d.where["per_region"]
+    if reg:
+        keys = list(reg)
+        M = np.full((len(keys), 4), np.nan)
+        for i, k in enumerate(keys):
+            for j, b in enumerate(reg[k][:4]):
+                M[i, j] = b["E"]
+        fig, ax = plt.subplots(figsize=(6, 0.6 * len(keys) + 1.5))
+        im = ax.imshow(M, cmap="viridis", aspect="auto")
+        ax.set_yticks(range(len(keys)), keys)
+        ax.set_xticks(range(4), ["Q1 (low)", "Q2", "Q3", "Q4 (high)"])
+        ax.set_title("validation error E per operating-region quartile")
+        fig.colorbar(im, ax=ax, label="E (× noise floor)")
+        fig.tight_layout()
+        files.append(out / "regimes.png")
+        fig.savefig(files[-1], dpi=90)
+        plt.close(fig)
+    # 4. before/after overlays
+    fig, axes = plt.subplots(len(d.channels), len(runs), figsize=(5 * len(runs), 2.2 * len(d.channels)), squeeze=False)
+    for j, run in enumerate(runs):
+        t = np.asarray(run.time)
+        for i, c in enumerate(d.channels):
+            ax = axes[i, j]
+            ax.plot(t, np.asarray(run[c]), color="0.6", lw=0.8, label="measured")
+            ax.plot(t, d.eval_before.simulated[run.name][c], "--", color="tab:red", lw=1, label="base")
+            ax.plot(t, d.eval_after.simulated[run.name][c], color="tab:blue", lw=1, label="+ " + ("+".join(d.selected) or "nothing"))
+            ax.set_ylabel(c)
+            if i == 0:
+                ax.set_title(f"held-out run {run.name}", fontsize=9)
+                ax.legend(fontsize=7)
+            if i == len(d.channels) - 1:
+                ax.set_xlabel("time [s]")
+    fig.tight_layout()
+    files.append(out / "overlay.png")
+    fig.savefig(files[-1], dpi=90)
+    plt.close(fig)
+    # 5. shrink waterfall
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    levels = [d.E_before] + [s["E_after"] for s in d.path]
+    labels = ["base"] + ["+ " + s["effect"] for s in d.path]
+    for i in range(1, len(levels)):
+        ax.bar(i, levels[i - 1] - levels[i], bottom=levels[i], color="tab:green")
+    ax.bar(0, levels[0], color="tab:red")
+    ax.bar(len(levels), levels[-1], color="tab:blue")
+    ax.axhline(1.0, color="k", ls=":", label="noise floor")
+    ax.set_xticks(range(len(levels) + 1), labels + ["final"], rotation=20, fontsize=8)
+    ax.set_ylabel("validation E (× noise floor)")
+    ax.set_title("shrink waterfall")
+    ax.legend()
+    fig.tight_layout()
+    files.append(out / "waterfall.png")
+    fig.savefig(files[-1], dpi=90)
+    plt.close(fig)
+    return files
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    return x
+
+
+def write_json(d, path) -> None:
+    Path(path).write_text(json.dumps(_jsonable(d.to_dict()), indent=1))
+
+
+def write_report(d, out) -> list[Path]:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "diagnosis.md").write_text(to_markdown(d))
+    write_json(d, out / "diagnosis.json")
+    return [out / "diagnosis.md", out / "diagnosis.json"] + plot_all(d, out)

@@ -1,0 +1,242 @@
+r"""Where does the model miss? Error splits, residual tests, force residuals and a gap budget.
+
+All errors here are whole-horizon simulation errors on held-out runs (as in
+:func:`diffship.metrics.evaluate`), heading wrapped to (−π, π].
+
+* **Noise floor** per channel from the measured signal itself (difference-based estimator,
+  Rice 1984 / von Neumann): for a signal smooth at the sampling rate plus white noise,
+  :math:`\hat\sigma^2 = \mathrm{mean}((y_{k+1} - 2y_k + y_{k-1})^2)/6`.
+* **Normalised error** :math:`E = \sqrt{\mathrm{mean}_c (\mathrm{RMSE}_c/\sigma_c)^2}` — 1 at the
+  noise floor.
+* **Phases** from the steering input ``s`` (rudder or steering force) and the yaw rate ``r``:
+  *approach* before the first steering action, *transient* while the steering input moves fast
+  (and 2 s after), *counter-steer* when ``s`` and ``r`` have opposite signs, *steady turn*
+  otherwise with |s| large, *straight* with |s| small.
+* **Regions**: quartile bins of speed U, |r|, drift angle |β| and |steering input|.
+* **Whiteness**: residual ACF at lags 1..L with the 95 % band ±1.96/√N; residual–input
+  cross-correlation (lags 0..L, input and input rate) with the same band (Ljung 1999 §16.6).
+* **Force residuals** (inverse dynamics, 3-DOF models): :math:`\tau_{res} = M\dot\nu + C\nu +
+  D\nu - \tau` from smoothed measured states, per DOF.
+* **Gap budget**: :math:`E^2 = E_{noise}^2 + E_{param}^2 + E_{struct}^2` with E_param from the
+  base fit covariance propagated through the validation Jacobian.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..data import Run
+from ..metrics import Evaluation
+from ..models._base import AbstractModel
+from ..preprocess import Filter, smooth_and_derivative
+from .effects import is_ship3, steering_inputs
+
+__all__ = ["noise_floor", "normalised_error", "phases", "where_analysis", "PHASES"]
+
+PHASES = ("approach", "transient", "steady_turn", "counter_steer", "straight")
+
+
+def noise_floor(runs: Sequence[Run], channels: Sequence[str], angles=("psi",)) -> dict[str, float]:
+    """Per-channel white-noise level from second differences of the measurements."""
+    out = {}
+    for c in channels:
+        d = []
+        for r in runs:
+            if not r.has(c):
+                continue
+            y = np.asarray(r[c], dtype=float)
+            if c in angles:
+                y = np.unwrap(y)
+            d.append(np.diff(y, 2))
+        v = np.concatenate(d) if d else np.zeros(1)
+        out[c] = float(max(np.sqrt(np.mean(v * v) / 6.0), 1e-9))
+    return out
+
+
+def normalised_error(ev: Evaluation, floor: dict[str, float], channels: Sequence[str], run: str | None = None) -> float:
+    rm = ev.per_run[run]["rmse"] if run else ev.rmse
+    vals = [(rm[c] / floor[c]) ** 2 for c in channels if c in rm]
+    return float(np.sqrt(np.mean(vals))) if vals else float("nan")
+
+
+def _steer(model: AbstractModel, run: Run) -> np.ndarray:
+    idx = steering_inputs(model)
+    names = [model.input_names[i] for i in idx]
+    s = np.asarray(run[names[-1]], dtype=float)
+    return s
+
+
+def phases(model: AbstractModel, run: Run) -> np.ndarray:
+    """Phase label per sample (strings from :data:`PHASES`)."""
+    t = np.asarray(run.time, dtype=float)
+    s = _steer(model, run)
+    amp = max(float(np.max(np.abs(s))), 1e-12)
+    ds = np.gradient(s, t)
+    fast = np.abs(ds) > 0.05 * amp  # moving more than 5 % of full scale per second
+    # widen transients by 2 s
+    dt = float(np.median(np.diff(t)))
+    w = max(1, int(round(2.0 / dt)))
+    fast = np.convolve(fast.astype(float), np.ones(w), mode="full")[: t.size] > 0
+    lab = np.full(t.size, "straight", dtype=object)
+    big = np.abs(s - np.median(s[: max(3, t.size // 50)])) > 0.1 * amp
+    first = int(np.argmax(big | fast)) if np.any(big | fast) else t.size
+    r = np.asarray(run["r"], dtype=float) if run.has("r") else np.zeros_like(t)
+    rthr = 0.05 * max(float(np.max(np.abs(r))), 1e-12)
+    sign_s = np.sign(s) * (1.0 if "tau_z" not in model.input_names or model.input_names[steering_inputs(model)[-1]] == "tau_z" else 1.0)
+    lab[big] = "steady_turn"
+    lab[big & (np.abs(r) > rthr) & (np.sign(r) != sign_s)] = "counter_steer"
+    lab[fast] = "transient"
+    lab[:first] = "approach"
+    return lab
+
+
+def _acf(x: np.ndarray, L: int) -> np.ndarray:
+    x = x - x.mean()
+    c0 = float(x @ x) or 1.0
+    return np.array([float(x[: x.size - k] @ x[k:]) / c0 for k in range(0, L + 1)])
+
+
+def _ccf(e: np.ndarray, u: np.ndarray, L: int) -> np.ndarray:
+    e = e - e.mean()
+    u = u - u.mean()
+    den = float(np.sqrt((e @ e) * (u @ u))) or 1.0
+    return np.array([float(e[k:] @ u[: u.size - k]) / den for k in range(0, L + 1)])
+
+
+def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, floor: dict[str, float],
+                   channels: Sequence[str], max_lag_s: float = 10.0, flt: Filter = Filter()) -> dict:
+    """Where the (base) model misses on ``runs`` given its evaluation ``ev``."""
+    chans = [c for c in channels if c in ev.rmse]
+    res = {}
+    for run in runs:
+        sim = ev.simulated[run.name]
+        e = {}
+        for c in chans:
+            d = sim[c] - np.asarray(run[c])
+            if c in model.angle_outputs:
+                d = np.arctan2(np.sin(d), np.cos(d))
+            e[c] = d
+        res[run.name] = e
+    # -- per channel
+    per_channel = {c: {"rmse": ev.rmse[c], "noise_floor": floor[c], "ratio": ev.rmse[c] / floor[c]} for c in chans}
+    tot = sum((ev.rmse[c] / floor[c]) ** 2 for c in chans) or 1.0
+    for c in chans:
+        per_channel[c]["share"] = (ev.rmse[c] / floor[c]) ** 2 / tot
+    # -- per run
+    per_run = {r.name: {"E": normalised_error(ev, floor, chans, r.name),
+                        "rmse": {c: ev.per_run[r.name]["rmse"][c] for c in chans}} for r in runs}
+    # -- per phase
+    acc = {p: {c: [] for c in chans} for p in PHASES}
+    labels = {}
+    for run in runs:
+        lab = phases(model, run)
+        labels[run.name] = lab
+        for p in PHASES:
+            m = lab == p
+            for c in chans:
+                acc[p][c].append(res[run.name][c][m])
+    per_phase = {}
+    n_all = sum(r.n for r in runs)
+    for p in PHASES:
+        n = int(sum(a.size for a in acc[p][chans[0]]))
+        if n == 0:
+            continue
+        z = [np.mean(np.concatenate(acc[p][c]) ** 2) / floor[c] ** 2 for c in chans]
+        per_phase[p] = {"fraction_of_time": n / n_all, "E": float(np.sqrt(np.mean(z))),
+                        "rmse": {c: float(np.sqrt(np.mean(np.concatenate(acc[p][c]) ** 2))) for c in chans}}
+    # -- per region (quartile bins)
+    feats = {}
+    for run in runs:
+        f = {}
+        if run.has("u"):
+            u = np.asarray(run["u"])
+            v = np.asarray(run["v"]) if run.has("v") else 0 * u
+            f["U"] = np.hypot(u, v)
+            f["abs_beta"] = np.abs(np.arctan2(-v, np.maximum(np.abs(u), 1e-6)))
+        if run.has("r"):
+            f["abs_r"] = np.abs(np.asarray(run["r"]))
+        f["abs_steer"] = np.abs(_steer(model, run))
+        feats[run.name] = f
+    per_region = {}
+    for k in sorted(set.intersection(*[set(f) for f in feats.values()])):
+        x = np.concatenate([feats[r.name][k] for r in runs])
+        edges = np.unique(np.quantile(x, [0, 0.25, 0.5, 0.75, 1.0]))
+        if edges.size < 2:
+            continue
+        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
+        bins = []
+        for b in range(edges.size - 1):
+            m = idx == b
+            if not np.any(m):
+                continue
+            z = [np.mean(np.concatenate([res[r.name][c] for r in runs])[m] ** 2) / floor[c] ** 2 for c in chans]
+            mean_bias = {c: float(np.mean(np.concatenate([res[r.name][c] for r in runs])[m])) for c in chans}
+            bins.append({"low": float(edges[b]), "high": float(edges[b + 1]), "n": int(m.sum()),
+                         "E": float(np.sqrt(np.mean(z))), "bias": mean_bias})
+        per_region[k] = bins
+    # -- whiteness and cross-correlation
+    corr = {}
+    for c in chans:
+        acfs, ccfs, ccfd = [], [], []
+        for run in runs:
+            dt = float(np.median(np.diff(run.time)))
+            L = int(min(max_lag_s / dt, run.n // 4))
+            e = res[run.name][c]
+            s = _steer(model, run)
+            acfs.append(_acf(e, L))
+            ccfs.append(_ccf(e, s, L))
+            ccfd.append(_ccf(e, np.gradient(s, run.time), L))
+        L = min(a.size for a in acfs) - 1
+        n = sum(r.n for r in runs)
+        band = 1.96 / np.sqrt(n / len(runs))
+        acf = np.mean([a[: L + 1] for a in acfs], axis=0)
+        ccf = np.mean([a[: L + 1] for a in ccfs], axis=0)
+        ccd = np.mean([a[: L + 1] for a in ccfd], axis=0)
+        corr[c] = {"lag_s": float(dt), "band": float(band), "acf": acf.tolist(), "ccf_input": ccf.tolist(),
+                   "ccf_input_rate": ccd.tolist(),
+                   "white": bool(np.mean(np.abs(acf[1:]) > band) <= 0.1),
+                   "independent_of_input": bool(np.mean(np.abs(ccf) > band) <= 0.1 and np.mean(np.abs(ccd) > band) <= 0.1),
+                   "ccf_peak_lag_s": float(np.argmax(np.abs(ccd)) * dt)}
+    out = {"per_channel": per_channel, "per_run": per_run, "per_phase": per_phase, "per_region": per_region,
+           "residual_tests": corr, "_residuals": res, "_phases": labels}
+    if is_ship3(model):
+        out["force_residuals"] = force_residuals(model, runs, flt)
+    return out
+
+
+def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:
+    r"""RMS of :math:`M\dot\nu + C\nu + D\nu - \tau` per DOF [N, N, N·m] from smoothed data."""
+    acc = {"X": [], "Y": [], "N": []}
+    for run in runs:
+        if not run.has("u", "v", "r") or not all(run.has(n) for n in model.input_names):
+            continue
+        t = np.asarray(run.time)
+        nu, nud = [], []
+        for c in ("u", "v", "r"):
+            try:
+                ys, yd = smooth_and_derivative(t, np.asarray(run[c]), flt, f"run {run.name}, column {c}")
+            except Exception:
+                ys, yd = np.asarray(run[c]), np.gradient(np.asarray(run[c]), t)
+            nu.append(ys)
+            nud.append(yd)
+        nu, nud = np.stack(nu, 1), np.stack(nud, 1)
+        us = np.stack([np.asarray(run[n]) for n in model.input_names], 1)
+        import jax
+        import jax.numpy as jnp
+
+        def one(nu_k, nud_k, u_k):
+            m = model
+            M_nud = jnp.stack([(m.m - m.Xudot) * nud_k[0],
+                               (m.m - m.Yvdot) * nud_k[1] + (m.m * m.xg - m.Yrdot) * nud_k[2],
+                               (m.m * m.xg - m.Nvdot) * nud_k[1] + (m.Iz - m.Nrdot) * nud_k[2]])
+            return M_nud + m.coriolis_vector(nu_k) + m.damping_vector(nu_k) - m.forces(u_k, nu_k)
+
+        if not hasattr(model, "coriolis_vector"):
+            return {}
+        f = np.asarray(jax.vmap(one)(jnp.asarray(nu), jnp.asarray(nud), jnp.asarray(us)))
+        for j, k in enumerate(("X", "Y", "N")):
+            acc[k].append(f[:, j])
+    return {k: {"rms": float(np.sqrt(np.mean(np.concatenate(v) ** 2))), "mean": float(np.mean(np.concatenate(v)))}
+            for k, v in acc.items() if v}
