@@ -13,7 +13,7 @@ by Cholesky for every trial step size of the classical trust-region search. This
 such a descent into optimistix's Gauss–Newton framework (composition, as optimistix's own
 solvers are built), so termination, step acceptance and results are optimistix's.
 
-Measured on the fossen3 benchmark problem: see ``benchmarks/fit_speed.py``.
+Measured on the fossen3 benchmark problem: see ``benchmarks/fossen3_speed.py``.
 """
 
 from __future__ import annotations
