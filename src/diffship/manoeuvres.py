@@ -15,8 +15,9 @@ and the ship is integrated over each step with RK4 and δ interpolated linearly 
 
 * zigzag (:class:`ZigzagLaw`): the target rudder angle is latched in the state; it is
   ``side·δ_z`` from the execute time on and flips to ``−δ_z`` when the heading change
-  :math:`\psi - \psi_0` reaches ``+ψ_s`` and to ``+δ_z`` when it reaches ``−ψ_s``
-  (``jnp.where`` only, no Python control flow on traced values);
+  :math:`\psi - \psi_0` reaches ``+ψ_s`` and to ``+δ_z`` when it reaches ``−ψ_s``, optionally
+  after an autopilot delay (the time of the pending switch is latched too; ``jnp.where`` only,
+  no Python control flow on traced values);
 * schedules (:class:`ScheduleLaw`): a piecewise-constant rudder order in time — the turning
   circle (0 then δ), the pull-out (0, δ, 0) and the spiral (a staircase of δ).
 

@@ -18,18 +18,23 @@ K, T = 0.1, 10.0  # Nomoto gain [1/s] and time constant [s]
 FAST = 1e4  # "instant" rudder [deg/s]
 
 
-def nomoto_zigzag_analytic(rudder_deg, switch_deg):
+def nomoto_zigzag_analytic(rudder_deg, switch_deg, delay=0.0):
     """First zigzag swing of T ṙ + r = K δ with an instant rudder (angles in degrees, from rest).
 
-    ψ(t) = Kδ(t − T(1 − e^{−t/T})) reaches ψ_s at t1 (initial turning time) with r1 = r(t1);
-    after the reversal r = −Kδ + (r1 + Kδ)e^{−τ/T} vanishes at τ_c = T ln(1 + r1/(Kδ)) (time to
-    check yaw), and the first overshoot is ∫r dτ = T r1 − Kδ τ_c.
+    ψ(t) = Kδ(t − T(1 − e^{−t/T})) reaches ψ_s at t1 (initial turning time); the rudder is
+    reversed ``delay`` later, at yaw rate r1 = r(t1 + delay); after the reversal
+    r = −Kδ + (r1 + Kδ)e^{−τ/T} vanishes at τ_c = T ln(1 + r1/(Kδ)), and the first overshoot is
+    ψ(t1 + delay) − ψ_s + T r1 − Kδ τ_c. Returns (t1, time to check yaw = delay + τ_c, overshoot).
     """
     kd = K * rudder_deg
-    t1 = brentq(lambda t: kd * (t - T * (1 - math.exp(-t / T))) - switch_deg, 1e-6, 1e3)
-    r1 = kd * (1 - math.exp(-t1 / T))
+
+    def psi(t):
+        return kd * (t - T * (1 - math.exp(-t / T)))
+
+    t1 = brentq(lambda t: psi(t) - switch_deg, 1e-6, 1e3)
+    r1 = kd * (1 - math.exp(-(t1 + delay) / T))
     tc = T * math.log(1 + r1 / kd)
-    return t1, tc, T * r1 - kd * tc
+    return t1, delay + tc, psi(t1 + delay) - switch_deg + T * r1 - kd * tc
 
 
 @pytest.fixture(scope="module")
@@ -39,7 +44,7 @@ def nomoto_zz():
 
 
 def test_nomoto_zigzag_metrics_match_the_analytic_first_swing(nomoto_zz):
-    t1, tc, ov1 = nomoto_zigzag_analytic(10.0, 10.0)  # 14.68 s, 9.06 s, 3.47°
+    t1, tc, ov1 = nomoto_zigzag_analytic(10.0, 10.0)  # 18.41 s, 6.11 s, 2.31°
     zm = M.zigzag_metrics(nomoto_zz)
     assert zm.first_rudder == "starboard" and zm.t_execute == pytest.approx(1.0)
     assert zm.initial_turning_time == pytest.approx(t1, abs=0.03)
@@ -49,6 +54,15 @@ def test_nomoto_zigzag_metrics_match_the_analytic_first_swing(nomoto_zz):
     assert len(zm.overshoots_deg) >= 3
     assert zm.overshoots_deg[-1] == pytest.approx(zm.overshoots_deg[-2], abs=0.05)
     assert zm.second_overshoot > zm.first_overshoot  # larger yaw rate at the 2nd reversal
+
+
+def test_autopilot_delay_adds_the_analytic_overshoot():
+    t1, tc, ov1 = nomoto_zigzag_analytic(10.0, 10.0, delay=1.0)  # 18.41 s, 7.19 s, 3.23°
+    run = M.zigzag(Nomoto1(K=K, T1=T), {}, rudder_deg=10.0, switch_deg=10.0, duration=60.0, dt=0.01, t_execute=1.0,
+                   rudder_rate_deg_s=FAST, switch_delay_s=1.0)
+    zm = M.zigzag_metrics(run)
+    assert zm.first_overshoot == pytest.approx(ov1, abs=0.03)
+    assert zm.time_to_check == pytest.approx(tc, abs=0.05)
 
 
 def test_rudder_follows_rate_limit_and_saturation():

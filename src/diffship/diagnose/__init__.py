@@ -236,7 +236,7 @@ def diagnose(
     results = {}
     for name in todo:
         e = next(x for x in ws.effects if x.name == name)
-        starts = [dict(e.PROBE), {k: 0.1 * v for k, v in e.PROBE.items()}]
+        starts = [{k: f * v for k, v in e.PROBE.items()} for f in (1.0, 0.1, 3.0)]
         try:
             rf = ws.refit([name], starts, max_iter=max_iter, progress=say)
         except FitError as exc:
