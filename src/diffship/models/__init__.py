@@ -1,5 +1,7 @@
 """Models as pure JAX vector fields (one module per model family)."""
 
+from collections.abc import Callable
+
 from ._base import AbstractModel as AbstractModel
 from .actuators import ForceInput as ForceInput, WaterJet as WaterJet
 from .fossen3 import Fossen3 as Fossen3, USV_STANDARD as USV_STANDARD, usv_standard as usv_standard
@@ -10,10 +12,11 @@ from .fossen6 import Fossen6 as Fossen6
 from .decay import Decay1 as Decay1, Decay2 as Decay2
 
 #: Models selectable by name (``--model NAME``).
-MODELS: dict[str, type[AbstractModel]] = {
+MODELS: dict[str, type[AbstractModel] | Callable[[], AbstractModel]] = {
     "nomoto1": Nomoto1,
     "nomoto2": Nomoto2,
     "fossen3": Fossen3,
+    "fossen3_waterjet": lambda: usv_standard(actuator=WaterJet()),
     "mmg": MMG,
     "vmm_linear": VMMLinear,
     "vmm_simple": VMMSimple,
