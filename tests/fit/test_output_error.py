@@ -100,11 +100,13 @@ def test_fossen3_runs_from_water_jet_commands():
     t = np.arange(0.0, 120.0, 0.1)
     rpm = np.where(t < 60, 1000.0, 1300.0)
     nozzle = np.radians(10.0) * np.sign(np.sin(2 * np.pi * t / 30.0))
-    run = simulate_run(model, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")
+    straight = simulate_run(model, t, {"delta_n": 0 * t, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")
     # positive nozzle angle → positive sway force, negative yaw moment (jets 3.82 m aft)
     tau = WaterJet()(np.array([0.1, 1000.0]), np.array([3.0, 0.0, 0.0]))
     assert tau[1] > 0 and tau[2] == pytest.approx(-3.82 * tau[1])
-    assert run["u"][-1] > run["u"][550] > 2.0  # accelerates with rpm
+    assert straight["u"][-1] > straight["u"][590] > 2.0  # accelerates with rpm
+    turning = simulate_run(model, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")
+    assert turning["r"][100] < 0  # positive nozzle angle turns to port
     truth = usv_standard(actuator=WaterJet(), Xudot=-400.0, Nrdot=-8000.0)
     runs = [simulate_run(truth, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")]
     ee = fit_equation_error(model, runs, flt=Filter("none"))
