@@ -27,7 +27,9 @@ for roll, :math:`z_{gb}W` for a submerged vehicle). From the fitted ζ and ω_n:
 given the two values differ when the I, k pair is inconsistent with the measured period (the
 result reports both and the inertia the period implies, :math:`I = k/\omega_n^2`).
 
-The 1-DOF models :class:`Decay1` (``"decay1"``) and :class:`Decay2` (``"decay2"``) put the
+The 1-DOF models :class:`~diffship.models.decay.Decay1` (``"decay1"``) and
+:class:`~diffship.models.decay.Decay2` (``"decay2"``; defined in :mod:`diffship.models.decay`,
+re-exported here) put the
 same equations in the output-error machinery (:func:`diffship.fit.fit_output_error`): channel
 ``velocity`` (first order) or ``angle`` (second order; ``rate`` optional), input ``tau``
 (zero in a free decay; a force or moment step for the "inhomogeneous" build-up test).
@@ -96,7 +98,8 @@ def _check(t, y, what):
     return t - t[0], y
 
 
-def fit_first_order_decay(t, y, mass: float = 1.0, *, method: str = "curve_fit", floor: float | None = None) -> FirstOrderDecay:
+def fit_first_order_decay(t, y, mass: float = 1.0, *, method: str = "curve_fit",
+                          floor: float | None = None) -> FirstOrderDecay:
     """Fit ``y = x0·exp(−s t)`` to a decaying velocity (time measured from the first sample).
 
     Args:
@@ -181,7 +184,8 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
         damping_from_inertia=2 * zeta * wn * inertia if inertia is not None else nan,
         damping_from_stiffness=2 * zeta * stiffness / wn if stiffness is not None else nan,
         implied_inertia=stiffness / wn**2 if stiffness is not None else nan,
-        zeta_stderr=float(math.sqrt(max(gz @ cov2 @ gz, 0.0))), omega_n_stderr=float(math.sqrt(max(gw @ cov2 @ gw, 0.0))),
+        zeta_stderr=float(math.sqrt(max(gz @ cov2 @ gz, 0.0))),
+        omega_n_stderr=float(math.sqrt(max(gw @ cov2 @ gw, 0.0))),
         method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))),
     )
 

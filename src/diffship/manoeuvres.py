@@ -115,14 +115,14 @@ class ZigzagLaw(eqx.Module):
 
 
 class ScheduleLaw(eqx.Module):
-    """Piecewise-constant rudder order: ``levels[i]`` from ``times[i]`` on (``levels[0]`` before)."""
+    """Piecewise-constant rudder order: ``levels[i]`` from ``times[i]`` on, 0 before ``times[0]``."""
 
     times: Float[Array, " k"]
     levels: Float[Array, " k"]
 
     def __call__(self, t, psi, latch):
         i = jnp.clip(jnp.sum(t >= self.times) - 1, 0, self.levels.shape[0] - 1)
-        target = jnp.where(t >= self.times[0], self.levels[i], self.levels[0])
+        target = jnp.where(t >= self.times[0], self.levels[i], 0.0)
         return target, latch
 
     def init_latch(self):
@@ -472,7 +472,8 @@ class TurningMetrics:
         """Advance, transfer and diameters divided by the ship length."""
         if not self.length:
             raise DataError(f"run '{self.run}': pass length= to turning_metrics to get values in ship lengths")
-        return {k: getattr(self, k) / self.length for k in ("advance", "transfer", "tactical_diameter", "steady_diameter")}
+        keys = ("advance", "transfer", "tactical_diameter", "steady_diameter")
+        return {k: getattr(self, k) / self.length for k in keys}
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

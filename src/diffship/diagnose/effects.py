@@ -14,19 +14,21 @@ Hooks (applied in this order inside :meth:`Augmented.vector_field`):
 * ``input``: transforms the steering inputs before the base model sees them
   (input delay → rate limit → actuator lag, then model-specific input terms);
 * ``force``: an added generalised force ``Δτ = (ΔX, ΔY, ΔN)`` on a 3-DOF model, turned into
-  accelerations with the base model's own mass matrix (``base.solve_mass``), i.e.
+  accelerations with the base model's own mass matrix (:func:`solve_mass`), i.e.
   :math:`\dot\nu = \dot\nu_{base} + M^{-1}\Delta\tau`;
-* ``kinematics`` / ``measurement``: ocean current and heading-sensor bias change the
-  position kinematics :math:`\dot\eta_{1:2} = R(\psi - b_\psi)\,\nu + v_c` and the measured
-  (over-ground) velocities :math:`\nu_{meas} = \nu + R(\psi - b_\psi)^\top v_c`.
+* ``kinematics``: ocean current and heading-sensor bias. The velocity states are over ground
+  (what GNSS measures, so initial states do not depend on the current), the hydrodynamics see
+  :math:`\nu_r = \nu_g - R^\top(\psi_t) v_c`, and positions follow
+  :math:`\dot\eta_{1:2} = R(\psi_t)\,\nu_g` with the true heading :math:`\psi_t = \psi - b_\psi`
+  (see :meth:`Augmented.vector_field`).
 
 Library (names as on the command line):
 
 =================  ===============================  ==============================================
 name               parameters (null = 0)            model
 =================  ===============================  ==============================================
-current            Vcx, Vcy [m/s] (NED)             states are velocities through the water; GNSS
-                                                    measures over ground
+current            Vcx, Vcy [m/s] (NED)             hydrodynamics see the velocity through the water
+                                                    ν_g − Rᵀv_c; states and GNSS are over ground
 input_delay        tau_d [s]                        steering inputs delayed by tau_d, realised with
                                                     a 2nd-order Padé approximant (2 states/input)
 actuator_lag       T_act [s]                        first-order lag of the steering inputs
@@ -99,8 +101,25 @@ _INPUT_ORDER = {"input_delay": 0, "rate_limit": 1, "actuator_lag": 2}
 
 
 def is_ship3(model: AbstractModel) -> bool:
-    """A 3-DOF model with states (x0, y0, psi, u, v, r) and a closed-form ``solve_mass``."""
-    return all(s in model.state_names for s in ("x0", "y0", "psi", "u", "v", "r")) and hasattr(model, "solve_mass")
+    """A 3-DOF model with states (x0, y0, psi, u, v, r) whose mass matrix we can invert
+    (``solve_mass`` as fossen3, ``masses()`` as mmg, or ``mass_matrix()`` as the VMMs)."""
+    return all(s in model.state_names for s in ("x0", "y0", "psi", "u", "v", "r")) and any(
+        hasattr(model, a) for a in ("solve_mass", "masses", "mass_matrix"))
+
+
+def solve_mass(model: AbstractModel, rhs):
+    r"""Accelerations :math:`M^{-1}\Delta\tau` for an added force on a 3-DOF model (closed form,
+    surge decoupled, 2×2 sway–yaw block)."""
+    if hasattr(model, "solve_mass"):
+        return model.solve_mass(rhs)
+    if hasattr(model, "masses"):  # MMG: diag(a), [[b, c], [c, e]]
+        a, b, c, e = model.masses()
+        d = c
+    else:
+        M = model.mass_matrix()
+        a, b, c, d, e = M[0, 0], M[1, 1], M[1, 2], M[2, 1], M[2, 2]
+    det = b * e - c * d
+    return jnp.stack([rhs[0] / a, (e * rhs[1] - c * rhs[2]) / det, (b * rhs[2] - d * rhs[1]) / det])
 
 
 def steering_inputs(model: AbstractModel) -> tuple[int, ...]:
@@ -203,7 +222,7 @@ class _InputEffect(Effect):
     hook: ClassVar[str] = "input"
     smooth_null: ClassVar[bool] = False
     idx: tuple[int, ...] = eqx.field(static=True, default=(0,))
-    dt: float = eqx.field(static=True, default=0.1)
+    dt: jnp.ndarray = scalar(0.1)  # data facts are array leaves (not static): no recompilation per data set
 
     def _names(self, base, suffix=""):
         return tuple(base.input_names[i] + suffix for i in self.idx)
@@ -287,8 +306,8 @@ class RateLimit(_InputEffect):
     confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag", "input_delay")
     separating: ClassVar[str] = "steering steps of two very different amplitudes (a rate limit's delay scales with the step)"
     T_slew: jnp.ndarray = scalar(0.0)
-    amplitude: tuple[float, ...] = eqx.field(static=True, default=(1.0,))
-    eps: float = eqx.field(static=True, default=0.1)
+    amplitude: jnp.ndarray = eqx.field(converter=lambda a: jnp.asarray(a, dtype=jnp.float64), default=(1.0,))
+    eps: jnp.ndarray = scalar(0.1)
 
     def extra_states(self, base):
         return self._names(base)
@@ -298,7 +317,7 @@ class RateLimit(_InputEffect):
 
     def apply_input(self, base, t, xb, xe, ub):
         on = self.T_slew > 0.0
-        rate = jnp.asarray(self.amplitude) / jnp.where(on, self.T_slew, 1.0)
+        rate = self.amplitude / jnp.where(on, self.T_slew, 1.0)
         d = jnp.clip((self._sel(ub) - xe) / self.eps, -rate, rate)
         return self._put(ub, xe, on), d
 
@@ -438,7 +457,7 @@ class SpeedDependence(_Damping):
     signature: ClassVar[str] = "error growing with |U − U0|; per-speed fits drift"
     separating: ClassVar[str] = "the same manoeuvre at two or more speeds"
     k_U: jnp.ndarray = scalar(0.0)
-    U0: float = eqx.field(static=True, default=1.0)
+    U0: jnp.ndarray = scalar(1.0)
 
     def force(self, base, t, xb, ub, uext):
         u, v, r = _nu(base, xb)
@@ -651,7 +670,7 @@ class Augmented(AbstractModel):
             dtau = forces[0]
             for f in forces[1:]:
                 dtau = dtau + f
-            dx = dx.at[i:i + 3].add(base.solve_mass(dtau))
+            dx = dx.at[i:i + 3].add(solve_mass(base, dtau))
         if kin:
             ug, vg, rg = _nu(base, xg)
             xd, yd = c * ug - s * vg, s * ug + c * vg

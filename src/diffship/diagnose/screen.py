@@ -73,11 +73,14 @@ class _Kernel(eqx.Module):
     angle: tuple[bool, ...] = eqx.field(static=True)
     substeps: int = eqx.field(static=True)
 
-    def residuals(self, z, model, S, phi0, lo, hi, ts, us, ys, mask, x0, scales):
+    def residuals(self, z, model, S, phi0, lo, hi, ts, us, ys, mask, x0, scales, idx, x0_scale):
+        """z = (scaled base parameters, P_MAX effect coordinates, per-run initial-state offsets)."""
         n = len(self.spec.free_names)
         th = self.spec.full_values(z[:n], model.base.theta())
-        phi = jnp.clip(phi0 + S @ z[n:], lo, hi)
+        phi = jnp.clip(phi0 + S @ z[n:n + P_MAX], lo, hi)
         mdl = model.with_params(jnp.concatenate([th, phi]))
+        if idx.size:
+            x0 = x0.at[:, idx].add(z[n + P_MAX:].reshape(x0.shape[0], idx.size) * x0_scale)
         sol = jax.vmap(lambda t, u, x: simulate(mdl, t, u, x, substeps=self.substeps))(ts, us, x0)
         err = sol.ys[..., jnp.asarray(self.out_idx)] - ys
         err = jnp.where(jnp.asarray(self.angle), _wrap(err), err)
@@ -87,6 +90,15 @@ class _Kernel(eqx.Module):
 
     def jacobian(self, z, *args):
         return jax.jacfwd(self.residuals)(z, *args)
+
+    def jacobian_x0(self, z, *args):
+        """Jacobian with respect to the initial-state offsets only."""
+        k = len(self.spec.free_names) + P_MAX
+
+        def f(d):
+            return self.residuals(jnp.concatenate([z[:k], d]), *args)
+
+        return jax.jacfwd(f)(z[k:])
 
 
 def _compiled(kernel, name, args):
@@ -136,7 +148,7 @@ class Workspace:
     """
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
-                 scales: dict[str, float], substeps: int = 1):
+                 scales: dict[str, float], substeps: int = 1, x0_train: Sequence[np.ndarray] | None = None):
         self.base = base
         self.spec = spec
         self.effects = list(effects)
@@ -153,20 +165,80 @@ class Workspace:
         self.lo, self.hi = np.asarray(lo), np.asarray(hi)
         self.channels = tuple(channels)
         self.scales = np.asarray([scales[c] for c in self.channels])
-        self.kernel = _Kernel(spec=spec, out_idx=tuple(self.model.output_names.index(c) for c in self.channels),
+        # the compiled functions only need the spec's structure: drop the values so that fits
+        # of other data share them
+        shape_spec = ParamSpec(tuple(dataclasses.replace(p, value=0.0) for p in spec.params))
+        self.kernel = _Kernel(spec=shape_spec, out_idx=tuple(self.model.output_names.index(c) for c in self.channels),
                               angle=tuple(c in self.model.angle_outputs for c in self.channels), substeps=int(substeps))
         self.n_theta = len(spec.free_names)
         self.z_theta = spec.to_z()
-        self.train = self._data(runs)
+        states = base.states_for_channels(self.channels)
+        self.x0_idx = np.asarray([i for i, s in enumerate(base.state_names) if s in states], dtype=np.int64)
+        self.train = self._data(runs, x0_train)
+        b = self.train["batch"]
+        spread = [float(np.std(b.ys[..., j][b.mask])) or 1.0 for j in range(len(self.channels))]
+        sc = getattr(base, "STATE_CHANNEL", {})
 
-    def _data(self, runs):
+        def _scale(st):
+            c = st if st in self.channels else sc.get(st)
+            return spread[self.channels.index(c)] if c in self.channels else 1.0
+
+        self.x0_scale = np.asarray([_scale(base.state_names[i]) for i in self.x0_idx], dtype=np.float64)
+
+    def _data(self, runs, x0_base=None):
         b = make_batch(self.model, runs, self.channels)
-        return dict(batch=b, arrays=tuple(jnp.asarray(a) for a in (b.ts, b.us, b.ys, b.mask, b.x0)))
+        x0 = np.asarray(b.x0).copy()
+        if x0_base is not None:
+            x0[:, :len(self.base.state_names)] = np.stack([np.asarray(v)[:len(self.base.state_names)] for v in x0_base])
+        return dict(batch=b, x0=x0, arrays=tuple(jnp.asarray(a) for a in (b.ts, b.us, b.ys, b.mask, x0)))
+
+    def data(self, runs):
+        """Arrays for other runs (e.g. validation), initial states from the data."""
+        return self._data(runs)
+
+    def fitted_x0(self, data, values: dict[str, float], base_values: dict[str, float] | None = None,
+                  iters: int = 6) -> list[np.ndarray]:
+        """Initial states of the fitted channels' states estimated per run by Gauss–Newton with
+        the model fixed (as MATLAB ``compare`` does), so validation errors do not depend on the
+        noise of the first samples. The same procedure is used for every compared model."""
+        z = self.z0(data, base_values)
+        S, phi0 = self.selection([]), self.phi_vector(dict(values))
+        R, k = data["x0"].shape[0], self.x0_idx.size
+        if k == 0:
+            return list(data["x0"])
+        nk = self.n_theta + P_MAX
+        r = self.residuals(z, S, phi0, data)
+        cost = float(r @ r)
+        for _ in range(iters):
+            J = self.jacobian_x0(z, S, phi0, data)
+            H = J.T @ J
+            step = np.linalg.solve(H + 1e-6 * np.diag(np.maximum(np.diag(H), 1e-12)), -J.T @ r)
+            zn = z.copy()
+            zn[nk:] += step
+            rn = self.residuals(zn, S, phi0, data)
+            cn = float(rn @ rn)
+            if not math.isfinite(cn) or cn >= cost:
+                break
+            rel = (cost - cn) / cost
+            z, r, cost = zn, rn, cn
+            if rel < 1e-8:
+                break
+        x0 = data["x0"].copy()
+        x0[:, self.x0_idx] += z[nk:].reshape(R, k) * self.x0_scale
+        return list(x0)
 
     # -- evaluation helpers ------------------------------------------------------------
     def _args(self, data, S, phi0, model=None):
         return ((model or self.model), jnp.asarray(S), jnp.asarray(phi0), jnp.asarray(self.lo), jnp.asarray(self.hi),
-                *data["arrays"], jnp.asarray(self.scales))
+                *data["arrays"], jnp.asarray(self.scales), jnp.asarray(self.x0_idx), jnp.asarray(self.x0_scale))
+
+    def n_x0(self, data=None) -> int:
+        return (data or self.train)["x0"].shape[0] * self.x0_idx.size
+
+    def z0(self, data=None, base_values=None) -> np.ndarray:
+        zt = self.z_theta if not base_values else self.spec.with_values(
+            {n: base_values[n] for n in self.spec.names}).to_z()
+        return np.concatenate([zt, np.zeros(P_MAX), np.zeros(self.n_x0(data))])
 
     def residuals(self, z, S, phi0, data=None, model=None):
         args = self._args(data or self.train, S, phi0, model)
@@ -176,6 +248,11 @@ class Workspace:
     def jacobian(self, z, S, phi0, data=None, model=None):
         args = self._args(data or self.train, S, phi0, model)
         fn = _compiled(self.kernel, "jacobian", (jnp.asarray(z),) + args)
+        return np.asarray(fn(jnp.asarray(z), *args))
+
+    def jacobian_x0(self, z, S, phi0, data=None, model=None):
+        args = self._args(data or self.train, S, phi0, model)
+        fn = _compiled(self.kernel, "jacobian_x0", (jnp.asarray(z),) + args)
         return np.asarray(fn(jnp.asarray(z), *args))
 
     def selection(self, names: Sequence[str]) -> np.ndarray:
@@ -200,16 +277,17 @@ class Workspace:
     def screen(self) -> tuple[list[ScreenResult], dict]:
         """Score test of every candidate at the base fit (one Jacobian pass per 5 columns)."""
         t0 = time.perf_counter()
-        z0 = np.concatenate([self.z_theta, np.zeros(P_MAX)])
+        z0 = self.z0()
         phi0 = self.phi_null
         r0 = self.residuals(z0, self.selection([]), phi0)
+        nk = self.n_theta + P_MAX
         smooth = [n for n in self.phi_names if self.owner[n].smooth_null]
         cols: dict[str, np.ndarray] = {}
         J_theta = None
         for k in range(0, max(len(smooth), 1), P_MAX):
             chunk = smooth[k:k + P_MAX]
             J = self.jacobian(z0, self.selection(chunk), phi0)
-            J_theta = J[:, :self.n_theta] if J_theta is None else J_theta
+            J_theta = np.concatenate([J[:, :self.n_theta], J[:, nk:]], axis=1) if J_theta is None else J_theta
             for j, n in enumerate(chunk):
                 cols[n] = J[:, self.n_theta + j]
         for n in self.phi_names:
@@ -221,7 +299,7 @@ class Workspace:
         u, sv, _ = np.linalg.svd(J_theta, full_matrices=False)
         Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
         m = r0.size
-        s2 = float(r0 @ r0) / max(m - self.n_theta, 1)
+        s2 = float(r0 @ r0) / max(m - J_theta.shape[1], 1)
         kappa = _inflation(r0, self.train["batch"], len(self.channels))
         out = []
         for e in self.effects:
@@ -244,40 +322,19 @@ class Workspace:
         return out, info
 
     # -- refit -----------------------------------------------------------------------------
-    def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
-              max_iter: int = 60, progress: Callable[[str], None] | None = None) -> RefitResult:
-        """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
-        values held, e.g. already accepted effects that are refitted jointly are in ``names``)."""
-        t0 = time.perf_counter()
-        pn = [n for e in self.effects if e.name in names for n in e.param_names]
-        if len(pn) > P_MAX:
-            raise FitError(f"too many effect parameters at once ({len(pn)} > {P_MAX})")
-        S = self.selection(pn)
-        base_phi = self.phi_vector(fixed or {})
-        best = None
-        for st in starts:
-            phi0 = base_phi.copy()
-            for n in pn:
-                phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
-            z = np.concatenate([self.z_theta, np.zeros(P_MAX)])
-            r = self.residuals(z, S, phi0)
-            c = 0.5 * float(r @ r)
-            if math.isfinite(c) and (best is None or c < best[0]):
-                best = (c, phi0)
-        if best is None:
-            raise FitError(f"refit with {names}: every start blows up")
-        cost, phi0 = best
-        active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))]
-        z = np.concatenate([self.z_theta, np.zeros(P_MAX)])
+    def _lm(self, S, phi0, active, max_iter):
+        z = self.z0()
         r = self.residuals(z, S, phi0)
         cost = 0.5 * float(r @ r)
-        lam, it, J = 1e-3, 0, None
+        if not math.isfinite(cost) or np.any(np.abs(r) >= PENALTY):
+            return z, r, math.inf, 0
+        lam, it = 1e-3, 0
         for it in range(1, max_iter + 1):
             J = self.jacobian(z, S, phi0)[:, active]
             g = J.T @ r
             H = J.T @ J
             d = np.maximum(np.diag(H), 1e-12 * max(np.max(np.diag(H)), 1e-300))
-            improved = False
+            improved, rel = False, 0.0
             for _ in range(12):
                 try:
                     step = np.linalg.solve(H + lam * np.diag(d), -g)
@@ -297,13 +354,39 @@ class Workspace:
                 lam *= 6
             if not improved or rel < 1e-9:
                 break
+        return z, r, cost, it
+
+    def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
+              max_iter: int = 60, progress: Callable[[str], None] | None = None) -> RefitResult:
+        """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
+        values held, e.g. already accepted effects that are refitted jointly are in ``names``)."""
+        t0 = time.perf_counter()
+        pn = [n for e in self.effects if e.name in names for n in e.param_names]
+        if len(pn) > P_MAX:
+            raise FitError(f"too many effect parameters at once ({len(pn)} > {P_MAX})")
+        S = self.selection(pn)
+        base_phi = self.phi_vector(fixed or {})
+        nk = self.n_theta + P_MAX
+        active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))] + \
+            list(range(nk, nk + self.n_x0()))
+        best = None
+        for st in starts:  # LM from every start (non-smooth effects have flat regions)
+            phi0 = base_phi.copy()
+            for n in pn:
+                phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
+            z, r, cost, it = self._lm(S, phi0, active, max_iter)
+            if math.isfinite(cost) and (best is None or cost < best[2]):
+                best = (z, r, cost, it, phi0)
+        if best is None:
+            raise FitError(f"refit with {names}: every start blows up")
+        z, r, cost, it, phi0 = best
         J = self.jacobian(z, S, phi0)[:, active]
         s2 = float(r @ r) / max(r.size - len(active), 1)
         try:
             cov = s2 * np.linalg.pinv(J.T @ J)
         except np.linalg.LinAlgError:
             cov = np.full((len(active), len(active)), np.inf)
-        phi = np.clip(phi0 + self.selection(pn) @ z[self.n_theta:], self.lo, self.hi)
+        phi = np.clip(phi0 + self.selection(pn) @ z[self.n_theta:nk], self.lo, self.hi)
         values = {n: float(phi[self.phi_names.index(n)]) for n in pn}
         stderr = {n: float(math.sqrt(max(cov[self.n_theta + j, self.n_theta + j], 0.0))) for j, n in enumerate(pn)}
         th = np.asarray(self.spec.full_values(jnp.asarray(z[:self.n_theta]), self.base.theta()))

@@ -62,10 +62,9 @@ def normalised_error(ev: Evaluation, floor: dict[str, float], channels: Sequence
 
 
 def _steer(model: AbstractModel, run: Run) -> np.ndarray:
+    """The steering input (rudder, nozzle, or the yaw moment for force inputs)."""
     idx = steering_inputs(model)
-    names = [model.input_names[i] for i in idx]
-    s = np.asarray(run[names[-1]], dtype=float)
-    return s
+    return np.asarray(run[model.input_names[idx[-1]]], dtype=float)
 
 
 def phases(model: AbstractModel, run: Run) -> np.ndarray:
@@ -84,7 +83,7 @@ def phases(model: AbstractModel, run: Run) -> np.ndarray:
     first = int(np.argmax(big | fast)) if np.any(big | fast) else t.size
     r = np.asarray(run["r"], dtype=float) if run.has("r") else np.zeros_like(t)
     rthr = 0.05 * max(float(np.max(np.abs(r))), 1e-12)
-    sign_s = np.sign(s) * (1.0 if "tau_z" not in model.input_names or model.input_names[steering_inputs(model)[-1]] == "tau_z" else 1.0)
+    sign_s = np.sign(s)  # steering inputs are starboard-positive (positive s gives positive r)
     lab[big] = "steady_turn"
     lab[big & (np.abs(r) > rthr) & (np.sign(r) != sign_s)] = "counter_steer"
     lab[fast] = "transient"

@@ -47,13 +47,16 @@ __all__ = ["Fossen3", "USV_STANDARD", "usv_standard"]
 # * C.1 lists D with the hydrodynamic derivatives as entries (−50 − 243|u|, ...), i.e. the
 #   Fossen D(ν) with a flipped sign; we use X_u = −50, X_|u|u = −243, Y_v = −200,
 #   Y_|v|v = −2000, N_r = −1281, N_|r|r = −3594.38.
-# * The yaw–sway coupling entry 1281 appears with the same sign as the diagonal in the text's
-#   component form (ṙ = ... − 0.0612(v + r)); we take N_v = −1281, which reproduces that form.
+# * The yaw–sway coupling entry of C.1 is +1281 while the diagonal entries are negative, i.e.
+#   N_v = +1281. The thesis' component form (its eq. 6.8, ṙ = ... − 0.0612(v + r)) has the
+#   opposite sign, but with N_v = −1281 the model is directionally unstable (sway–yaw
+#   eigenvalues +0.44 and −0.55 1/s at u = 4 m/s: it spins up from a straight course), while
+#   C.1's N_v = +1281 gives a stable, lightly damped pair (−0.05 ± 0.50j 1/s). We follow C.1.
 # * Added masses are all zero and x_g = 0 in the source.
 USV_STANDARD: dict[str, float] = dict(
     m=4935.14, Iz=20928.0, xg=0.0,
     Xudot=0.0, Yvdot=0.0, Yrdot=0.0, Nvdot=0.0, Nrdot=0.0,
-    Xu=-50.0, Yv=-200.0, Yr=0.0, Nv=-1281.0, Nr=-1281.0,
+    Xu=-50.0, Yv=-200.0, Yr=0.0, Nv=1281.0, Nr=-1281.0,
     Xuu=-243.0, Yvv=-2000.0, Nrr=-3594.38,
 )  # fmt: skip
 
@@ -78,7 +81,7 @@ class Fossen3(AbstractModel):
         Param("Xu", -50.0, scale=50.0, unit="kg/s", description="linear surge damping", **_NEG),
         Param("Yv", -200.0, scale=200.0, unit="kg/s", description="linear sway damping", **_NEG),
         Param("Yr", 0.0, free=False, scale=500.0, unit="kg m/s", description="sway force from yaw rate"),
-        Param("Nv", -1281.0, scale=1e3, unit="kg m/s", description="yaw moment from sway"),
+        Param("Nv", 1281.0, scale=1e3, unit="kg m/s", description="yaw moment from sway"),
         Param("Nr", -1281.0, scale=1e3, unit="kg m2/s", description="linear yaw damping", **_NEG),
         Param("Xuu", -243.0, scale=200.0, unit="kg/m", description="quadratic surge damping X_|u|u", **_NEG),
         Param("Yvv", -2000.0, scale=2e3, unit="kg/m", description="quadratic sway damping Y_|v|v", **_NEG),

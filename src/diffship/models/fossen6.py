@@ -39,6 +39,10 @@ with :math:`\eta = (x_0, y_0, z_0, \phi, \theta, \psi)` in NED (z down) and
 Inputs: the generalised thruster forces ``tau_x, tau_y, tau_z`` [N] and moments
 ``tau_k, tau_m, tau_n`` [N·m] (roll, pitch, yaw), body frame.
 
+By default (``rigid_body_cg=False``) the rigid-body inertia and Coriolis terms are evaluated with
+r_g = 0 (CO at the CG, exact for the reference vehicle; r_g still enters g(η)), which halves the
+vector field; ``Fossen6(..., rigid_body_cg=True)`` uses the full r_g-dependent forms above.
+
 Free by default: the six added masses (≤ 0) and the six linear damping coefficients — what
 seed 004 identifies by least squares with known thrust; the quadratic damping, mass,
 inertia, W, B and the CG/CB offsets are fixed at the reference values and can be freed.
@@ -62,6 +66,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -122,20 +127,6 @@ def _skew(a):
     return jnp.array([[z, -a[2], a[1]], [a[2], z, -a[0]], [-a[1], a[0], z]])
 
 
-def _inv3(a):
-    """Inverse of a 3×3 matrix given as nested lists of scalars (cofactors; no LAPACK)."""
-    c00 = a[1][1] * a[2][2] - a[1][2] * a[2][1]
-    c01 = a[1][2] * a[2][0] - a[1][0] * a[2][2]
-    c02 = a[1][0] * a[2][1] - a[1][1] * a[2][0]
-    det = a[0][0] * c00 + a[0][1] * c01 + a[0][2] * c02
-    inv = [
-        [c00, a[0][2] * a[2][1] - a[0][1] * a[2][2], a[0][1] * a[1][2] - a[0][2] * a[1][1]],
-        [c01, a[0][0] * a[2][2] - a[0][2] * a[2][0], a[0][2] * a[1][0] - a[0][0] * a[1][2]],
-        [c02, a[0][1] * a[2][0] - a[0][0] * a[2][1], a[0][0] * a[1][1] - a[0][1] * a[1][0]],
-    ]
-    return [[inv[i][j] / det for j in range(3)] for i in range(3)]
-
-
 def _matvec3(a, x):
     return tuple(a[i][0] * x[0] + a[i][1] * x[1] + a[i][2] * x[2] for i in range(3))
 
@@ -180,6 +171,12 @@ class Fossen6(AbstractModel):
     Kpp: jnp.ndarray = scalar(BLUEROV2_HEAVY["Kpp"])
     Mqq: jnp.ndarray = scalar(BLUEROV2_HEAVY["Mqq"])
     Nrr: jnp.ndarray = scalar(BLUEROV2_HEAVY["Nrr"])
+    #: Use the CG offset r_g in the rigid-body inertia and Coriolis terms (M_RB, C_RB). False
+    #: (default): those terms are taken with r_g = 0 — exact for the BlueROV2 reference (CG at
+    #: the origin) and a common simplification for small offsets — while r_g still enters the
+    #: restoring forces g(η); the vector field is then about half the size (faster to compile
+    #: and run). True: the full M_RB(r_g), C_RB(ν, r_g) of the module docstring.
+    rigid_body_cg: bool = eqx.field(static=True, default=False)
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -187,10 +184,17 @@ class Fossen6(AbstractModel):
 
     # -- building blocks (scalars) ----------------------------------------------------------
     def _rg(self):
+        """CG offset used in the rigid-body terms (zeros unless ``rigid_body_cg``)."""
+        if not self.rigid_body_cg:
+            z = jnp.zeros_like(self.m)
+            return (z, z, z)
         return (self.xg, self.yg, self.zg)
 
     def _inertia_o(self):
         """I_o = I_g − m S(r_g)² about CO, as nested lists."""
+        if not self.rigid_body_cg:
+            z = jnp.zeros_like(self.m)
+            return [[self.Ix, z, z], [z, self.Iy, z], [z, z, self.Iz]]
         xg, yg, zg = self._rg()
         m = self.m
         return [
@@ -217,7 +221,8 @@ class Fossen6(AbstractModel):
         Srg = _skew(self._rg())
         Io = jnp.array(self._inertia_o())
         Z = jnp.zeros((3, 3))
-        CRB = jnp.block([[Z, -m * _skew(n1) - m * _skew(n2) @ Srg], [-m * _skew(n1) + m * Srg @ _skew(n2), -_skew(Io @ n2)]])
+        CRB = jnp.block([[Z, -m * _skew(n1) - m * _skew(n2) @ Srg],
+                         [-m * _skew(n1) + m * Srg @ _skew(n2), -_skew(Io @ n2)]])
         a1 = -jnp.stack([self.Xudot * nu[0], self.Yvdot * nu[1], self.Zwdot * nu[2]])
         a2 = -jnp.stack([self.Kpdot * nu[3], self.Mqdot * nu[4], self.Nrdot * nu[5]])
         CA = jnp.block([[Z, -_skew(a1)], [-_skew(a1), -_skew(a2)]])
@@ -234,6 +239,17 @@ class Fossen6(AbstractModel):
         """C(ν)ν in component form: rigid body (Newton–Euler) plus added mass."""
         n1, n2 = (nu[0], nu[1], nu[2]), (nu[3], nu[4], nu[5])
         m = self.m
+        if not self.rigid_body_cg:  # r_g = 0: m ν₂×ν₁ and ν₂×(I_g ν₂), plus added mass
+            u, v, w, p, q, r = n1 + n2
+            mu, mv, mw = (m - self.Xudot) * u, (m - self.Yvdot) * v, (m - self.Zwdot) * w
+            ip, iq, ir = (self.Ix - self.Kpdot) * p, (self.Iy - self.Mqdot) * q, (self.Iz - self.Nrdot) * r
+            # rigid + added combine: f = ν₂ × (M₁₁ν₁), moment = ν₂ × (M₂₂ν₂) + ν₁ × (M_Aν₁)
+            return jnp.stack([
+                q * mw - r * mv, r * mu - p * mw, p * mv - q * mu,
+                q * ir - r * iq + (v * (-self.Zwdot * w) - w * (-self.Yvdot * v)),
+                r * ip - p * ir + (w * (-self.Xudot * u) - u * (-self.Zwdot * w)),
+                p * iq - q * ip + (u * (-self.Yvdot * v) - v * (-self.Xudot * u)),
+            ])
         rg = self._rg()
         Io = self._inertia_o()
         w_x_v = _cross(n2, n1)
@@ -270,25 +286,44 @@ class Fossen6(AbstractModel):
         ])
 
     def solve_mass(self, rhs):
-        """M⁻¹·rhs by the Schur complement of the (diagonal) translational block; no LAPACK."""
+        """M⁻¹·rhs by the Schur complement of the (diagonal) translational block; no LAPACK.
+
+        With M = [[D₁, −mS], [mS, M₂₂]] (D₁ = diag(m − X_u̇, m − Y_v̇, m − Z_ẇ), S = S(r_g),
+        M₂₂ = I_o − diag(K_ṗ, M_q̇, N_ṙ)): x₂ = Σ⁻¹(b₂ − mSD₁⁻¹b₁), x₁ = D₁⁻¹(b₁ + mSx₂), with
+        the symmetric Schur complement Σ = M₂₂ + m²SD₁⁻¹S written out term by term.
+        """
         m = self.m
-        rg = self._rg()
-        d = (m - self.Xudot, m - self.Yvdot, m - self.Zwdot)
-        S = [[0.0 * m, -rg[2], rg[1]], [rg[2], 0.0 * m, -rg[0]], [-rg[1], rg[0], 0.0 * m]]  # S(r_g)
+        if not self.rigid_body_cg:  # M is diagonal
+            return jnp.stack([rhs[0] / (m - self.Xudot), rhs[1] / (m - self.Yvdot), rhs[2] / (m - self.Zwdot),
+                              rhs[3] / (self.Ix - self.Kpdot), rhs[4] / (self.Iy - self.Mqdot),
+                              rhs[5] / (self.Iz - self.Nrdot)])
+        xg, yg, zg = self._rg()
+        e0, e1, e2 = 1.0 / (m - self.Xudot), 1.0 / (m - self.Yvdot), 1.0 / (m - self.Zwdot)
         Io = self._inertia_o()
-        A2 = (self.Kpdot, self.Mqdot, self.Nrdot)
-        # M = [[D1, -mS], [mS, M22]], M22 = Io − diag(A2).  Schur: Sc = M22 + m² S D1⁻¹ S.
-        M22 = [[Io[i][j] - (A2[i] if i == j else 0.0) for j in range(3)] for i in range(3)]
-        SDS = [[sum(S[i][k] * S[k][j] / d[k] for k in range(3)) for j in range(3)] for i in range(3)]
-        Sc = [[M22[i][j] + m * m * SDS[i][j] for j in range(3)] for i in range(3)]
-        b1, b2 = (rhs[0], rhs[1], rhs[2]), (rhs[3], rhs[4], rhs[5])
-        # x2 = Sc⁻¹ (b2 − m S D1⁻¹ b1);  x1 = D1⁻¹ (b1 + m S x2)
-        Db1 = tuple(b1[i] / d[i] for i in range(3))
-        SDb1 = _matvec3(S, Db1)
-        x2 = _matvec3(_inv3(Sc), tuple(b2[i] - m * SDb1[i] for i in range(3)))
-        Sx2 = _matvec3(S, x2)
-        x1 = tuple((b1[i] + m * Sx2[i]) / d[i] for i in range(3))
-        return jnp.stack(list(x1) + list(x2))
+        m2 = m * m
+        s00 = Io[0][0] - self.Kpdot - m2 * (zg * zg * e1 + yg * yg * e2)
+        s11 = Io[1][1] - self.Mqdot - m2 * (zg * zg * e0 + xg * xg * e2)
+        s22 = Io[2][2] - self.Nrdot - m2 * (yg * yg * e0 + xg * xg * e1)
+        s01 = Io[0][1] + m2 * xg * yg * e2
+        s02 = Io[0][2] + m2 * xg * zg * e1
+        s12 = Io[1][2] + m2 * yg * zg * e0
+        # symmetric 3×3 inverse by cofactors
+        c00, c11, c22 = s11 * s22 - s12 * s12, s00 * s22 - s02 * s02, s00 * s11 - s01 * s01
+        c01, c02, c12 = s02 * s12 - s01 * s22, s01 * s12 - s02 * s11, s01 * s02 - s00 * s12
+        inv_det = 1.0 / (s00 * c00 + s01 * c01 + s02 * c02)
+        h0, h1, h2 = rhs[0] * e0, rhs[1] * e1, rhs[2] * e2  # D₁⁻¹b₁
+        # b₂ − m S D₁⁻¹ b₁ = b₂ − m r_g × h
+        g0 = rhs[3] - m * (yg * h2 - zg * h1)
+        g1 = rhs[4] - m * (zg * h0 - xg * h2)
+        g2 = rhs[5] - m * (xg * h1 - yg * h0)
+        x3 = (c00 * g0 + c01 * g1 + c02 * g2) * inv_det
+        x4 = (c01 * g0 + c11 * g1 + c12 * g2) * inv_det
+        x5 = (c02 * g0 + c12 * g1 + c22 * g2) * inv_det
+        # x₁ = D₁⁻¹(b₁ + m r_g × x₂)
+        x0 = h0 + m * (yg * x5 - zg * x4) * e0
+        x1 = h1 + m * (zg * x3 - xg * x5) * e1
+        x2 = h2 + m * (xg * x4 - yg * x3) * e2
+        return jnp.stack([x0, x1, x2, x3, x4, x5])
 
     def kinematics(self, eta, nu):
         """η̇ = J(η)ν with zyx Euler angles."""

@@ -64,7 +64,9 @@ Inputs: ``delta`` [rad] (starboard-positive) and ``n`` [rev/s] (propeller speed,
 ahead; the open-water map is only valid for ahead operation). Parameters: every coefficient
 above; the reference values (:func:`kvlcc2_mmg`) are the KVLCC2 L7 model of Yasukawa &
 Yoshimura (2015, Tables 1–3), with x_G = 0.0348 L and k_zz = 0.2486 L from the HSVA model
-(SIMMAN 2008). By default only the linear and cubic sway/yaw hull derivatives are free.
+(SIMMAN 2008). Free by default: ``Yv, Yr, Nv, Nr, Nvvr, Nrrr`` (hull), ``Jz``, ``f_alpha``,
+``R0`` and ``delta0`` — what the real-data study (:mod:`diffship.studies.kvlcc2`) needs; every
+other parameter is fixed at its reference value.
 
 Reference: H. Yasukawa, Y. Yoshimura, "Introduction of MMG standard method for ship
 maneuvering predictions", J. Mar. Sci. Technol. 20 (2015) 37–52,
@@ -103,7 +105,10 @@ KVLCC2_L7: dict[str, float] = dict(
     m=3272.0, xG=0.0348 * 7.0, kzz=0.2486, rho=1000.0,
 )  # fmt: skip
 
-_FREE = ("Yv", "Yr", "Nv", "Nr", "Yvvv", "Nrrr")
+#: Free by default: linear sway/yaw derivatives, two nonlinear yaw derivatives, yaw added inertia,
+#: rudder lift slope, resistance and rudder offset — the set that predicts the HSVA KVLCC2
+#: zigzags of other runs within about 1° of first overshoot (:mod:`diffship.studies.kvlcc2`).
+_FREE = ("Yv", "Yr", "Nv", "Nr", "Nvvr", "Nrrr", "Jz", "f_alpha", "R0", "delta0")
 
 
 def _p(name: str, unit: str, description: str, **kw) -> Param:
@@ -139,9 +144,9 @@ class MMG(AbstractModel):
         _p("Nvvr", _ND, "yaw moment derivative N'_vvr"),
         _p("Nvrr", _ND, "yaw moment derivative N'_vrr"),
         _p("Nrrr", _ND, "yaw moment derivative N'_rrr"),
-        _p("mx", _ND, "surge added mass m'_x", lower=-0.5),
-        _p("my", _ND, "sway added mass m'_y", lower=-0.5),
-        _p("Jz", _ND, "yaw added moment of inertia J'_z", lower=-0.1),
+        _p("mx", _ND, "surge added mass m'_x", lower=0.0),
+        _p("my", _ND, "sway added mass m'_y", lower=0.0),
+        _p("Jz", _ND, "yaw added moment of inertia J'_z", lower=0.0),
         _p("tP", _ND, "thrust deduction factor t_P", lower=-0.5, upper=1.0),
         _p("wP0", _ND, "propeller wake fraction in straight motion w_P0", lower=-0.5, upper=1.0),
         _p("xP", _ND, "propeller position x'_P (from midship, / L)"),

@@ -155,7 +155,8 @@ _ADDED = {"Xudot": "surge added mass", "Yvdot": "sway added mass", "Yrdot": "swa
 
 def _hydro_param(name: str) -> Param:
     v = VMM_REFERENCE[name]
-    return Param(name, v, scale=max(abs(v), 1e-3), unit="-", description=f"prime derivative of {name[0]} w.r.t. {name[1:] or 'const'}")
+    what = f"prime derivative of {name[0]} w.r.t. {name[1:] or 'const'}"
+    return Param(name, v, scale=max(abs(v), 1e-3), unit="-", description=what)
 
 
 def _params(terms: tuple[str, ...]) -> tuple[Param, ...]:

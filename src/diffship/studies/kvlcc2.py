@@ -16,8 +16,9 @@ Workflow (:func:`kvlcc2_study`):
 3. predict every run two ways: *closed loop* — the fitted model flies the zigzag with the
    autopilot of :func:`diffship.manoeuvres.zigzag` (measured initial state, propeller speed,
    first side and execute time, helm rate 15.8 °/s, autopilot delay 0.28 s) — which is the
-   honest forecast of the IMO metrics; and *open loop* — simulation with the measured rudder (its reversals happen when
-   the *measured* heading hit ±ψ_s, so only its first overshoot is comparable);
+   honest forecast of the IMO metrics; and *open loop* — simulation with the measured rudder
+   (its reversals happen when the *measured* heading hit ±ψ_s, so only its first overshoot is
+   comparable);
 4. compute the IMO metrics with the same function on measured and simulated runs
    (:func:`diffship.manoeuvres.zigzag_metrics`).
 
@@ -27,7 +28,6 @@ The issue's target: first overshoot of every validation zigzag predicted within 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Sequence
 
 import equinox as eqx
@@ -42,19 +42,23 @@ from ..manoeuvres import first_execute, zigzag, zigzag_metrics
 from ..models.mmg import MMG, kvlcc2_mmg
 from ..simulate import simulate
 
-__all__ = ["AUTOPILOT_DELAY_S", "autopilot_delays", "closed_loop_run", "open_loop_run", "DEFAULT_TRAIN", "DEFAULT_FREE", "HELM_RATE_DEG_S", "KVLCC2Study", "kvlcc2_study", "predict_zigzags"]
+__all__ = [
+    "AUTOPILOT_DELAY_S", "DEFAULT_CHANNELS", "DEFAULT_FREE", "DEFAULT_TRAIN", "HELM_RATE_DEG_S", "KVLCC2Study",
+    "autopilot_delays", "closed_loop_run", "kvlcc2_study", "open_loop_run", "predict_zigzags",
+]
 
-#: Training zigzags: small and large rudder, 5° and 10° switch, both first sides.
+#: Training zigzags: small and large rudder, 5° and 10° switch (all starboard-first; both
+#: port-first runs are left for validation).
 DEFAULT_TRAIN = ("Z_10_05", "Z_20_05", "Z_35_05", "Z_20_10_S")
 #: Free MMG parameters of the default fit.
-DEFAULT_FREE = ("Yv", "Yr", "Nv", "Nr", "Nvvr", "Nrrr", "Jz", "f_alpha", "R0", "delta0")
+DEFAULT_FREE = tuple(MMG().spec().free_names)  # Yv Yr Nv Nr Nvvr Nrrr Jz f_alpha R0 delta0
 #: Fitted channels (``None``: every measured model output except positions).
 DEFAULT_CHANNELS = ("psi", "u", "v", "r")
 #: Helm rate of the HSVA model tests [°/s] (data README).
 HELM_RATE_DEG_S = 15.8
 #: Delay of the HSVA zigzag autopilot between the heading reaching ±ψ_s and the rudder starting
-#: to move [s]: 0.27–0.32 s in every reversal of the 13 runs except the first (measured with
-#: :func:`autopilot_delays`).
+#: to move [s]: median of every reversal but the first in the 13 runs (:func:`autopilot_delays`;
+#: 0.25–0.33 s in the runs with switch angles of 5° and 10° and large rudder angles).
 AUTOPILOT_DELAY_S = 0.28
 
 
@@ -122,7 +126,7 @@ def closed_loop_run(model: MMG, run: Run, *, dt: float = 0.1, duration: float = 
     return zigzag(model, x0, rudder_deg=float(meta["rudder_angle_deg"]), switch_deg=float(meta["switch_heading_deg"]),
                   first=str(meta["first_rudder"]), inputs={"n": float(np.mean(run["n"]))}, duration=duration, dt=dt,
                   t_execute=float(run.time[i0] - run.time[0]), rudder_rate_deg_s=helm_rate_deg_s,
-                  max_rudder_deg=35.0, switch_delay_s=delay_s, name=f"{_test(run)} predicted")
+                  max_rudder_deg=35.0, switch_delay_s=delay_s, substeps=1, name=f"{_test(run)} predicted")
 
 
 def predict_zigzags(model: MMG, runs: Sequence[Run], roles: dict[str, str] | None = None, *, dt: float = 0.1,

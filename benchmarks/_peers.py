@@ -1,0 +1,230 @@
+"""Peer methods a user would pick today, in NumPy/SciPy (no JAX): shared by ``benchmarks/run.py``.
+
+* :class:`NomotoProblem` — diffship's output-error residual for the first-order Nomoto model,
+  re-implemented in NumPy (fixed-step RK4, one step per sample, inputs linearly interpolated,
+  heading wrapped, same channel scales, same scaled parameter space, same per-run initial-state
+  offsets). The Fossen 3-DOF counterpart is ``fossen3_speed.NumpyProblem`` (reused unchanged).
+* :func:`scipy_fit` — :func:`scipy.optimize.least_squares` (``method="lm"``: MINPACK with 2-point
+  finite differences) on such a residual, with a wall-clock guard and the time at which its best
+  cost first came within 1 % of a target cost (for speed "at equal final cost").
+* :func:`nomoto_ols`, :func:`fossen3_ols` — ordinary least squares (``numpy.linalg.lstsq``) on
+  inverse-dynamics forces / the yaw equation (the seeds' way; statsmodels' OLS gives the same
+  numbers and is not installed here).
+* :func:`stlsq` — sequentially thresholded least squares (Brunton et al., PNAS 2016), the core
+  of SINDy, in NumPy: pysindy itself needs scikit-learn, which is not installed in this
+  environment, so the peer is this small re-implementation (pysindy's default optimiser).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from diffship.fit.output_error import PENALTY
+
+MAX_ABS = 1e8  # diffship.simulate's blow-up threshold
+
+
+class ScaledParams:
+    """diffship's scaled parameter space (:mod:`diffship.params`) in NumPy."""
+
+    def __init__(self, spec):
+        self.spec = spec
+        self.free = spec.free_names
+        self.n_p = len(self.free)
+        self.base = spec.values()
+        free = [spec[n] for n in self.free]
+        self.kind = np.array([p.kind for p in free])
+        self.lo = np.array([p.lower if math.isfinite(p.lower) else 0.0 for p in free])
+        self.hi = np.array([p.upper if math.isfinite(p.upper) else 0.0 for p in free])
+        self.s = np.array([p.scale for p in free])
+
+    def from_z(self, z):
+        zc = np.clip(z, -50.0, 50.0)
+        ez = np.exp(zc)
+        sig = 1.0 / (1.0 + np.exp(-zc))
+        k = self.kind
+        return np.where(k == 0, self.s * z, np.where(k == 1, self.lo + self.s * ez,
+                        np.where(k == 2, self.hi - self.s * ez, self.lo + (self.hi - self.lo) * sig)))
+
+    def params(self, z):
+        vals = dict(self.base)
+        vals.update({n: float(v) for n, v in zip(self.free, self.from_z(np.asarray(z)[: self.n_p]))})
+        return vals
+
+
+class NomotoProblem(ScaledParams):
+    r"""Output-error residual of :class:`diffship.models.Nomoto1` in NumPy.
+
+    :math:`\dot\psi = r,\ T_1\dot r + r = K(\delta + \delta_0)`, RK4 with one step per sample,
+    vectorised over runs; residual ``(sim_c − meas_c)/s_c`` for channels (psi, r), the
+    heading error wrapped; per-run offsets of the initial psi and r (scaled by the spreads).
+    """
+
+    def __init__(self, spec, batch, scales, estimate_x0=("psi", "r")):
+        super().__init__(spec)
+        self.ys = batch.ys  # (R, N, C)
+        self.mask = batch.mask
+        self.x0 = batch.x0  # (R, 2): psi, r
+        self.R, self.N = batch.ts.shape
+        self.channels = batch.channels
+        self.scales = np.asarray(scales, dtype=np.float64)
+        self.angle = np.array([c == "psi" for c in batch.channels])
+        self.x0_idx = [("psi", "r").index(s) for s in estimate_x0]
+        self.x0_scale = np.array([self.scales[list(batch.channels).index(s)] for s in estimate_x0])
+        us = batch.us[..., 0].T  # (N, R)
+        self.ua, self.uc = us[:-1], us[1:]
+        self.ub = 0.5 * (self.ua + self.uc)
+        self.h = (batch.ts[:, 1:] - batch.ts[:, :-1]).T  # (N-1, R)
+        self.out_cols = [("psi", "r").index(c) for c in batch.channels]
+        self.nfev = 0
+
+    def simulate(self, p, x0):
+        K, T, d0 = p["K"], p["T1"], p["delta0"]
+        psi, r = x0[:, 0].copy(), x0[:, 1].copy()
+        out = np.empty((self.N, 2, self.R))
+        out[0] = psi, r
+        with np.errstate(all="ignore"):
+            for k in range(self.N - 1):
+                h = self.h[k]
+                hh = 0.5 * h
+                f1 = (K * (self.ua[k] + d0) - r) / T
+                r2 = r + hh * f1
+                f2 = (K * (self.ub[k] + d0) - r2) / T
+                r3 = r + hh * f2
+                f3 = (K * (self.ub[k] + d0) - r3) / T
+                r4 = r + h * f3
+                f4 = (K * (self.uc[k] + d0) - r4) / T
+                psi = psi + h / 6.0 * (r + 2.0 * r2 + 2.0 * r3 + r4)
+                r = r + h / 6.0 * (f1 + 2.0 * f2 + 2.0 * f3 + f4)
+                out[k + 1, 0] = psi
+                out[k + 1, 1] = r
+            ok = np.all(np.isfinite(out) & (np.abs(out) < MAX_ABS), axis=1)
+        return out, np.cumprod(ok, axis=0).astype(bool)
+
+    def residuals(self, z):
+        self.nfev += 1
+        z = np.asarray(z, dtype=np.float64)
+        p = self.params(z)
+        x0 = self.x0.copy()
+        if self.x0_idx:
+            x0[:, self.x0_idx] += z[self.n_p:].reshape(self.R, len(self.x0_idx)) * self.x0_scale
+        out, valid = self.simulate(p, x0)
+        pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]
+        valid = valid.T
+        with np.errstate(all="ignore"):
+            err = pred - self.ys
+            err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)
+            good = (valid & self.mask)[..., None]
+            bad = ((~valid) & self.mask)[..., None]
+            e = np.where(good, err / self.scales, 0.0) + np.where(bad, PENALTY, 0.0)
+        return e.reshape(-1)
+
+
+class _TimeUp(Exception):
+    pass
+
+
+def scipy_fit(residuals, z0, *, guard_s: float, max_nfev: int = 200, target_cost: float | None = None):
+    """``least_squares(method="lm")`` with a wall-clock guard.
+
+    Returns a dict: z, cost, wall, calls (every residual evaluation, finite differences
+    included), finished, status, t_target (seconds until the best cost seen first came within
+    1 % of ``target_cost``; None if never).
+    """
+    best = {"cost": math.inf, "z": np.array(z0, dtype=np.float64)}
+    info = {"calls": 0, "t_target": None}
+    t0 = time.perf_counter()
+
+    def fun(z):
+        if time.perf_counter() - t0 > guard_s:
+            raise _TimeUp
+        r = residuals(z)
+        info["calls"] += 1
+        c = 0.5 * float(r @ r)
+        if c < best["cost"]:
+            best.update(cost=c, z=np.array(z, copy=True))
+            if target_cost is not None and info["t_target"] is None and c <= 1.01 * target_cost:
+                info["t_target"] = time.perf_counter() - t0
+        return r
+
+    try:
+        res = least_squares(fun, z0, method="lm", max_nfev=max_nfev)
+        z, cost, finished = res.x, float(res.cost), res.status > 0
+        status = res.message if finished else f"max_nfev={max_nfev} reached"
+    except _TimeUp:
+        z, cost, finished = best["z"], best["cost"], False
+        status = f"stopped by the {guard_s:.0f} s wall-clock guard (best cost seen)"
+    return dict(z=z, cost=cost, wall=time.perf_counter() - t0, calls=info["calls"], finished=finished,
+                status=status, t_target=info["t_target"])
+
+
+# -- equation error peers (NumPy OLS / STLSQ) ----------------------------------------------------------
+def nomoto_ols(r, rdot, delta):
+    r"""Seed 001's regression :math:`\dot r = a r + b\delta + c` by ``lstsq``; returns K, T1, delta0."""
+    A = np.stack([r, delta, np.ones_like(r)], 1)
+    (a, b, c), *_ = np.linalg.lstsq(A, rdot, rcond=None)
+    T = -1.0 / a
+    return {"K": b * T, "T1": T, "delta0": c / b}
+
+
+def stlsq(theta: np.ndarray, y: np.ndarray, threshold: float, max_iter: int = 10, normalize: bool = True):
+    """Sequentially thresholded least squares: ``y ≈ theta @ xi`` with small coefficients zeroed.
+
+    Columns are normalised to unit RMS before thresholding (so ``threshold`` is relative to the
+    size of each term's contribution), as pysindy does with ``normalize_columns=True``.
+    """
+    norms = np.sqrt(np.mean(theta**2, axis=0)) if normalize else np.ones(theta.shape[1])
+    norms = np.where(norms > 0, norms, 1.0)
+    th = theta / norms
+    xi, *_ = np.linalg.lstsq(th, y, rcond=None)
+    for _ in range(max_iter):
+        small = np.abs(xi) < threshold * np.max(np.abs(xi))
+        if not np.any(small):
+            break
+        xi[small] = 0.0
+        big = ~small
+        xi[big], *_ = np.linalg.lstsq(th[:, big], y, rcond=None)
+    return xi / norms
+
+
+def fossen3_design(m, Iz, xg, z, zd, tau):
+    r"""Inverse dynamics of :class:`diffship.models.Fossen3` as ``e = A θ + b`` (3 equations per sample).
+
+    θ = (Xudot, Yvdot, Nrdot, Xu, Yv, Nv, Nr, Xuu, Yvv, Nrr) with Yrdot = Nvdot = Yr = 0:
+
+    * X: :math:`m\dot u - m(x_g r + v)r - \tau_X - X_{\dot u}\dot u + Y_{\dot v} vr - X_u u - X_{|u|u}|u|u`
+    * Y: :math:`m\dot v + m x_g\dot r + m u r - \tau_Y - Y_{\dot v}\dot v - X_{\dot u} u r - Y_v v - Y_{|v|v}|v|v`
+    * N: :math:`m x_g\dot v + I_z\dot r + m x_g u r - \tau_N - N_{\dot r}\dot r + (X_{\dot u} - Y_{\dot v}) uv
+      - N_v v - N_r r - N_{|r|r}|r|r`
+    """
+    u, v, r = z.T
+    ud, vd, rd = zd.T
+    n = u.size
+    o = np.zeros(n)
+    AX = np.stack([-ud, v * r, o, -u, o, o, o, -np.abs(u) * u, o, o], 1)
+    AY = np.stack([-u * r, -vd, o, o, -v, o, o, o, -np.abs(v) * v, o], 1)
+    AN = np.stack([u * v, -u * v, -rd, o, o, -v, -r, o, o, -np.abs(r) * r], 1)
+    bX = m * ud - m * (xg * r + v) * r - tau[:, 0]
+    bY = m * vd + m * xg * rd + m * u * r - tau[:, 1]
+    bN = m * xg * vd + Iz * rd + m * xg * u * r - tau[:, 2]
+    return (AX, AY, AN), (bX, bY, bN)
+
+
+FOSSEN3_THETA = ("Xudot", "Yvdot", "Nrdot", "Xu", "Yv", "Nv", "Nr", "Xuu", "Yvv", "Nrr")
+
+
+def fossen3_ols(m, Iz, xg, z, zd, tau):
+    """Unweighted OLS on the stacked inverse-dynamics equations, each divided by the RMS of its
+    known side (so N and N·m rows are comparable): ``lstsq`` once, no iteration."""
+    (AX, AY, AN), (bX, bY, bN) = fossen3_design(m, Iz, xg, z, zd, tau)
+    rows, rhs = [], []
+    for A, b in ((AX, bX), (AY, bY), (AN, bN)):
+        s = np.sqrt(np.mean(b**2)) or 1.0
+        rows.append(A / s)
+        rhs.append(-b / s)
+    theta, *_ = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)
+    return dict(zip(FOSSEN3_THETA, map(float, theta)))

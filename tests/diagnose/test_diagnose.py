@@ -1,0 +1,91 @@
+"""End to end: a hidden effect is found on held-out runs; no-effect data raise no alarm; CLI contract."""
+
+import json
+
+import numpy as np
+import pytest
+
+import diffship  # noqa: F401
+from diffship.diagnose import augment, diagnose
+from diffship.diagnose.__main__ import main
+from diffship.models import Nomoto1
+from diffship.synthetic import rudder_sequence, simulate_run
+
+D = np.pi / 180
+TRUTH = dict(K=0.2, T1=8.0, delta0=0.01)
+ZIGZAGS = [(10, 20), (-20, 30), (25, 40), (15, 16), (-12, 36)]
+
+
+def _runs(truth, seed):
+    out = []
+    for i, (a, p) in enumerate(ZIGZAGS):
+        t = np.arange(0.0, 40.0, 0.1)
+        d = rudder_sequence(t, a * D, p, rate=10 * D)
+        x0 = np.asarray(truth.initial_state({"delta": 0.0}))
+        out.append(simulate_run(truth, t, {"delta": d}, x0, name=f"zz{i}", noise="realistic", seed=100 * seed + i))
+    return out[:3], out[3:]
+
+
+@pytest.fixture(scope="module")
+def lag_case():
+    truth = augment(Nomoto1(**TRUTH), "actuator_lag", T_act=2.5)
+    train, val = _runs(truth, 1)
+    return diagnose(Nomoto1(), train, val, effects=["input_delay", "actuator_lag", "damping_rr"])
+
+
+def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case):
+    d = lag_case
+    assert d.selected[:1] == ["actuator_lag"]
+    assert d.E_before > 1.5  # a real structural gap (× noise floor)
+    assert d.E_after < 1.15  # back near the noise floor on held-out runs
+    assert d.shrink > 0.85
+    lag = next(r for r in d.ranking if r["effect"] == "actuator_lag")
+    assert lag["params"]["T_act"] == pytest.approx(2.5, rel=0.1)
+    assert lag["verdict"] == "attributed"
+    # the recovered base parameters are the truth's once the effect is in
+    fp = d.final_model.param_values()
+    assert fp["K"] == pytest.approx(0.2, rel=0.05) and fp["T1"] == pytest.approx(8.0, rel=0.1)
+    # where: the error lives in the steering transients more than on the approach
+    ph = d.where["per_phase"]
+    assert ph["transient"]["E"] > ph["approach"]["E"]
+    d2 = d.to_dict()
+    for k in ("where", "ranking", "selected", "validation_rmse_before", "validation_rmse_after", "shrink"):
+        assert k in d2
+    assert d2["validation_rmse_after"]["psi"] < d2["validation_rmse_before"]["psi"]
+
+
+def test_no_effect_data_raise_no_alarm():
+    train, val = _runs(Nomoto1(**TRUTH), 2)
+    d = diagnose(Nomoto1(), train, val, effects=["input_delay", "actuator_lag", "damping_rr"])
+    assert d.selected == []
+    assert d.E_before < 1.2
+    assert "no structural gap" in d.verdict[1] or "unexplained" in d.verdict[1]
+
+
+def test_cli_contract_and_bad_input(tmp_path, capsys):
+    truth = augment(Nomoto1(**TRUTH), "actuator_lag", T_act=2.5)
+    train, val = _runs(truth, 3)
+    paths = []
+    for r in train + val:
+        p = tmp_path / f"{r.name}.csv"
+        r.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    out = tmp_path / "json" / "d.json"
+    out.parent.mkdir()
+    rc = main(paths[:3] + ["--validate"] + paths[3:] + ["--model", "nomoto1", "--effects", "input_delay,actuator_lag,damping_rr",
+                                                          "--json", str(out), "--quiet"])
+    assert rc == 0
+    j = json.loads(out.read_text())
+    assert j["selected"][0] == "actuator_lag"
+    assert {"effect", "params", "validation_gain", "verdict"} <= set(j["ranking"][0])
+    assert set(j["validation_rmse_before"]) == {"psi", "r"}
+    assert 0.5 < j["shrink"] <= 1.2
+    assert "Where:" in capsys.readouterr().out
+    # bad input: unknown effect, unknown model, missing file -> exit 2 with a one-line message
+    assert main(paths[:1] + ["--validate", paths[3], "--model", "nomoto1", "--effects", "gremlins"]) == 2
+    assert "unknown effect" in capsys.readouterr().err
+    assert main(paths[:1] + ["--validate", paths[3], "--model", "mystery"]) == 2
+    assert "unknown model" in capsys.readouterr().err
+    assert main([str(tmp_path / "missing.csv"), "--validate", paths[3], "--model", "nomoto1"]) == 2
+    with pytest.raises(SystemExit):
+        main(paths[:1] + ["--model", "nomoto1"])  # --validate is required

@@ -1,0 +1,97 @@
+"""Every library effect vanishes exactly at its null value, and acts away from it."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import diffship  # noqa: F401
+from diffship.diagnose import EFFECT_NAMES, Augmented, augment, library
+from diffship.diagnose.effects import make_effect
+from diffship.errors import ModelError
+from diffship.fit.problem import initial_state, make_batch
+from diffship.models import Nomoto1, Nomoto2
+from diffship.simulate import simulate
+from diffship.synthetic import nomoto_runs, simulate_run, usv_excitation, usv_truth
+
+D = np.pi / 180
+
+
+@pytest.fixture(scope="module")
+def usv():
+    base = usv_truth()
+    t, inp = usv_excitation(20.0, 0.1, seed=3)
+    n = t.size
+    inp = {**inp, "wind_speed": np.full(n, 8.0), "wind_dir": np.full(n, 0.7)}
+    run = simulate_run(base, t, inp, np.array([0, 0, 0, 2.0, 0.1, 0.0]), name="u0")
+    run = run.with_channels(wind_speed=inp["wind_speed"], wind_dir=inp["wind_dir"])
+    return base, run
+
+
+_jsim = jax.jit(simulate)
+
+
+def _sim(model, run):
+    b = make_batch(model, [run], ("psi", "u", "v", "r") if "u" in model.output_names else ("psi", "r"))
+    x0 = initial_state(model, run)
+    return _jsim(model, jnp.asarray(b.ts[0]), jnp.asarray(b.us[0]), jnp.asarray(x0))
+
+
+def test_every_fossen3_effect_is_exact_at_null_and_acts_at_probe(usv):
+    base, run = usv
+    effs, skipped = library(base, [run])
+    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured here, so all 12 apply
+    ref = _sim(base, run)
+    # all twelve composed in one model (one compilation): identical at null ...
+    everything = Augmented(base, effs)
+    sol = _sim(everything, run)
+    assert float(jnp.max(jnp.abs(sol.ys - ref.ys))) <= 1e-12
+    assert float(jnp.max(jnp.abs(sol.xs[:, :6] - ref.xs))) <= 1e-12
+    # ... and each one acts on its own at its probe value, the others at null
+    for e in effs:
+        probe = _sim(everything.with_params(e.PROBE), run)
+        if e.name != "heading_bias":  # a heading bias only moves positions
+            assert float(jnp.max(jnp.abs(probe.ys - ref.ys))) > 1e-4, e.name
+        else:
+            assert float(jnp.max(jnp.abs(probe.xs[:, :2] - ref.xs[:, :2]))) > 0.1
+    # one effect alone at null (a different composition)
+    m = Augmented(base, [effs[1]])
+    assert float(jnp.max(jnp.abs(_sim(m, run).ys - ref.ys))) <= 1e-12
+
+
+@pytest.mark.parametrize("cls", [Nomoto1, Nomoto2])
+def test_nomoto_effects_exact_at_null(cls):
+    base = cls()
+    run = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=20.0)[0]
+    effs, skipped = library(base, [run])
+    assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "damping_rr"}
+    assert "already has a rudder offset" in skipped["rudder_offset"]
+    ref = _sim(base, run)
+    everything = Augmented(base, effs)
+    assert float(jnp.max(jnp.abs(_sim(everything, run).ys - ref.ys))) <= 1e-12
+    for e in effs:
+        assert float(jnp.max(jnp.abs(_sim(everything.with_params(e.PROBE), run).ys - ref.ys))) > 1e-5, e.name
+
+
+def test_current_shifts_ground_velocity_by_the_current():
+    """In steady straight motion the measured (over-ground) velocity is ν_r + Rᵀ v_c."""
+    base = usv_truth()
+    t = np.arange(0.0, 200.0, 0.1)
+    inp = {"tau_x": np.full(t.size, 3000.0), "tau_y": np.zeros(t.size), "tau_z": np.zeros(t.size)}
+    plain = simulate_run(base, t, inp, np.array([0, 0, 0, 2.0, 0, 0]))
+    m = augment(base, "current", Vcx=0.3, Vcy=0.0)
+    cur = simulate_run(m, t, inp, np.array([0, 0, 0, 2.0, 0, 0]))
+    assert cur["u"][-1] - plain["u"][-1] == pytest.approx(0.3, abs=1e-6)
+    assert cur["x0"][-1] - plain["x0"][-1] == pytest.approx(0.3 * 200.0, rel=0.05)
+
+
+def test_parameters_and_bad_names():
+    base = usv_truth()
+    m = augment(base, "rudder_offset", "actuator_lag", Y0=5.0, T_act=0.5)
+    assert m.param_names[-3:] == ("T_act", "Y0", "N0") or set(m.param_names[-3:]) == {"T_act", "Y0", "N0"}
+    assert m.param_values()["Y0"] == 5.0 and m.param_values()["T_act"] == 0.5
+    assert m.with_params({"Y0": 7.0}).param_values()["Y0"] == 7.0
+    with pytest.raises(ModelError, match="unknown effect"):
+        make_effect(base, "gremlins")
+    with pytest.raises(ModelError, match="does not apply"):
+        make_effect(Nomoto1(), "current")

@@ -1,0 +1,67 @@
+"""KVLCC2 real-data study: MMG output-error fit on some HSVA zigzags, overshoots of the others."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from diffship.data import kvlcc2_runs
+from diffship.errors import DataError
+from diffship.models.mmg import kvlcc2_mmg
+from diffship.studies.kvlcc2 import AUTOPILOT_DELAY_S, autopilot_delays, kvlcc2_study, predict_zigzags
+
+
+@pytest.fixture(scope="module")
+def runs():
+    try:
+        return {r.name.replace("KVLCC2_", ""): r for r in kvlcc2_runs()}
+    except DataError as exc:
+        pytest.skip(f"KVLCC2 HSVA data not available (../shared/data/kvlcc2_hsva): {exc}")
+
+
+def test_hsva_autopilot_delay(runs):
+    """The rudder starts to reverse about 0.28 s after the heading reaches ±ψ_s (every reversal
+    but the first, where the rudder may still be moving). Measured: median 0.28 s, all within
+    0.13–0.38 s; the spread comes from the runs with small switch angles, where an error of
+    0.1° in the initial heading shifts the crossings by ±0.1 s alternately."""
+    later = np.array([d for r in runs.values() for d in autopilot_delays(r)[1:]])
+    assert len(later) > 50
+    assert 0.1 <= later.min() and later.max() <= 0.45
+    assert np.mean((later >= 0.2) & (later <= 0.4)) > 0.85
+    assert np.median(later) == pytest.approx(AUTOPILOT_DELAY_S, abs=0.03)
+
+
+def _straight_speed(model, n=10.23):
+    def du(u):
+        return float(model.vector_field(0.0, jnp.array([0.0, 0.0, 0.0, u, 0.0, 0.0]), jnp.array([0.0, n]))[3])
+
+    lo, hi = 0.5, 2.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if du(mid) > 0 else (lo, mid)
+    return lo
+
+
+@pytest.mark.slow
+def test_study_predicts_validation_first_overshoots_within_2deg(runs):
+    """The default study (MMG, 10 free parameters, fitted on 10/5, 20/5, 35/5 and 20/10-S, first
+    100 s at 5 Hz), reduced to four validation zigzags (10/10 both sides, 20/10 port-first, 15/5),
+    flown by the fitted model with the autopilot.
+
+    Measured with the full study (all nine validation runs): largest first-overshoot error 1.05°
+    (10/10-S −1.05°, 10/10-P +0.96°, 20/10-P +0.25°, 15/5 −0.03°); the published coefficients
+    miss the 10/10-S first overshoot by 4.5°; straight-run speed at 10.23 rps: fitted 1.18 m/s,
+    published 1.02 m/s. (A fit on 60 s of each run gets the port-first runs wrong by up to 2°:
+    the rudder offset needs the longer records.)
+    """
+    validate = ("Z_10_10_S", "Z_10_10_P", "Z_20_10_P", "Z_15_05")
+    st = kvlcc2_study(validate=validate)
+    assert st.fit.converged, st.fit.status
+    v = st.table[st.table.role == "validate"].set_index("test")
+    assert list(v.index) == list(validate)
+    assert st.max_first_overshoot_error("cl") < 2.0  # the issue's target
+    assert v.loc["Z_10_10_S", "first_meas"] == pytest.approx(9.7, abs=0.2)  # data README
+    # the fit is what makes the prediction good: the published coefficients miss by far more
+    pub, _, _ = predict_zigzags(kvlcc2_mmg(), [runs[k] for k in validate])
+    assert np.max(np.abs(pub.err_first_cl)) > 3.0
+    assert _straight_speed(st.fit.model) == pytest.approx(1.179, rel=0.03)
+    assert 0.0 < st.fit.params["delta0"] < 0.02  # a small starboard neutral rudder angle [rad]
