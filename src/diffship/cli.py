@@ -80,6 +80,11 @@ def _example(model_name: str, say):
             "4 runs × 120 s at 10 Hz, realistic GNSS/heading/gyro noise; run usv_3 held out)")
         runs = usv_runs(4, 120.0, 0.1, noise="realistic", seed=7)
         return runs[:3], runs[3:]
+    if model_name not in ("nomoto1", "nomoto2"):
+        raise DiffshipError(
+            f"no bundled example for model {model_name} (there is one for nomoto1, nomoto2 and fossen3): "
+            "give RUN.csv files, e.g. the KVLCC2 zigzags in ../shared/data/kvlcc2_hsva for mmg or vmm_*"
+        )
     say("no runs given: fitting the bundled SSPA zigzag 20/20 (model test, 50 Hz; Apache-2.0, see "
         "src/diffship/examples/README.md), resampled to 10 Hz")
     runs = [r.resample(0.1) for r in example_runs("sspa_zigzag")]
