@@ -21,7 +21,7 @@ import numpy as np
 from .data import Run
 from .models._base import AbstractModel
 from .preprocess import Filter
-from .simulate import simulate
+from .simulate import initial_state, model_inputs, simulate
 
 __all__ = ["Evaluation", "evaluate", "rmse", "nrmse_fit"]
 
@@ -84,7 +84,6 @@ def evaluate(
     substeps: int = 1,
 ) -> Evaluation:
     """Simulate ``model`` on every run (whole horizon) and compare with the measurements."""
-    from .fit.problem import initial_state, model_inputs
 
     pooled_e: dict[str, list] = {}
     pooled_y: dict[str, list] = {}

@@ -26,11 +26,15 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from .data import Run
+from .errors import DataError
 from .models._base import AbstractModel
+from .preprocess import Filter, smooth_and_derivative
 
-__all__ = ["Solution", "simulate"]
+__all__ = ["Solution", "simulate", "model_inputs", "initial_state"]
 
 #: Scan unrolling for the RK4 integrator. Unrolling 4–16 steps was measured slower on CPU (XLA's
 #: per-instruction cost dominates, not the loop overhead) and compiles much longer: kept at 1.
@@ -151,3 +155,26 @@ def simulate(
         raise ValueError(f"unknown solver {solver!r}; use 'rk4' or 'tsit5'")
     ys = jax.vmap(model.observe)(xs, us)
     return Solution(ts=ts, xs=xs, ys=ys, valid=valid)
+
+
+def model_inputs(model: AbstractModel, run: Run) -> np.ndarray:
+    run.require(model.input_names, f"the inputs of model {model.name}")
+    return np.stack([np.asarray(run[n], dtype=np.float64) for n in model.input_names], axis=1)
+
+
+def initial_state(model: AbstractModel, run: Run, flt: Filter = Filter()) -> np.ndarray:
+    """Initial state from the low-pass filtered measurements at the first sample."""
+    y0 = {}
+    t = np.asarray(run.time)
+    for c in set(model.state_names) | set(model.output_names):
+        if run.has(c):
+            y = np.asarray(run[c])
+            if c == "psi":
+                y = np.unwrap(y)
+            try:
+                ys, yd = smooth_and_derivative(t, y, flt, f"run {run.name}, column {c}")
+            except DataError:
+                ys, yd = y, np.gradient(y, t)
+            y0[c] = float(ys[0])
+            y0[c + "_dot"] = float(yd[0])
+    return model.initial_state(y0)

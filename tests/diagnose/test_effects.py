@@ -9,7 +9,8 @@ import diffship  # noqa: F401
 from diffship.diagnose import EFFECT_NAMES, Augmented, augment, library
 from diffship.diagnose.effects import make_effect
 from diffship.errors import ModelError
-from diffship.fit.problem import initial_state, make_batch
+from diffship.fit.problem import make_batch
+from diffship.simulate import initial_state
 from diffship.models import Nomoto1, Nomoto2
 from diffship.simulate import simulate
 from diffship.synthetic import nomoto_runs, simulate_run, usv_excitation, usv_truth

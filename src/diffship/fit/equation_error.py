@@ -42,7 +42,7 @@ from ..models import Fossen3, Nomoto1, Nomoto2
 from ..models._base import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter, smooth_and_derivative
-from .problem import initial_state, model_inputs
+from ..simulate import initial_state, model_inputs
 from .result import FitResult
 
 __all__ = ["fit_equation_error", "equation_data"]

@@ -15,9 +15,10 @@ import numpy as np
 from ..data import Run
 from ..errors import DataError
 from ..models._base import AbstractModel
-from ..preprocess import Filter, smooth_and_derivative
+from ..preprocess import Filter
+from ..simulate import initial_state, model_inputs
 
-__all__ = ["Batch", "make_batch", "default_channels", "model_inputs", "initial_state"]
+__all__ = ["Batch", "make_batch", "default_channels"]
 
 #: Channels not fitted by default: absolute positions drift over long runs and put LM in
 #: local minima from poor starts (fit velocities and heading; positions on request).
@@ -50,29 +51,6 @@ def default_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, ..
             f"({', '.join(r.name for r in runs)}); map your columns with --columns, e.g. --columns psi=heading"
         )
     return chans
-
-
-def model_inputs(model: AbstractModel, run: Run) -> np.ndarray:
-    run.require(model.input_names, f"the inputs of model {model.name}")
-    return np.stack([np.asarray(run[n], dtype=np.float64) for n in model.input_names], axis=1)
-
-
-def initial_state(model: AbstractModel, run: Run, flt: Filter = Filter()) -> np.ndarray:
-    """Initial state from the low-pass filtered measurements at the first sample."""
-    y0 = {}
-    t = np.asarray(run.time)
-    for c in set(model.state_names) | set(model.output_names):
-        if run.has(c):
-            y = np.asarray(run[c])
-            if c == "psi":
-                y = np.unwrap(y)
-            try:
-                ys, yd = smooth_and_derivative(t, y, flt, f"run {run.name}, column {c}")
-            except DataError:
-                ys, yd = y, np.gradient(y, t)
-            y0[c] = float(ys[0])
-            y0[c + "_dot"] = float(yd[0])
-    return model.initial_state(y0)
 
 
 def make_batch(

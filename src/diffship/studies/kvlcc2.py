@@ -37,7 +37,7 @@ import pandas as pd
 from ..data import Run, kvlcc2_runs
 from ..errors import DataError
 from ..fit import FitResult, fit_output_error
-from ..fit.problem import initial_state, model_inputs
+from ..simulate import initial_state, model_inputs
 from ..manoeuvres import first_execute, zigzag, zigzag_metrics
 from ..models.mmg import MMG, kvlcc2_mmg
 from ..simulate import simulate
