@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from diffship.cli import fit_main
+from diffship.fit.cli import main as fit_main
 from diffship.synthetic import nomoto_runs
 
 ROOT = Path(__file__).resolve().parents[1]

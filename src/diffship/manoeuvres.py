@@ -68,7 +68,9 @@ from jaxtyping import Array, Float
 
 from .data import Run
 from .errors import DataError, ModelError
+from .integrators import RK4, AbstractIntegrator
 from .models._base import AbstractModel
+from .simulate import MAX_ABS
 
 __all__ = [
     "ZigzagLaw", "ScheduleLaw", "closed_loop", "zigzag", "turning_circle", "pull_out", "spiral",
@@ -149,13 +151,17 @@ def _input_slots(model: AbstractModel, inputs: Mapping[str, float]) -> tuple[int
 @eqx.filter_jit
 def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Array, " n_x"],
                 u_const: Float[Array, " n_u"], delta_index: int, rudder_rate: Float[Array, ""],
-                max_rudder: Float[Array, ""], delta_start: Float[Array, ""], substeps: int = 2):
+                max_rudder: Float[Array, ""], delta_start: Float[Array, ""],
+                integrator: AbstractIntegrator = RK4(substeps=2)):
     """Simulate ``model`` under a steering law with a rate-limited, saturated rudder.
 
     Pure JAX (jit-compiled, differentiable in the model parameters). Returns
     ``(xs, deltas, valid)``: states ``(N, n_x)``, actual rudder angles ``(N,)`` and the
     blow-up flag of :func:`diffship.simulate.simulate` (state frozen after a blow-up).
-    ``delta_index`` is the position of ``delta`` in ``model.input_names`` (static).
+    ``delta_index`` is the position of ``delta`` in ``model.input_names`` (static). Between
+    samples the rudder moves linearly from its value to the rate-limited target, and the state
+    is advanced by ``integrator`` (the same :meth:`~diffship.integrators.AbstractIntegrator.interval`
+    as every other simulation).
     """
     psi_i = model.state_names.index("psi")
     ts = jnp.asarray(ts, dtype=jnp.float64)
@@ -171,19 +177,8 @@ def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Arr
         target = jnp.clip(target, -max_rudder, max_rudder)
         d1 = delta + jnp.clip(target - delta, -rudder_rate * h, rudder_rate * h)
         d1 = jnp.clip(d1, -max_rudder, max_rudder)
-        y = x
-        hs = h / substeps
-        for k in range(substeps):
-            ta = t0 + k * hs
-            ua = inp(delta + (d1 - delta) * (k / substeps))
-            ub = inp(delta + (d1 - delta) * ((k + 0.5) / substeps))
-            uc = inp(delta + (d1 - delta) * ((k + 1) / substeps))
-            k1 = model.vector_field(ta, y, ua)
-            k2 = model.vector_field(ta + 0.5 * hs, y + 0.5 * hs * k1, ub)
-            k3 = model.vector_field(ta + 0.5 * hs, y + 0.5 * hs * k2, ub)
-            k4 = model.vector_field(ta + hs, y + hs * k3, uc)
-            y = y + (hs / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        good = good & jnp.all(jnp.isfinite(y)) & jnp.all(jnp.abs(y) < 1e8)
+        y = integrator.interval(model.vector_field, t0, t1, x, inp(delta), inp(d1))
+        good = good & jnp.all(jnp.isfinite(y)) & jnp.all(jnp.abs(y) < MAX_ABS)
         y = jnp.where(good, y, x)
         return (y, d1, latch, good), (y, d1, good)
 
@@ -210,13 +205,13 @@ def _x0_vector(model: AbstractModel, initial) -> np.ndarray:
 
 
 def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg_s, max_rudder_deg,
-                   substeps, name, metadata) -> Run:
+                   integrator, name, metadata) -> Run:
     d_idx, u_const = _input_slots(model, inputs)
     x0 = _x0_vector(model, initial)
     ts = np.arange(0.0, duration + 0.5 * dt, dt)
     xs, ds, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(x0), jnp.asarray(u_const), d_idx,
                                 jnp.asarray(math.radians(rudder_rate_deg_s)), jnp.asarray(math.radians(max_rudder_deg)),
-                                jnp.asarray(0.0), int(substeps))
+                                jnp.asarray(0.0), integrator)
     xs, ds, valid = np.asarray(xs), np.asarray(ds), np.asarray(valid)
     us = np.repeat(u_const[None], len(ts), axis=0)
     us[:, d_idx] = ds
@@ -242,7 +237,7 @@ def _side(first: str) -> float:
 def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_deg: float | None = None,
            first: str = "starboard", inputs: Mapping[str, float] | None = None, duration: float = 100.0,
            dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-           switch_delay_s: float = 0.0, substeps: int = 2, name: str | None = None) -> Run:
+           switch_delay_s: float = 0.0, integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
     """Simulate a ``rudder_deg``/``switch_deg`` zigzag (switch defaults to the rudder angle).
 
     Args:
@@ -262,7 +257,7 @@ def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_de
         math.radians(rudder_deg), math.radians(switch_deg), _side(first), t_execute, psi0, switch_delay_s)))
     tag = f"{rudder_deg:g}/{switch_deg:g} zigzag ({first} first)"
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=duration, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, substeps=substeps,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
                           name=name or f"{model.name} {tag}",
                           metadata={"manoeuvre": "zigzag", "rudder_angle_deg": float(rudder_deg),
                                     "switch_heading_deg": float(switch_deg), "first_rudder": first,
@@ -276,12 +271,12 @@ def _schedule(times, levels_deg):
 def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, first: str = "starboard",
                    inputs: Mapping[str, float] | None = None, duration: float = 300.0, dt: float = 0.1,
                    t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-                   substeps: int = 2, name: str | None = None) -> Run:
+                   integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
     """Simulate a turning circle: straight until ``t_execute``, then ``rudder_deg`` to ``first``."""
     s = _side(first)
     law = _schedule([t_execute], [s * rudder_deg])
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=duration, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, substeps=substeps,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
                           name=name or f"{model.name} {rudder_deg:g} deg turning circle ({first})",
                           metadata={"manoeuvre": "turning_circle", "rudder_angle_deg": float(rudder_deg),
                                     "first_rudder": first, "t_execute": float(t_execute)})
@@ -290,13 +285,13 @@ def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, f
 def pull_out(model: AbstractModel, initial, *, rudder_deg: float = 20.0, first: str = "starboard",
              inputs: Mapping[str, float] | None = None, turn_s: float = 120.0, settle_s: float = 120.0,
              dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32,
-             max_rudder_deg: float = 35.0, substeps: int = 2, name: str | None = None) -> Run:
+             max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
     """Simulate a pull-out: ``rudder_deg`` for ``turn_s`` seconds (steady turn), then rudder to 0."""
     s = _side(first)
     t_release = t_execute + turn_s
     law = _schedule([t_execute, t_release], [s * rudder_deg, 0.0])
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=t_release + settle_s, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, substeps=substeps,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
                           name=name or f"{model.name} {rudder_deg:g} deg pull-out ({first})",
                           metadata={"manoeuvre": "pull_out", "rudder_angle_deg": float(rudder_deg),
                                     "first_rudder": first, "t_execute": float(t_execute),
@@ -314,7 +309,7 @@ class SpiralResult:
 
 def spiral(model: AbstractModel, initial, *, rudder_deg: Sequence[float] = (15, 10, 5, 2, 0, -2, -5, -10, -15),
            hold_s: float = 120.0, average_fraction: float = 0.25, inputs: Mapping[str, float] | None = None,
-           dt: float = 0.2, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0, substeps: int = 2,
+           dt: float = 0.2, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = RK4(substeps=2),
            name: str | None = None) -> SpiralResult:
     """Simulate a (direct) spiral: rudder steps held ``hold_s`` each; steady r per step.
 
@@ -325,7 +320,7 @@ def spiral(model: AbstractModel, initial, *, rudder_deg: Sequence[float] = (15, 
     times = np.arange(len(levels)) * hold_s
     law = _schedule(times, levels)
     run = _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=len(levels) * hold_s, dt=dt,
-                         rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, substeps=substeps,
+                         rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
                          name=name or f"{model.name} spiral", metadata={"manoeuvre": "spiral", "hold_s": hold_s})
     run.require("r", "the spiral test's steady yaw rates")
     r = run["r"]

@@ -14,16 +14,18 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
-import jax
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import compiled
 from .data import Run
+from .integrators import RK4, AbstractIntegrator
 from .models._base import AbstractModel
 from .preprocess import Filter
 from .simulate import initial_state, model_inputs, simulate
 
-__all__ = ["Evaluation", "evaluate", "rmse", "nrmse_fit"]
+__all__ = ["Evaluation", "evaluate", "simulate_run", "rmse", "nrmse_fit"]
 
 
 def _err(c: str, y: np.ndarray, yh: np.ndarray, angles) -> np.ndarray:
@@ -64,14 +66,20 @@ class Evaluation:
     horizon: str = "whole-run simulation from the initial state"
 
 
-_SIM_CACHE: dict = {}
+class _Simulator(eqx.Module):
+    """Compile-cache owner for one-run simulations with a given integrator."""
+
+    integrator: AbstractIntegrator = eqx.field(static=True)
+
+    def run(self, model, ts, us, x0):
+        return simulate(model, ts, us, x0, self.integrator)
 
 
-def _sim(model, ts, us, x0, substeps):
-    key = (jax.tree_util.tree_structure(model), substeps)
-    if key not in _SIM_CACHE:
-        _SIM_CACHE[key] = jax.jit(lambda m, t, u, x: simulate(m, t, u, x, substeps=substeps))
-    return _SIM_CACHE[key](model, ts, us, x0)
+def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = RK4()):
+    """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
+    args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
+    fn, _ = compiled(_Simulator(integrator), "run", args)
+    return fn(*args)
 
 
 def evaluate(
@@ -81,9 +89,14 @@ def evaluate(
     *,
     channels: Sequence[str] | None = None,
     flt: Filter = Filter(),
-    substeps: int = 1,
+    integrator: AbstractIntegrator = RK4(),
 ) -> Evaluation:
-    """Simulate ``model`` on every run (whole horizon) and compare with the measurements."""
+    """Simulate ``model`` on every run (whole horizon) and compare with the measurements.
+
+    ``x0``: initial states per run (e.g. a fit's ``initial_states``); by default from the
+    filtered measurements (:func:`diffship.simulate.initial_state`). ``integrator``: use the
+    fit's (``fit.integrator``) so the model is judged as it was fitted.
+    """
 
     pooled_e: dict[str, list] = {}
     pooled_y: dict[str, list] = {}
@@ -92,7 +105,7 @@ def evaluate(
     chans_all = set()
     for i, run in enumerate(runs):
         xi = np.asarray(x0[i]) if x0 is not None else initial_state(model, run, flt)
-        sol = _sim(model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(xi), substeps)
+        sol = simulate_run(model, run, xi, integrator)
         ok = bool(sol.ok)
         all_ok &= ok
         ys = np.asarray(sol.ys)

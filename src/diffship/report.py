@@ -10,12 +10,15 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .data import Run
-from .fit.result import FitResult
 from .metrics import Evaluation
+
+if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
+    from .fit.result import FitResult
 
 __all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS"]
 

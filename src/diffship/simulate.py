@@ -1,28 +1,24 @@
 r"""Simulate one trajectory of a model over a sample grid.
 
-Inputs are given at the sample times and interpolated linearly in between (first-order
-hold). Two integrators sit behind one interface:
-
-* ``"rk4"`` (default): classical fixed-step Runge–Kutta 4 in :func:`jax.lax.scan` on the
-  sample grid, ``substeps`` steps per sample interval; forward-differentiable. Measured on the
-  fossen3 fit problem (3 runs × 300 s at 10 Hz, batched with vmap, 2-core CPU): simulation
-  11 ms vs 44 ms for Tsit5, forward-mode Jacobian 62 ms vs 169 ms
-  (``benchmarks/simulate_speed.py``). Tsit5 wins on a single unbatched run with smooth inputs
-  (fewer, larger steps), RK4 wherever every sample is needed anyway.
-* ``"tsit5"``: diffrax's Tsitouras 5(4) with a PID step-size controller (``rtol``, ``atol``)
-  and ``adjoint=diffrax.ForwardMode()``, so that forward-mode Jacobians (what
-  Levenberg–Marquardt needs) work through the solver.
+Inputs are given at the sample times and held linearly in between (first-order hold); the
+state is advanced from sample to sample by an integrator object
+(:mod:`diffship.integrators`: :class:`~diffship.integrators.RK4` by default,
+:class:`~diffship.integrators.Tsit5` adaptive), in one :func:`jax.lax.scan` over the sample
+intervals. Everything is forward-differentiable (Levenberg–Marquardt needs forward-mode
+Jacobians through the whole simulation).
 
 A simulation that blows up (non-finite state, or ``|x| > max_abs``) does not return NaN
 garbage: the state is frozen at its last good value and ``Solution.valid`` marks the samples
 after the blow-up as invalid; ``Solution.ok`` is the readable status.
 
 Models take one trajectory; batch with ``jax.vmap(simulate, ...)`` over runs or parameters.
+This module also turns a measured :class:`~diffship.data.Run` into what a simulation needs:
+:func:`model_inputs` (the input columns) and :func:`initial_state` (the state at the first
+sample from the filtered measurements).
 """
 
 from __future__ import annotations
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -31,14 +27,14 @@ from jaxtyping import Array, Bool, Float
 
 from .data import Run
 from .errors import DataError
+from .integrators import RK4, AbstractIntegrator
 from .models._base import AbstractModel
 from .preprocess import Filter, smooth_and_derivative
 
-__all__ = ["Solution", "simulate", "model_inputs", "initial_state"]
+__all__ = ["Solution", "simulate", "integrate", "model_inputs", "initial_state", "MAX_ABS"]
 
-#: Scan unrolling for the RK4 integrator. Unrolling 4–16 steps was measured slower on CPU (XLA's
-#: per-instruction cost dominates, not the loop overhead) and compiles much longer: kept at 1.
-UNROLL = 1
+#: A state component beyond this magnitude counts as a blow-up.
+MAX_ABS = 1e8
 
 
 class Solution(eqx.Module):
@@ -61,62 +57,26 @@ class Solution(eqx.Module):
         return jnp.all(self.valid)
 
 
-def _rk4_scan(model, ts, us, x0, substeps, max_abs, unroll=UNROLL):
-    def f(t, x, u):
-        return model.vector_field(t, x, u)
+def integrate(
+    f,
+    ts: Float[Array, " N"],
+    us: Float[Array, "N n_u"],
+    x0: Float[Array, " n_x"],
+    integrator: AbstractIntegrator,
+    max_abs: float = MAX_ABS,
+) -> tuple[Float[Array, "N n_x"], Bool[Array, " N"]]:
+    """States of ``ẋ = f(t, x, u)`` on the grid ``ts`` and the per-sample validity flag."""
 
     def interval(carry, inp):
         x, good = carry
         t0, t1, u0, u1 = inp
-        h = (t1 - t0) / substeps
-        du = (u1 - u0) / substeps
-        y = x
-        for k in range(substeps):  # static unroll, substeps is small
-            t = t0 + k * h
-            ua, uc = u0 + k * du, u0 + (k + 1) * du
-            ub = 0.5 * (ua + uc)
-            k1 = f(t, y, ua)
-            k2 = f(t + 0.5 * h, y + 0.5 * h * k1, ub)
-            k3 = f(t + 0.5 * h, y + 0.5 * h * k2, ub)
-            k4 = f(t + h, y + h * k3, uc)
-            y = y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        y = integrator.interval(f, t0, t1, x, u0, u1)
         good_now = good & jnp.all(jnp.isfinite(y)) & jnp.all(jnp.abs(y) < max_abs)
         y = jnp.where(good_now, y, x)
         return (y, good_now), (y, good_now)
 
-    inputs = (ts[:-1], ts[1:], us[:-1], us[1:])
-    (_, _), (xs, valid) = jax.lax.scan(interval, (x0, jnp.array(True)), inputs, unroll=unroll)
-    xs = jnp.concatenate([x0[None], xs], axis=0)
-    valid = jnp.concatenate([jnp.array([True]), valid])
-    return xs, valid
-
-
-def _diffrax(model, ts, us, x0, rtol, atol, max_steps, max_abs):
-    control = diffrax.LinearInterpolation(ts=ts, ys=us)
-
-    def f(t, x, args):
-        return model.vector_field(t, x, control.evaluate(t))
-
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(f),
-        diffrax.Tsit5(),
-        t0=ts[0],
-        t1=ts[-1],
-        dt0=ts[1] - ts[0],
-        y0=x0,
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.ClipStepSizeController(diffrax.PIDController(rtol=rtol, atol=atol), jump_ts=None),
-        adjoint=diffrax.ForwardMode(),
-        max_steps=max_steps,
-        throw=False,
-    )
-    xs = sol.ys
-    finite = jnp.all(jnp.isfinite(xs) & (jnp.abs(xs) < max_abs), axis=1) & (sol.result == diffrax.RESULTS.successful)
-    valid = jnp.cumprod(finite.astype(jnp.int32)).astype(bool)
-    last_good = jnp.maximum(jnp.sum(valid) - 1, 0)
-    xs = jnp.where(valid[:, None], xs, xs[last_good])
-    xs = jnp.where(jnp.isfinite(xs), xs, 0.0)
-    return xs, valid
+    (_, _), (xs, valid) = jax.lax.scan(interval, (x0, jnp.array(True)), (ts[:-1], ts[1:], us[:-1], us[1:]))
+    return jnp.concatenate([x0[None], xs], axis=0), jnp.concatenate([jnp.array([True]), valid])
 
 
 def simulate(
@@ -124,13 +84,9 @@ def simulate(
     ts: Float[Array, " N"],
     us: Float[Array, "N n_u"],
     x0: Float[Array, " n_x"],
+    integrator: AbstractIntegrator = RK4(),
     *,
-    solver: str = "rk4",
-    substeps: int = 1,
-    rtol: float = 1e-6,
-    atol: float = 1e-8,
-    max_steps: int = 100_000,
-    max_abs: float = 1e8,
+    max_abs: float = MAX_ABS,
 ) -> Solution:
     """Simulate ``model`` from ``x0`` over the strictly increasing grid ``ts``.
 
@@ -139,20 +95,14 @@ def simulate(
         ts: sample times [s].
         us: inputs at the sample times, columns in ``model.input_names`` order.
         x0: initial state, in ``model.state_names`` order.
-        solver: ``"rk4"`` (fixed-step scan) or ``"tsit5"`` (diffrax, adaptive).
-        substeps: RK4 steps per sample interval (``"rk4"`` only).
-        rtol, atol, max_steps: diffrax step-size control (``"tsit5"`` only).
+        integrator: :class:`~diffship.integrators.RK4` (default, one step per sample) or
+            :class:`~diffship.integrators.Tsit5`.
         max_abs: a state component beyond this magnitude counts as a blow-up.
     """
     ts = jnp.asarray(ts, dtype=jnp.float64)
     us = jnp.asarray(us, dtype=jnp.float64)
     x0 = jnp.asarray(x0, dtype=jnp.float64)
-    if solver == "rk4":
-        xs, valid = _rk4_scan(model, ts, us, x0, int(substeps), max_abs)
-    elif solver == "tsit5":
-        xs, valid = _diffrax(model, ts, us, x0, rtol, atol, max_steps, max_abs)
-    else:
-        raise ValueError(f"unknown solver {solver!r}; use 'rk4' or 'tsit5'")
+    xs, valid = integrate(model.vector_field, ts, us, x0, integrator, max_abs)
     ys = jax.vmap(model.observe)(xs, us)
     return Solution(ts=ts, xs=xs, ys=ys, valid=valid)
 

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .data import Run
+from .integrators import RK4
 from .models import Fossen3, Nomoto1
 from .models._base import AbstractModel
 from .simulate import simulate
@@ -43,7 +44,7 @@ def simulate_run(
     """Simulate ``model`` and return a :class:`Run` of its outputs (plus noise) and inputs."""
     noise = NOISE[noise] if isinstance(noise, str) else dict(noise)
     us = np.stack([np.asarray(inputs[n], dtype=np.float64) for n in model.input_names], axis=1)
-    sol = simulate(model, jnp.asarray(time), jnp.asarray(us), jnp.asarray(x0), substeps=substeps)
+    sol = simulate(model, jnp.asarray(time), jnp.asarray(us), jnp.asarray(x0), RK4(substeps))
     if not bool(sol.ok):
         raise RuntimeError(f"synthetic run {name}: the reference simulation blew up")
     ys = np.asarray(sol.ys)

@@ -4,7 +4,7 @@ and the comparison with the equation-error baseline on the same data."""
 import numpy as np
 import pytest
 
-from diffship.fit import fit_both, fit_equation_error, fit_output_error
+from diffship.fit import OutputErrorOptions, fit_both, fit_equation_error, fit_output_error
 from diffship.metrics import evaluate
 from diffship.models import Fossen3, Nomoto1, Nomoto2
 from diffship.preprocess import Filter
@@ -35,14 +35,14 @@ def usv_noisy():
 
 
 def test_fossen3_noise_free_recovery_from_50_percent_start(usv_clean):
-    res = fit_output_error(Fossen3(), usv_clean, spec=_start_spec(), estimate_x0=("psi", "u", "v", "r"))
+    res = fit_output_error(Fossen3(), usv_clean, spec=_start_spec(), options=OutputErrorOptions(estimate_x0=("psi", "u", "v", "r")))
     assert res.converged, res.status
     rel = _rel(res, TV)
     assert max(rel.values()) < 1e-4, rel
 
 
 def test_fossen3_noisy_within_three_standard_errors(usv_noisy):
-    res = fit_output_error(Fossen3(), usv_noisy, spec=_start_spec(1.5, 0.5), estimate_x0=("psi", "u", "v", "r"))
+    res = fit_output_error(Fossen3(), usv_noisy, spec=_start_spec(1.5, 0.5), options=OutputErrorOptions(estimate_x0=("psi", "u", "v", "r")))
     assert res.converged, res.status
     z = {n: (res.params[n] - TV[n]) / res.stderr[n] for n in res.free}
     assert max(abs(v) for v in z.values()) < 3.0, z
@@ -70,7 +70,7 @@ def test_nomoto_noise_free_recovery(truth, cls):
     runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, noise="none")
     ee = fit_equation_error(cls(), runs, flt=Filter("none"))
     start = {n: v * 1.3 for n, v in truth.param_values().items()}
-    res = fit_output_error(cls().with_params(start), runs, starts=[ee.params], estimate_x0=cls().states_for_channels(("psi", "r")))
+    res = fit_output_error(cls().with_params(start), runs, starts=[ee.params], options=OutputErrorOptions(estimate_x0=cls().states_for_channels(("psi", "r"))))
     assert res.converged, res.status
     rel = {n: abs(res.params[n] - v) / abs(v) for n, v in truth.param_values().items() if n in res.free}
     assert max(rel.values()) < 1e-4, rel

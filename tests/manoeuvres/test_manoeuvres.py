@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 from diffship import manoeuvres as M
 from diffship.data import kvlcc2_runs
 from diffship.errors import DataError, ModelError
+from diffship.integrators import RK4
 from diffship.models import Fossen3, Nomoto1
 from diffship.models.mmg import kvlcc2_mmg
 
@@ -100,7 +101,7 @@ def test_closed_loop_is_jittable_and_differentiable():
     @jax.jit
     def psi_end(k):
         xs, _, _ = M.closed_loop(Nomoto1(K=k, T1=T), law, ts, jnp.zeros(2), jnp.zeros(1), 0,
-                                 jnp.asarray(math.radians(5.0)), jnp.asarray(math.radians(35.0)), jnp.asarray(0.0), 1)
+                                 jnp.asarray(math.radians(5.0)), jnp.asarray(math.radians(35.0)), jnp.asarray(0.0), RK4(substeps=1))
         return xs[-1, 0]
 
     g = float(jax.grad(psi_end)(jnp.asarray(K)))
@@ -132,7 +133,7 @@ def test_mmg_kvlcc2_turning_circle_both_sides():
     """35° turns of the MMG KVLCC2 (n = 10.23 rps, helm 15.8 °/s) vs HSVA: advance 3.0–3.1 L,
     tactical diameter 3.1–3.3 L, each within 10 %; port and starboard within 5 % of each other."""
     kw = dict(rudder_deg=35.0, inputs={"n": 10.23}, duration=120.0, dt=0.2, t_execute=1.0, rudder_rate_deg_s=15.8,
-              substeps=1)
+              integrator=RK4(substeps=1))
     out = {}
     for side in ("starboard", "port"):
         tm = M.imo_metrics(M.turning_circle(kvlcc2_mmg(), {"u": 1.179}, first=side, **kw), length=7.0)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from diffship.cli import fit_main
+from diffship.fit.cli import main as fit_main
 from diffship.manoeuvres import zigzag
 from diffship.models import kvlcc2_mmg
 from diffship.synthetic import NOISE

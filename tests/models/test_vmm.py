@@ -128,7 +128,7 @@ def _cli(args, cwd):
 def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     """``python -m diffship.fit RUN.csv ... --model vmm_linear`` (its entry point ``fit_main``, in-process
     to save the interpreter start; the slow test below runs the real subprocess)."""
-    from diffship.cli import fit_main
+    from diffship.fit.cli import main as fit_main
 
     truth = VMMLinear()
     runs = vmm_runs(truth, n_runs=2, duration=200.0, dt=1.0, noise="none")

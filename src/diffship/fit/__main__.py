@@ -2,7 +2,7 @@
 
 import sys
 
-from ..cli import fit_main
+from .cli import main
 
 if __name__ == "__main__":
-    sys.exit(fit_main())
+    sys.exit(main())

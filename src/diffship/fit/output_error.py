@@ -8,10 +8,13 @@ Minimise over the free parameters θ (and optionally per-run initial states)
 where :math:`\hat y` is the whole-horizon simulation from the run's initial state (no
 differentiated data anywhere), ``s_c`` normalises each channel, heading errors are wrapped to
 (−π, π], and the parameters live in a scaled unconstrained space (:mod:`diffship.params`).
-The solver is optimistix Levenberg–Marquardt with a forward-mode Jacobian materialised once per
-accepted step (:mod:`diffship.fit._lm`); simulations are batched over runs with ``jax.vmap``.
+The residual, Jacobian and solver are the one output-error kernel (:mod:`diffship.fit.kernel`:
+optimistix Levenberg–Marquardt with a forward-mode Jacobian materialised once per accepted step,
+simulations batched over runs with ``jax.vmap``); this module chooses the start, the weights and
+the horizon, and turns the optimum into a :class:`~diffship.fit.FitResult`. Options are grouped
+in :class:`OutputErrorOptions`.
 
-Weights (``weights=``):
+Weights (``OutputErrorOptions.weights``):
 
 * ``"noise"`` (default): fit once with ``s_c`` = signal spread of channel c, estimate each
   channel's residual RMS ``σ_c``, and refit from there with ``s_c = σ_c`` — the maximum
@@ -26,11 +29,11 @@ says so.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -38,24 +41,54 @@ import optimistix as optx
 
 from ..data import Run
 from ..errors import FitError
+from ..integrators import RK4, AbstractIntegrator
 from ..models._base import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
-from ..simulate import simulate
-from ._lm import MaterialisedLM, result_message, rms_norm
+from ._lm import result_message
+from .covariance import covariance
+from .kernel import PENALTY, Kernel, kernel_data, listening
 from .problem import Batch, make_batch
 from .result import FitResult
 
-__all__ = ["fit_output_error", "channel_spread"]
-
-#: Normalised residual assigned to every sample after a simulation blew up.
-PENALTY = 1e3
-
-_CACHE: dict = {}
+__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms"]
 
 
-def _wrap(e):
-    return jnp.arctan2(jnp.sin(e), jnp.cos(e))
+@dataclasses.dataclass(frozen=True)
+class OutputErrorOptions:
+    """How an output-error fit is run.
+
+    Attributes:
+        estimate_x0: state names whose initial values are estimated per run (offsets from the
+            measured values); ``()`` takes every initial state from the data.
+        weights: ``"noise"`` (two passes, noise-normalised) or ``"spread"`` (one pass).
+        channel_scales: fixed per-channel normalisation (overrides ``weights``).
+        integrator: how simulations advance between samples (:mod:`diffship.integrators`).
+        max_steps, rtol, atol: Levenberg–Marquardt limits and tolerances.
+        flt: filter used to take initial states from the data.
+        choose: ``"best"`` takes the finite start with the lowest cost; ``"first"`` the first
+            start (the spec's values, then ``starts`` in order) whose simulation stays finite.
+        warmup: fraction of every run fitted first (growing horizon) when that is at least
+            200 samples; ``0`` fits the whole runs from the start.
+    """
+
+    estimate_x0: tuple[str, ...] = ()
+    weights: str = "noise"
+    channel_scales: Mapping[str, float] | None = None
+    integrator: AbstractIntegrator = RK4()
+    max_steps: int = 200
+    rtol: float = 1e-6
+    atol: float = 1e-6
+    flt: Filter = Filter()
+    choose: str = "best"
+    warmup: float = 0.25
+
+    def __post_init__(self):
+        object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
+        if self.weights not in ("noise", "spread"):
+            raise FitError(f"weights must be 'noise' or 'spread', got {self.weights!r}")
+        if self.choose not in ("best", "first"):
+            raise FitError(f"choose must be 'best' or 'first', got {self.choose!r}")
 
 
 def channel_spread(batch: Batch) -> np.ndarray:
@@ -67,63 +100,23 @@ def channel_spread(batch: Batch) -> np.ndarray:
     return np.asarray(out)
 
 
-class _Problem(eqx.Module):
-    """Static structure of a fit (hashable): what the compiled functions close over."""
-
-    spec: ParamSpec = eqx.field(static=True)
-    out_idx: tuple[int, ...] = eqx.field(static=True)
-    angle: tuple[bool, ...] = eqx.field(static=True)
-    x0_idx: tuple[int, ...] = eqx.field(static=True)
-    solver: str = eqx.field(static=True)
-    substeps: int = eqx.field(static=True)
-
-    def residuals(self, z, args):
-        model, ts, us, ys, mask, x0, x0_scale, scales = args
-        n_p = len(self.spec.free_names)
-        theta = self.spec.full_values(z[:n_p], model.theta())
-        mdl = model.with_params(theta)
-        if self.x0_idx:
-            idx = jnp.asarray(self.x0_idx)
-            dz = z[n_p:].reshape(x0.shape[0], len(self.x0_idx))
-            x0 = x0.at[:, idx].add(dz * x0_scale)
-        sol = jax.vmap(lambda t, u, x: simulate(mdl, t, u, x, solver=self.solver, substeps=self.substeps))(ts, us, x0)
-        pred = sol.ys[..., jnp.asarray(self.out_idx)]
-        err = pred - ys
-        err = jnp.where(jnp.asarray(self.angle), _wrap(err), err)
-        good = (sol.valid & mask)[..., None]
-        bad = ((~sol.valid) & mask)[..., None]
-        e = jnp.where(good, err / scales, 0.0) + jnp.where(bad, PENALTY, 0.0)
-        return e.reshape(-1)
-
-    def solve(self, z0, args, max_steps, rtol, atol, callback):
-        solver = MaterialisedLM(rtol=rtol, atol=atol, callback=callback, norm=rms_norm, ftol=1e-9)
-        sol = optx.least_squares(self.residuals, solver, z0, args=args, max_steps=max_steps, throw=False)
-        r = self.residuals(sol.value, args)
-        return sol.value, sol.result, sol.stats["num_steps"], r
-
-    def jacobian(self, z, args):
-        return jax.jacfwd(self.residuals)(z, args)
-
-    def simulate_all(self, z, args):
-        return self.residuals(z, args)
+def channel_rms(r: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """Per-channel RMS (model units) of normalised residuals ``r`` over the unmasked samples."""
+    e = np.asarray(r).reshape(mask.shape + (len(scales),))
+    return np.asarray([max(float(np.sqrt(np.mean((e[..., j][mask] * s) ** 2))), 1e-12)
+                       for j, s in enumerate(scales)])
 
 
-def _compiled(problem: _Problem, name: str, example_args, static_kw: dict):
-    """jit + AOT-compile ``problem.<name>`` once per structure and shapes; returns (fn, seconds)."""
-    leaves, treedef = jax.tree_util.tree_flatten(example_args)
-    key = (
-        problem,
-        name,
-        treedef,
-        tuple((np.shape(x), str(jnp.asarray(x).dtype)) for x in leaves),
-        tuple(sorted(static_kw.items(), key=lambda kv: kv[0])),
-    )
-    if key in _CACHE:
-        return _CACHE[key], 0.0
-    t0 = time.perf_counter()
-    fn = jax.jit(lambda *a: getattr(problem, name)(*a, **static_kw)).lower(*example_args).compile()
-    _CACHE[key] = fn
-    return fn, time.perf_counter() - t0
+def x0_scales(model: AbstractModel, batch: Batch, states: Sequence[str]) -> np.ndarray:
+    """Scale of each estimated initial-state offset: the spread of the channel it shows up in."""
+    spread = channel_spread(batch)
+    state_channel = getattr(model, "STATE_CHANNEL", {})
+
+    def one(state):
+        c = state if state in batch.channels else state_channel.get(state)
+        return spread[batch.channels.index(c)] if c in batch.channels else 1.0
+
+    return np.asarray([one(s) for s in states], dtype=np.float64)
 
 
 def fit_output_error(
@@ -131,19 +124,9 @@ def fit_output_error(
     runs: Sequence[Run],
     *,
     spec: ParamSpec | None = None,
-    starts: Sequence[Mapping[str, float]] = (),
+    starts: Sequence[Mapping[str, float]] | Mapping[str, Mapping[str, float]] = (),
     channels: Sequence[str] | None = None,
-    estimate_x0: Sequence[str] = (),
-    weights: str = "noise",
-    channel_scales: Mapping[str, float] | None = None,
-    solver: str = "rk4",
-    substeps: int = 1,
-    max_steps: int = 200,
-    rtol: float = 1e-6,
-    atol: float = 1e-6,
-    flt: Filter = Filter(),
-    choose: str = "best",
-    warmup: float = 0.25,
+    options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
 ) -> FitResult:
     """Fit ``model`` to ``runs`` by output error.
@@ -153,64 +136,46 @@ def fit_output_error(
         runs: training runs (any lengths and sample rates).
         spec: free/fixed flags, bounds and scales (default ``model.spec()``); its values are
             the fixed values and the first start.
-        starts: further candidate starts (e.g. the equation-error estimate); the one whose
-            simulation stays finite with the lowest cost is used.
+        starts: further candidate starts (e.g. the equation-error estimate), as a sequence or
+            as ``{label: values}`` (the label is what the report says it started from); see
+            ``options.choose``.
         channels: measured channels to fit (default: every model output present in all runs
             except absolute positions).
-        estimate_x0: state names whose initial values are estimated per run (offsets from
-            the measured values).
-        weights: ``"noise"`` (two passes, noise-normalised) or ``"spread"``.
-        channel_scales: fixed per-channel normalisation (overrides ``weights``).
-        solver, substeps: integrator (:func:`diffship.simulate.simulate`).
-        max_steps, rtol, atol: Levenberg–Marquardt limits and tolerances.
-        flt: filter used to take initial states from the data.
-        choose: ``"best"`` takes the finite start with the lowest cost; ``"first"`` the first
-            start (the spec's values, then ``starts`` in order) whose simulation stays finite.
-        warmup: fraction of every run fitted first (growing horizon) when that is at least
-            200 samples; ``0`` fits the whole runs from the start.
+        options: see :class:`OutputErrorOptions`.
         progress: optional ``progress(text)`` for people watching.
     """
+    o = options
     say = progress or (lambda s: None)
     spec = spec or model.spec()
     model = model.with_params(spec.values())
-    batch = make_batch(model, runs, channels, flt)
+    batch = make_batch(model, runs, channels, o.flt)
     n_p = len(spec.free_names)
     if n_p == 0:
         raise FitError("no free parameters: free at least one (remove it from --fix)")
-    x0_idx = tuple(model.state_names.index(s) for s in estimate_x0)
-    problem = _Problem(
+    unknown = [s for s in o.estimate_x0 if s not in model.state_names]
+    if unknown:
+        raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
+                       f"({', '.join(model.state_names)})")
+    kernel = Kernel(
         spec=spec.structural(),
         out_idx=tuple(model.output_names.index(c) for c in batch.channels),
         angle=tuple(c in model.angle_outputs for c in batch.channels),
-        x0_idx=x0_idx,
-        solver=solver,
-        substeps=int(substeps),
+        x0_idx=tuple(model.state_names.index(s) for s in o.estimate_x0),
+        integrator=o.integrator,
     )
     spread = channel_spread(batch)
-    scales = np.asarray([channel_scales[c] for c in batch.channels]) if channel_scales else spread
-    state_channel = getattr(model, "STATE_CHANNEL", {})
-
-    def _x0_scale(state):
-        c = state if state in batch.channels else state_channel.get(state)
-        return spread[batch.channels.index(c)] if c in batch.channels else 1.0
-
-    x0_scale = np.asarray([_x0_scale(s) for s in estimate_x0], dtype=np.float64)
-
-    def args_with(sc):
-        return (model, jnp.asarray(batch.ts), jnp.asarray(batch.us), jnp.asarray(batch.ys), jnp.asarray(batch.mask),
-                jnp.asarray(batch.x0), jnp.asarray(x0_scale), jnp.asarray(sc, dtype=jnp.float64))
-
-    args = args_with(scales)
-    n_x0 = len(x0_idx) * len(runs)
+    scales = np.asarray([o.channel_scales[c] for c in batch.channels]) if o.channel_scales else spread
+    x0_scale = x0_scales(model, batch, o.estimate_x0)
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale)
+    n_x0 = len(kernel.x0_idx) * len(runs)
     messages: list[str] = []
 
     # -- choose a start that does not blow up ------------------------------------------
-    candidates = [("model/--init values", spec.values())] + [
-        (f"start {i + 1}", {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}})
-        for i, s in enumerate(starts)
+    named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
+    candidates = [("the model's values (with --init)", spec.values())] + [
+        (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named
     ]
-    z_example = jnp.zeros((n_p + n_x0,))
-    res_fn, c_res = _compiled(problem, "residuals", (z_example, args), {})
+    res_fn, compile_s = kernel.compiled("residuals", np.zeros(n_p + n_x0), data)
     best = None
     for label, vals in candidates:
         vals, notes = spec.nudged(vals)
@@ -220,96 +185,91 @@ def fit_output_error(
         except Exception as exc:  # start outside bounds
             messages.append(f"start '{label}' skipped: {exc}")
             continue
-        r = np.asarray(res_fn(jnp.asarray(z), args))
+        r = np.asarray(res_fn(jnp.asarray(z), data))
         cost = 0.5 * float(np.sum(r * r))
-        blew_up = np.any(np.abs(r) >= PENALTY) or not math.isfinite(cost)
-        if blew_up:
+        if np.any(np.abs(r) >= PENALTY) or not math.isfinite(cost):
             messages.append(f"start '{label}' rejected: its simulation blows up")
             continue
         if best is None or cost < best[2]:
             best = (label, z, cost)
-        if choose == "first":
+        if o.choose == "first":
             break
     if best is None:
         raise FitError(
             f"model {model.name} diverges from every start ({len(candidates)} tried) on runs "
             f"{', '.join(batch.names)}; give a better start with --init NAME=VALUE or fix unstable parameters"
         )
-    label, z0, _ = best
+    label, z, _ = best
     messages.append(f"started from {label}")
 
     # -- Levenberg–Marquardt -------------------------------------------------------------
-    t_steps = [0, time.perf_counter()]
-
-    def cb(cost):
-        t_steps[0] += 1
-        if time.perf_counter() - t_steps[1] > 2.0:
-            t_steps[1] = time.perf_counter()
-            say(f"  LM step {t_steps[0]}: cost {float(cost):.6g}")
-
-    kw = dict(max_steps=max_steps, rtol=rtol, atol=atol, callback=cb if progress else None)
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
     n_full = batch.ts.shape[1]
-    n_warm = int(warmup * n_full) if warmup and warmup < 1 and warmup * n_full >= 200 else 0
+    n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
     say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
-        f"{batch.n_residuals} residuals)...")
-    solve_fn, c_solve = _compiled(problem, "solve", (jnp.asarray(z0), args), kw)
-    compile_s = c_res + c_solve
+        f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
+    solve_fn, c = kernel.compiled("solve", z, data, **lm)
+    compile_s += c
     passes, steps_per_pass = [], []
+    noise_pass = o.weights == "noise" and not o.channel_scales
+    counter = [0, time.perf_counter()]
+
+    def on_step(cost):
+        counter[0] += 1
+        if time.perf_counter() - counter[1] > 2.0:
+            counter[1] = time.perf_counter()
+            say(f"  LM step {counter[0]}: cost {cost:.6g}")
+
+    def run_solve(fn, z, d):
+        with listening(on_step if progress else None):
+            z, result, steps, r = fn(jnp.asarray(z), d)
+        passes.append(result)
+        steps_per_pass.append(int(steps))
+        return z, np.asarray(r)
+
     t0 = time.perf_counter()
-    z = jnp.asarray(z0)
-    noise_pass = weights == "noise" and not channel_scales
     if n_warm:
         # Growing horizon: converge on the first part of every run (cheap steps, and a short
         # horizon keeps LM out of the local minima of long simulations), then the whole runs.
-        args_w = args[:1] + tuple(a[:, :n_warm] for a in args[1:5]) + args[5:]
+        data_w = data.head(n_warm)
         t_c = time.perf_counter()
-        solve_w, c_w = _compiled(problem, "solve", (z, args_w), kw)
-        compile_s += c_w
+        solve_w, c = kernel.compiled("solve", z, data_w, **lm)
+        compile_s += c
         t0 += time.perf_counter() - t_c
-        zw, result, steps, rw = solve_w(z, args_w)
-        passes.append(result)
-        steps_per_pass.append(int(steps))
-        r_full = np.asarray(res_fn(zw, args))
+        zw, rw = run_solve(solve_w, z, data_w)
+        r_full = np.asarray(res_fn(zw, data))
         if not np.any(np.abs(r_full) >= PENALTY):
             z = zw
             if noise_pass:
-                sigma = _channel_rms(np.asarray(rw), batch.mask[:, :n_warm], np.asarray(scales))
+                sigma = channel_rms(rw, batch.mask[:, :n_warm], scales)
                 scales = np.maximum(sigma, 1e-6 * spread)
-                args = args_with(scales)
+                data = data.replace(scales=jnp.asarray(scales))
                 noise_pass = False
         else:
             messages.append(f"the fit on the first {n_warm} samples blows up on the whole runs; restarted")
         say(f"output error: first {n_warm} samples of each run fitted in {steps_per_pass[-1]} steps; now the whole runs")
-    z, result, steps, r = solve_fn(z, args)
-    r = np.asarray(r)
-    passes.append(result)
-    steps_per_pass.append(int(steps))
+    z, r = run_solve(solve_fn, z, data)
     if noise_pass:
         # floor: on noise-free data the residuals are round-off, which must not set the weights
-        sigma = np.maximum(_channel_rms(r, batch.mask, np.asarray(scales)), 1e-6 * spread)
-        args = args_with(sigma)
-        scales = sigma
-        z, result, steps, r = solve_fn(z, args)
-        r = np.asarray(r)
-        passes.append(result)
-        steps_per_pass.append(int(steps))
-    iterations = sum(steps_per_pass)
+        scales = np.maximum(channel_rms(r, batch.mask, scales), 1e-6 * spread)
+        data = data.replace(scales=jnp.asarray(scales))
+        z, r = run_solve(solve_fn, z, data)
     jax.block_until_ready(z)
     fit_s = time.perf_counter() - t0
+    iterations = sum(steps_per_pass)
 
     # -- covariance from the final Jacobian ----------------------------------------------
-    jac_fn, c_jac = _compiled(problem, "jacobian", (z, args), {})
-    compile_s += c_jac
-    J = np.asarray(jac_fn(z, args))
-    m_res = batch.n_residuals
-    dof = max(m_res - (n_p + n_x0), 1)
-    s2 = float(np.sum(r * r)) / dof
+    jac_fn, c = kernel.compiled("jacobian", z, data)
+    compile_s += c
+    J = np.asarray(jac_fn(z, data))
     z = np.asarray(z)
-    cov_z, rank_msg = _covariance(J, s2)
-    if rank_msg:
-        messages.append(rank_msg)
+    cov_all = covariance(J, r)
+    if not cov_all.full_rank:
+        names = [*spec.free_names, *(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)]
+        messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
+                        + ", ".join(names[i] for i in cov_all.unidentifiable))
     dth = spec.dtheta_dz(z[:n_p])
-    cov = cov_z[:n_p, :n_p] * np.outer(dth, dth)
+    cov = cov_all.matrix[:n_p, :n_p] * np.outer(dth, dth)
     theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
     values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
     if hasattr(model, "canonical"):
@@ -318,12 +278,9 @@ def fit_output_error(
             perm = [spec.free_names.index(n) for n in _swap_names(values, swapped, spec.free_names)]
             cov = cov[np.ix_(perm, perm)]
             values = swapped
-    stderr = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(spec.free_names)}
-    fitted = model.with_params(values)
-    x0_fit = np.asarray(batch.x0).copy()
-    if x0_idx:
-        x0_fit[:, list(x0_idx)] += z[n_p:].reshape(len(runs), len(x0_idx)) * x0_scale
-    noise = _channel_rms(r, batch.mask, np.asarray(scales))
+    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
+    x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
+    noise = channel_rms(r, batch.mask, scales)
     converged = passes[-1] == optx.RESULTS.successful
     status = "converged" if converged else result_message(passes[-1])
     if np.any(np.abs(r) >= PENALTY):
@@ -331,7 +288,7 @@ def fit_output_error(
     say(f"output error: {status} after {iterations} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
     return FitResult(
         method="output_error",
-        model=fitted,
+        model=model.with_params(values),
         params=values,
         stderr=stderr,
         free=spec.free_names,
@@ -347,9 +304,12 @@ def fit_output_error(
         initial_states=tuple(x0_fit),
         run_names=batch.names,
         covariance=cov,
+        integrator=o.integrator,
         messages=tuple(messages),
-        info={"weights": weights, "solver": solver, "substeps": substeps, "residual_variance": s2,
-              "n_residuals": m_res, "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": tuple(estimate_x0)},
+        info={"weights": o.weights, "integrator": o.integrator.describe(),
+              "residual_variance": cov_all.residual_variance, "n_residuals": batch.n_residuals,
+              "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
+              "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1]},
     )
 
 
@@ -360,27 +320,3 @@ def _swap_names(old, new, free):
         match = [m for m in free if old[m] == new[n]]
         out.append(match[0] if match else n)
     return out
-
-
-def _channel_rms(r: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> np.ndarray:
-    n_c = len(scales)
-    e = r.reshape(mask.shape + (n_c,))
-    m = mask
-    out = []
-    for j in range(n_c):
-        v = e[..., j][m] * scales[j]
-        out.append(max(float(np.sqrt(np.mean(v * v))), 1e-12))
-    return np.asarray(out)
-
-
-def _covariance(J: np.ndarray, s2: float) -> tuple[np.ndarray, str]:
-    """``s²(JᵀJ)⁻¹`` via SVD; flags (near) rank deficiency instead of returning garbage."""
-    u, sv, vt = np.linalg.svd(J, full_matrices=False)
-    tol = sv[0] * max(J.shape) * np.finfo(float).eps * 1e3 if sv.size else 0.0
-    keep = sv > tol
-    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
-    msg = ""
-    if not np.all(keep):
-        inv = inv + np.diag(np.where(np.any(np.abs(vt[~keep]) > 0.3, axis=0), np.inf, 0.0))
-        msg = "some parameters are not identifiable from these runs (Jacobian rank deficient): their standard errors are infinite"
-    return s2 * inv, msg

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..integrators import RK4, AbstractIntegrator
 from ..models._base import AbstractModel
 
 __all__ = ["FitResult"]
@@ -34,6 +35,8 @@ class FitResult:
         noise_std: per-channel RMS of the final residuals (model units).
         initial_states: per-run initial states used (``model.state_names`` order).
         covariance: covariance of the free parameters (model units), or ``None``.
+        integrator: the integrator the fit simulated with; evaluation and diagnosis of this fit
+            use the same one.
         messages: notes for people (start chosen, filters used, warnings).
         info: anything method-specific (filter, weights, ...).
     """
@@ -55,6 +58,7 @@ class FitResult:
     initial_states: tuple[np.ndarray, ...] = ()
     run_names: tuple[str, ...] = ()
     covariance: np.ndarray | None = None
+    integrator: AbstractIntegrator = RK4()
     messages: tuple[str, ...] = ()
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
 

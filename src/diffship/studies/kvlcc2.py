@@ -30,17 +30,17 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 
-import equinox as eqx
 import numpy as np
 import pandas as pd
 
 from ..data import Run, kvlcc2_runs
 from ..errors import DataError
-from ..fit import FitResult, fit_output_error
-from ..simulate import initial_state, model_inputs
+from ..fit import FitResult, OutputErrorOptions, fit_output_error
+from ..metrics import simulate_run
+from ..simulate import initial_state
+from ..integrators import RK4
 from ..manoeuvres import first_execute, zigzag, zigzag_metrics
 from ..models.mmg import MMG, kvlcc2_mmg
-from ..simulate import simulate
 
 __all__ = [
     "AUTOPILOT_DELAY_S", "DEFAULT_CHANNELS", "DEFAULT_FREE", "DEFAULT_TRAIN", "HELM_RATE_DEG_S", "KVLCC2Study",
@@ -92,12 +92,9 @@ def _test(run: Run) -> str:
     return run.name.replace("KVLCC2_", "")
 
 
-_simulate = eqx.filter_jit(simulate)
-
-
 def open_loop_run(model: MMG, run: Run) -> Run:
     """The run with the model's channels replaced by a simulation driven by the measured inputs."""
-    sol = _simulate(model, run.time, model_inputs(model, run), initial_state(model, run))
+    sol = simulate_run(model, run, initial_state(model, run))
     ys = np.asarray(sol.ys)
     return run.with_channels(**{c: ys[:, j] for j, c in enumerate(model.output_names)})
 
@@ -126,7 +123,7 @@ def closed_loop_run(model: MMG, run: Run, *, dt: float = 0.1, duration: float = 
     return zigzag(model, x0, rudder_deg=float(meta["rudder_angle_deg"]), switch_deg=float(meta["switch_heading_deg"]),
                   first=str(meta["first_rudder"]), inputs={"n": float(np.mean(run["n"]))}, duration=duration, dt=dt,
                   t_execute=float(run.time[i0] - run.time[0]), rudder_rate_deg_s=helm_rate_deg_s,
-                  max_rudder_deg=35.0, switch_delay_s=delay_s, substeps=1, name=f"{_test(run)} predicted")
+                  max_rudder_deg=35.0, switch_delay_s=delay_s, integrator=RK4(substeps=1), name=f"{_test(run)} predicted")
 
 
 def predict_zigzags(model: MMG, runs: Sequence[Run], roles: dict[str, str] | None = None, *, dt: float = 0.1,
@@ -174,7 +171,7 @@ def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str
     model = model or kvlcc2_mmg()
     spec = model.spec().only_free(list(free))
     tr = [runs[k].resample(dt).slice(None, runs[k].time[0] + horizon) for k in train]
-    fit = fit_output_error(model, tr, spec=spec, channels=channels, max_steps=max_steps, progress=progress)
+    fit = fit_output_error(model, tr, spec=spec, channels=channels, progress=progress, options=OutputErrorOptions(max_steps=max_steps))
     roles = {**{k: "train" for k in train}, **{k: "validate" for k in validate}}
     table, cl, ol = predict_zigzags(fit.model, [runs[k] for k in (*train, *validate)], roles)
     return KVLCC2Study(fit=fit, train=tuple(train), validate=validate, table=table,

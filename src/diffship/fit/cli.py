@@ -1,4 +1,5 @@
-"""Command-line front ends (thin: parse arguments, call the library, print, exit).
+"""``python -m diffship.fit``: the command-line front end of the fits (thin: parse arguments,
+call the library, print, exit).
 
 Errors a user can fix (bad files, columns, units, parameters, divergence) are printed as one
 line ``error: ...`` on stderr with exit status 2 and no traceback.
@@ -11,12 +12,21 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import DiffshipError
+from ..data import example_runs, load_runs
+from ..errors import DiffshipError
+from ..integrators import INTEGRATORS, get_integrator
+from ..metrics import evaluate
+from ..models import MODELS, get_model
+from ..params import parse_assignments
+from ..preprocess import Filter
+from ..report import plot_fit, text_report, to_json_dict, write_json
+from .both import fit_both
+from .output_error import OutputErrorOptions
 
-__all__ = ["fit_main", "build_fit_parser"]
+__all__ = ["main", "build_parser"]
 
 
-def build_fit_parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m diffship.fit",
         description="Fit a manoeuvring model to measured runs by equation error and output error. "
@@ -24,7 +34,8 @@ def build_fit_parser() -> argparse.ArgumentParser:
         "synthetic USV runs for fossen3).",
     )
     p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
-    p.add_argument("--model", default="nomoto2", help="nomoto1, nomoto2 or fossen3 (default nomoto2)")
+    p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
+                   help=f"one of: {', '.join(MODELS)} (default nomoto2)")
     p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"))
     p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
     p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
@@ -37,6 +48,8 @@ def build_fit_parser() -> argparse.ArgumentParser:
     p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
     p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
                    help="initial states of fitted channels: estimated per run (default) or taken from the data")
+    p.add_argument("--solver", default="rk4", choices=tuple(INTEGRATORS),
+                   help="output-error integrator: rk4 (fixed step, one per sample) or tsit5 (diffrax, adaptive)")
     p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
     p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
     p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")
@@ -56,14 +69,10 @@ def _progress(quiet: bool):
 
 
 def _load(args, paths):
-    from .data import load_runs
-    from .params import parse_assignments
-
     columns = {k: v for k, v in (c.split("=", 1) if "=" in c else (c, "") for c in args.columns)}
     bad = [k for k, v in columns.items() if not v]
     if bad:
         raise DiffshipError(f"--columns {bad[0]}: expected NAME=COLUMN, e.g. --columns psi=heading")
-    del parse_assignments
     runs = load_runs(paths, columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
     if args.resample:
         runs = [r.resample(args.resample) for r in runs]
@@ -71,10 +80,8 @@ def _load(args, paths):
 
 
 def _example(model_name: str, say):
-    from .data import example_runs
-
     if model_name == "fossen3":
-        from .synthetic import usv_runs
+        from ..synthetic import usv_runs  # only for the bundled fossen3 example
 
         say("no runs given: generating the bundled fossen3 example (seed-002 USV truth with added mass, "
             "4 runs × 120 s at 10 Hz, realistic GNSS/heading/gyro noise; run usv_3 held out)")
@@ -91,8 +98,9 @@ def _example(model_name: str, say):
     return runs, []
 
 
-def fit_main(argv: list[str] | None = None) -> int:
-    args = build_fit_parser().parse_args(argv)
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 done, 1 no fit converged, 2 user error)."""
+    args = build_parser().parse_args(argv)
     say = _progress(args.quiet)
     try:
         return _fit(args, say)
@@ -102,13 +110,6 @@ def fit_main(argv: list[str] | None = None) -> int:
 
 
 def _fit(args, say) -> int:
-    from .fit import fit_both
-    from .metrics import evaluate
-    from .models import get_model
-    from .params import parse_assignments
-    from .preprocess import Filter
-    from .report import plot_fit, text_report, to_json_dict, write_json
-
     model = get_model(args.model)
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
@@ -127,14 +128,15 @@ def _fit(args, say) -> int:
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
-                       estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels, progress=say)
+                       estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
+                       options=OutputErrorOptions(integrator=get_integrator(args.solver)), progress=say)
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = {}, {}
     for m, r in results.items():
         x0 = r.initial_states if m == "output_error" else None
-        ev_train[m] = evaluate(r.model, train, x0, flt=flt)
+        ev_train[m] = evaluate(r.model, train, x0, flt=flt, integrator=r.integrator)
         if val:
-            ev_val[m] = evaluate(r.model, val, flt=flt)
+            ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
     report = text_report(model.name, results, ev_train, ev_val, train, val)
     print(report)
     if args.out:

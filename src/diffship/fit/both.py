@@ -1,0 +1,69 @@
+"""Both methods on the same data: equation error first, output error started from it."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+
+from ..data import Run
+from ..errors import DiffshipError
+from ..models._base import AbstractModel
+from ..params import ParamSpec
+from ..preprocess import Filter
+from .equation_error import fit_equation_error
+from .output_error import OutputErrorOptions, fit_output_error
+from .problem import default_channels
+from .result import FitResult
+
+__all__ = ["fit_both"]
+
+
+def fit_both(
+    model: AbstractModel,
+    runs: Sequence[Run],
+    *,
+    spec: ParamSpec | None = None,
+    methods: Sequence[str] = ("equation_error", "output_error"),
+    init: Mapping[str, float] | None = None,
+    flt: Filter = Filter(),
+    estimate_x0: Sequence[str] | str = "fitted",
+    channels: Sequence[str] | None = None,
+    options: OutputErrorOptions = OutputErrorOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, FitResult]:
+    """Run the requested methods on the same data; output error starts from equation error.
+
+    Output error's candidate starts are, in order: the user's ``init`` values (or the model's
+    reference values) and the equation-error estimate where one is available; the start with
+    the lowest finite simulation cost is used (the first finite one where ``init`` is given).
+    ``flt`` is the equation-error differentiation filter (and the filter for initial states);
+    ``estimate_x0="fitted"`` estimates the initial values of the fitted channels' states
+    (``()`` takes them from the data); ``options`` holds the other output-error settings.
+    """
+    say = progress or (lambda s: None)
+    spec = spec or model.spec()
+    if init:
+        spec = spec.with_values(init)
+    out: dict[str, FitResult] = {}
+    starts: dict[str, dict[str, float]] = {}
+    if "equation_error" in methods:
+        try:
+            say("equation error: differentiating and solving the least-squares problem...")
+            ee = fit_equation_error(model, runs, spec=spec, flt=flt)
+            out["equation_error"] = ee
+            say(f"equation error: {ee.status} in {ee.fit_seconds + ee.compile_seconds:.2f} s")
+            starts["the equation-error estimate"] = {n: ee.params[n] for n in ee.free}
+        except DiffshipError as exc:  # baseline unavailable (e.g. missing u, v): say so, go on
+            say(f"equation error not available: {exc}")
+            if list(methods) == ["equation_error"]:
+                raise
+    if "output_error" in methods:
+        if estimate_x0 == "fitted":
+            chans = tuple(channels) if channels else default_channels(model, runs)
+            est = model.states_for_channels(chans)
+        else:
+            est = tuple(estimate_x0)
+        opts = dataclasses.replace(options, estimate_x0=est, flt=flt, choose="first" if init else "best")
+        out["output_error"] = fit_output_error(model, runs, spec=spec, starts=starts, channels=channels,
+                                               options=opts, progress=progress)
+    return out

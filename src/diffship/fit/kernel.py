@@ -1,0 +1,222 @@
+r"""The output-error kernel: one residual, one Jacobian, one solver for every simulation fit.
+
+Fitting (:mod:`diffship.fit.output_error`), the diagnosis screen and refits
+(:mod:`diffship.diagnose.screen`) and the estimation of initial states for evaluation all call
+this module; nothing else in diffship writes an output-error residual.
+
+**Unknowns.** One flat vector :math:`z = (z_\theta, w, d)`:
+
+* :math:`z_\theta` — the free parameters in the scaled unconstrained space of a
+  :class:`~diffship.params.ParamSpec` (:math:`\theta = \theta(z_\theta)`, fixed ones held);
+* :math:`w` — ``n_extra`` coordinates that move further parameters linearly,
+  :math:`\varphi = \mathrm{clip}(\varphi_0 + s_\varphi \odot S w,\ \varphi_{lo}, \varphi_{hi})`,
+  with a selection matrix ``S`` given as data (so switching which effect parameters are free
+  does not recompile); empty for ordinary fits;
+* :math:`d` — per-run offsets of the initial values of the states ``x0_idx``, in units of
+  ``x0_scale``: :math:`x_{0,i} = \hat x_{0,i} + s_x \odot d_i`.
+
+**Residual.** For runs :math:`i`, samples :math:`k` and fitted channels :math:`c`,
+
+.. math::
+    e_{ikc} = \frac{\hat y_c(t_{ik}; \theta, \varphi, x_{0,i}) - y_{ikc}}{s_c}
+
+from the whole-horizon simulation (:func:`diffship.simulate.simulate`, vmapped over runs),
+heading errors wrapped to (−π, π], padded samples masked out and every sample after a blow-up
+set to :data:`PENALTY`.
+
+**Solver.** Levenberg–Marquardt on optimistix with the forward-mode Jacobian materialised once
+per accepted step (:class:`~diffship.fit._lm.MaterialisedLM`). Progress is reported through a
+host callback that looks up the current listener at run time, so the compiled program does not
+depend on who is listening.
+
+All compiled programs come from the one cache, :func:`diffship.compiled.compiled`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+from jaxtyping import Array, Bool, Float
+
+from ..compiled import compiled
+from ..integrators import RK4, AbstractIntegrator
+from ..models._base import AbstractModel
+from ..params import ParamSpec
+from ..simulate import Solution, simulate
+from ._lm import MaterialisedLM, rms_norm
+
+__all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "listening", "wrap_angle"]
+
+#: Normalised residual assigned to every sample after a simulation blew up.
+PENALTY = 1e3
+
+_LISTENERS: list[Callable[[float], None]] = []
+
+
+def _on_step(cost) -> None:
+    if _LISTENERS:
+        _LISTENERS[-1](float(cost))
+
+
+@contextmanager
+def listening(callback: Callable[[float], None] | None) -> Iterator[None]:
+    """Call ``callback(cost)`` at every accepted Levenberg–Marquardt step inside this block."""
+    if callback is None:
+        yield
+        return
+    _LISTENERS.append(callback)
+    try:
+        yield
+    finally:
+        _LISTENERS.pop()
+
+
+def wrap_angle(e):
+    """Angle difference wrapped to (−π, π]."""
+    return jnp.arctan2(jnp.sin(e), jnp.cos(e))
+
+
+class KernelData(eqx.Module):
+    """Everything an output-error residual needs that is data (arrays; no recompiles).
+
+    Attributes:
+        model: the model; its parameter values are those of the fixed parameters (and the
+            starting values of nothing: the free ones come from ``z``).
+        ts, us, ys, mask: padded runs, shapes ``(R, N)``, ``(R, N, n_u)``, ``(R, N, n_c)``, ``(R, N)``.
+        x0: initial states ``(R, n_x)`` before the offsets ``d``.
+        x0_scale: scale of each estimated initial-state offset ``(n_d,)``.
+        scales: per-channel normalisation ``s_c`` ``(n_c,)``.
+        S, phi0, phi_scale, lo, hi: the extra coordinates (see the module docstring); shapes
+            ``(n_phi, n_extra)`` and ``(n_phi,)``.
+    """
+
+    model: AbstractModel
+    ts: Float[Array, "R N"]
+    us: Float[Array, "R N n_u"]
+    ys: Float[Array, "R N n_c"]
+    mask: Bool[Array, "R N"]
+    x0: Float[Array, "R n_x"]
+    x0_scale: Float[Array, " n_d"]
+    scales: Float[Array, " n_c"]
+    S: Float[Array, "n_phi n_extra"]
+    phi0: Float[Array, " n_phi"]
+    phi_scale: Float[Array, " n_phi"]
+    lo: Float[Array, " n_phi"]
+    hi: Float[Array, " n_phi"]
+
+    def replace(self, **changes) -> KernelData:
+        """A copy with some fields replaced."""
+        names = tuple(changes)
+        return eqx.tree_at(lambda d: tuple(getattr(d, n) for n in names), self, tuple(changes[n] for n in names))
+
+    def head(self, n: int) -> KernelData:
+        """The first ``n`` samples of every run (growing-horizon warm-up)."""
+        return self.replace(ts=self.ts[:, :n], us=self.us[:, :n], ys=self.ys[:, :n], mask=self.mask[:, :n])
+
+
+class Kernel(eqx.Module):
+    """Static structure of an output-error problem (hashable: the compile-cache key).
+
+    Attributes:
+        spec: free/fixed split, bounds and scales of the model's first ``len(spec)``
+            parameters (values irrelevant: use ``spec.structural()``).
+        out_idx: index in ``model.output_names`` of each fitted channel.
+        angle: whether each fitted channel is an angle (wrapped errors).
+        x0_idx: states whose initial values are estimated per run.
+        extra_idx: indices in ``model.param_names`` of the parameters ``φ`` moved by ``w``.
+        n_extra: length of ``w``.
+        integrator: how the simulation advances between samples.
+    """
+
+    spec: ParamSpec = eqx.field(static=True)
+    out_idx: tuple[int, ...] = eqx.field(static=True)
+    angle: tuple[bool, ...] = eqx.field(static=True)
+    x0_idx: tuple[int, ...] = eqx.field(static=True, default=())
+    extra_idx: tuple[int, ...] = eqx.field(static=True, default=())
+    n_extra: int = eqx.field(static=True, default=0)
+    integrator: AbstractIntegrator = eqx.field(static=True, default=RK4())
+
+    @property
+    def n_theta(self) -> int:
+        return len(self.spec.free_names)
+
+    def n_unknowns(self, n_runs: int) -> int:
+        return self.n_theta + self.n_extra + n_runs * len(self.x0_idx)
+
+    # -- the map z -> model, initial states ------------------------------------------------
+    def model_at(self, z: Float[Array, " n_z"], data: KernelData) -> AbstractModel:
+        theta = data.model.theta()
+        n = self.n_theta
+        if n:
+            theta = self.spec.full_values(z[:n], theta[: len(self.spec.params)])
+            theta = jnp.concatenate([theta, data.model.theta()[len(self.spec.params):]])
+        if self.n_extra:
+            phi = jnp.clip(data.phi0 + data.phi_scale * (data.S @ z[n:n + self.n_extra]), data.lo, data.hi)
+            theta = theta.at[jnp.asarray(self.extra_idx)].set(phi)
+        return data.model.with_params(theta)
+
+    def initial_states(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, "R n_x"]:
+        if not self.x0_idx:
+            return data.x0
+        k = self.n_theta + self.n_extra
+        d = z[k:].reshape(data.x0.shape[0], len(self.x0_idx))
+        return data.x0.at[:, jnp.asarray(self.x0_idx)].add(d * data.x0_scale)
+
+    # -- simulation and residuals -----------------------------------------------------------
+    def simulate(self, z: Float[Array, " n_z"], data: KernelData) -> Solution:
+        """Every run simulated at ``z`` (a batched :class:`~diffship.simulate.Solution`)."""
+        model = self.model_at(z, data)
+        x0 = self.initial_states(z, data)
+        return jax.vmap(lambda t, u, x: simulate(model, t, u, x, self.integrator))(data.ts, data.us, x0)
+
+    def residuals(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, " m"]:
+        """Normalised output errors, flattened in (run, sample, channel) order."""
+        sol = self.simulate(z, data)
+        err = sol.ys[..., jnp.asarray(self.out_idx)] - data.ys
+        err = jnp.where(jnp.asarray(self.angle), wrap_angle(err), err)
+        good = (sol.valid & data.mask)[..., None]
+        bad = ((~sol.valid) & data.mask)[..., None]
+        e = jnp.where(good, err / data.scales, 0.0) + jnp.where(bad, PENALTY, 0.0)
+        return e.reshape(-1)
+
+    def jacobian(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, "m n_z"]:
+        """Forward-mode Jacobian of :meth:`residuals`."""
+        return jax.jacfwd(self.residuals)(z, data)
+
+    def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
+              ftol: float = 1e-9):
+        """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``."""
+        solver = MaterialisedLM(rtol=rtol, atol=atol, callback=_on_step, norm=rms_norm, ftol=ftol)
+        sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
+                                 throw=False)
+        return sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data)
+
+    # -- compiled entry points (NumPy in, NumPy out) ----------------------------------------
+    def compiled(self, name: str, z, data: KernelData, **static):
+        """``(compiled function, compile seconds)`` of one of the methods above."""
+        return compiled(self, name, (jnp.asarray(z, dtype=jnp.float64), data), **static)
+
+    def call(self, name: str, z, data: KernelData, **static):
+        """Run a compiled method; returns its output (JAX arrays)."""
+        fn, _ = self.compiled(name, z, data, **static)
+        return fn(jnp.asarray(z, dtype=jnp.float64), data)
+
+
+def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None,
+                phi_scale=None, lo=None, hi=None) -> KernelData:
+    """Build :class:`KernelData` from NumPy arrays (empty extra coordinates by default)."""
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    empty = np.zeros((0,))
+    return KernelData(
+        model=model, ts=f(ts), us=f(us), ys=f(ys), mask=jnp.asarray(mask, dtype=bool), x0=f(x0),
+        x0_scale=f(empty if x0_scale is None else x0_scale), scales=f(scales),
+        S=f(np.zeros((0, 0)) if S is None else S), phi0=f(empty if phi0 is None else phi0),
+        phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
+        hi=f(empty if hi is None else hi),
+    )
