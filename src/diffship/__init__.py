@@ -1,13 +1,13 @@
 """diffship: identify ship and marine-craft dynamics from measured motion.
 
 Data flow: ``data`` (runs) → ``models`` (JAX vector fields) → ``simulate`` → ``fit``
-(output error, equation error) → ``report``.
+(output error, equation error) → ``diagnose`` → ``report``. See ``ARCHITECTURE.md``.
 
-Importing diffship switches JAX to float64 (``jax_enable_x64``): identification needs it.
+Importing diffship switches JAX to float64 (``jax_enable_x64``, :mod:`diffship.precision`):
+identification needs it.
 """
 
-import jax as _jax
-
-_jax.config.update("jax_enable_x64", True)
+from . import precision as precision
 
 __version__ = "0.1.0"
+__all__ = ["precision"]

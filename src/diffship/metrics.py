@@ -21,7 +21,7 @@ import numpy as np
 from .compiled import compiled
 from .data import Run
 from .integrators import RK4, AbstractIntegrator
-from .models._base import AbstractModel
+from .models import AbstractModel
 from .preprocess import Filter
 from .simulate import initial_state, model_inputs, simulate
 

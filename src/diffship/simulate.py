@@ -28,7 +28,7 @@ from jaxtyping import Array, Bool, Float
 from .data import Run
 from .errors import DataError
 from .integrators import RK4, AbstractIntegrator
-from .models._base import AbstractModel
+from .models import AbstractModel
 from .preprocess import Filter, smooth_and_derivative
 
 __all__ = ["Solution", "simulate", "integrate", "model_inputs", "initial_state", "MAX_ABS"]

@@ -16,7 +16,7 @@ import numpy as np
 from .data import Run
 from .integrators import RK4
 from .models import Fossen3, Nomoto1
-from .models._base import AbstractModel
+from .models import AbstractModel
 from .simulate import simulate
 
 __all__ = ["NOISE", "simulate_run", "usv_truth", "usv_excitation", "usv_runs", "rudder_sequence", "nomoto_runs"]

@@ -7,7 +7,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 from ..data import Run
 from ..errors import DiffshipError
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
 from .equation_error import fit_equation_error

@@ -39,7 +39,7 @@ import numpy as np
 from ..data import Run
 from ..errors import FitError, ModelError
 from ..models import Fossen3, Nomoto1, Nomoto2
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter, smooth_and_derivative
 from ..simulate import initial_state, model_inputs

@@ -46,7 +46,7 @@ from jaxtyping import Array, Bool, Float
 
 from ..compiled import compiled
 from ..integrators import RK4, AbstractIntegrator
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import Solution, simulate
 from ._lm import MaterialisedLM, rms_norm

@@ -42,7 +42,7 @@ import optimistix as optx
 from ..data import Run
 from ..errors import FitError
 from ..integrators import RK4, AbstractIntegrator
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
 from ._lm import result_message

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..data import Run
 from ..errors import DataError
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..preprocess import Filter
 from ..simulate import initial_state, model_inputs
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..integrators import RK4, AbstractIntegrator
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 
 __all__ = ["FitResult"]
 

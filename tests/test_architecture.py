@@ -1,0 +1,188 @@
+"""The package's shape: no import cycles, models below fitting, no private names across packages.
+
+The import graph is read from the source (``ast``), counting imports executed at import time and
+inside functions alike; imports under ``if TYPE_CHECKING:`` are type hints and are skipped.
+Importing ``diffship.a.b`` runs ``diffship/a/__init__.py`` first, so such an import is an edge to
+both ``diffship.a`` and ``diffship.a.b``. ``__main__`` modules are entry points: nothing imports
+them, but their imports count.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+PKG = SRC / "diffship"
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(SRC).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _is_type_checking(node: ast.If) -> bool:
+    t = node.test
+    return (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or (
+        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING")
+
+
+def _imports(path: Path) -> list[tuple[str, tuple[str, ...]]]:
+    """(imported module, names) for every runtime import in ``path``, resolved to absolute names."""
+    mod = _module_name(path)
+    is_pkg = path.name == "__init__.py"
+    package = mod if is_pkg else mod.rpartition(".")[0]
+    out = []
+
+    def visit(node):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and _is_type_checking(child):
+                for c in child.orelse:
+                    visit(c)
+                continue
+            if isinstance(child, ast.Import):
+                out.extend((a.name, ()) for a in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = package.split(".")
+                    base = base[: len(base) - (child.level - 1)]
+                    target = ".".join(base + ([child.module] if child.module else []))
+                else:
+                    target = child.module or ""
+                out.append((target, tuple(a.name for a in child.names)))
+            visit(child)
+
+    visit(ast.parse(path.read_text()))
+    return out
+
+
+MODULES = {_module_name(p): p for p in PKG.rglob("*.py")}
+
+
+def _graph() -> dict[str, set[str]]:
+    g: dict[str, set[str]] = {m: set() for m in MODULES}
+    for mod, path in MODULES.items():
+        for target, names in _imports(path):
+            if not target.startswith("diffship"):
+                continue
+            parts = target.split(".")
+            for k in range(1, len(parts) + 1):  # parents' __init__ run first
+                parent = ".".join(parts[:k])
+                inside = mod == parent or mod.startswith(parent + ".")  # its own package is already running
+                if parent in MODULES and not inside:
+                    g[mod].add(parent)
+            for n in names:  # ``from pkg import submodule``
+                sub = f"{target}.{n}"
+                if sub in MODULES and sub != mod:
+                    g[mod].add(sub)
+    return g
+
+
+def _cycle(g: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def dfs(v):
+        state[v] = 1
+        stack.append(v)
+        for w in sorted(g[v]):
+            if state.get(w) == 1:
+                return stack[stack.index(w):] + [w]
+            if w not in state:
+                found = dfs(w)
+                if found:
+                    return found
+        stack.pop()
+        state[v] = 2
+        return None
+
+    for v in sorted(g):
+        if v not in state:
+            found = dfs(v)
+            if found:
+                return found
+    return None
+
+
+def _top(mod: str) -> str:
+    parts = mod.split(".")
+    return ".".join(parts[:2]) if len(parts) > 1 else mod
+
+
+def test_no_import_cycle_between_modules():
+    cycle = _cycle(_graph())
+    assert cycle is None, " -> ".join(cycle)
+
+
+def test_no_import_cycle_between_packages():
+    """The same at the level of diffship's top-level modules and subpackages (fit, models, ...)."""
+    g: dict[str, set[str]] = {}
+    for mod, deps in _graph().items():
+        if mod == "diffship":
+            continue
+        g.setdefault(_top(mod), set())
+        g[_top(mod)].update(_top(d) for d in deps if _top(d) not in (_top(mod), "diffship"))
+    for v in list(g):
+        for w in g[v]:
+            g.setdefault(w, set())
+    cycle = _cycle(g)
+    assert cycle is None, " -> ".join(cycle)
+
+
+def test_the_cycle_detector_finds_a_cycle():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) is None
+
+
+@pytest.mark.parametrize("mod", sorted(m for m in MODULES if m.startswith("diffship.models")))
+def test_models_describe_physics_only(mod):
+    """A model depends on params, errors and other models: never on data, preprocess or fitting."""
+    allowed = ("diffship.models", "diffship.params", "diffship.errors")
+    bad = [t for t, _ in _imports(MODULES[mod]) if t.startswith("diffship") and not t.startswith(allowed)]
+    assert not bad, f"{mod} imports {bad}"
+
+
+def test_equation_error_names_no_concrete_model():
+    import diffship.models as models
+
+    src = MODULES["diffship.fit.equation_error"].read_text()
+    names = [n for n in dir(models) if isinstance(getattr(models, n), type) and n != "AbstractModel"]
+    tree = ast.parse(src)
+    used = sorted({node.id for node in ast.walk(tree) if isinstance(node, ast.Name) and node.id in names})
+    assert not used, used
+
+
+def test_no_private_name_imported_across_packages():
+    bad = []
+    for mod, path in MODULES.items():
+        for target, names in _imports(path):
+            if not target.startswith("diffship") or _top(target) == _top(mod):
+                continue
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            private_mod = [p for p in target.split(".") if p.startswith("_") and not p.startswith("__")]
+            if private or private_mod:
+                bad.append(f"{mod}: from {target} import {', '.join(names)}")
+    assert not bad, bad
+
+
+def test_package_faces_only_import():
+    """``__init__`` files hold imports, ``__all__`` and a docstring, nothing else."""
+    for path in PKG.rglob("__init__.py"):
+        tree = ast.parse(path.read_text())
+        for node in tree.body:
+            ok = isinstance(node, (ast.Import, ast.ImportFrom)) or (
+                isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)) or (
+                isinstance(node, (ast.Assign, ast.AnnAssign)) and any(
+                    getattr(t, "id", None) in ("__all__", "__version__") for t in getattr(node, "targets", [getattr(node, "target", None)])))
+            assert ok, f"{path.relative_to(SRC)} line {node.lineno}: {ast.dump(node)[:80]}"
+
+
+def test_files_stay_readable():
+    """No source file over about 500 lines (one concept per module; data.py, 511, is the loader of every format)."""
+    long = {str(p.relative_to(SRC)): n for p in PKG.rglob("*.py") if (n := len(p.read_text().splitlines())) > 520}
+    assert not long, long
