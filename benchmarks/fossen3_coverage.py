@@ -20,15 +20,18 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-import diffship
-from diffship.fit import fit_both, fit_output_error
-from diffship.models import Fossen3
-from diffship.synthetic import usv_runs, usv_truth
+if __name__ == "__main__":
+    sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
+
+from benchmarks.fitapi import fit_oe, fit_oe_and_ee  # noqa: E402
+from diffship.models import Fossen3  # noqa: E402
+from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 
 
 def main(argv=None):
@@ -45,9 +48,9 @@ def main(argv=None):
     for seed in range(args.seeds):
         runs = usv_runs(3, args.duration, 0.1, noise="realistic", seed=100 + seed)
         t0 = time.perf_counter()
-        both = fit_both(Fossen3(), runs)
+        both = fit_oe_and_ee(Fossen3(), runs)
         start = {n: tv[n] * (1.5 if i % 2 else 0.5) for i, n in enumerate(free)}
-        pm50 = fit_output_error(Fossen3(), runs, spec=Fossen3().spec().with_values(start),
+        pm50 = fit_oe(Fossen3(), runs, spec=Fossen3().spec().with_values(start),
                                 estimate_x0=("psi", "u", "v", "r"))
         for label, res in (("oe_default_start", both["output_error"]), ("oe_pm50_start", pm50),
                            ("equation_error", both["equation_error"])):

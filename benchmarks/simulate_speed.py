@@ -11,17 +11,19 @@ respect to the 16 parameters (what Levenberg–Marquardt needs).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-import diffship
-from diffship.fit.problem import make_batch
-from diffship.preprocess import Filter
-from diffship.simulate import simulate
-from diffship.synthetic import usv_runs, usv_truth
+if __name__ == "__main__":
+    sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
+
+from benchmarks.fitapi import FLT_NONE, batch_of  # noqa: E402
+from diffship.simulate import simulate  # noqa: E402
+from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 
 
 def _time(fn, *args, repeat):
@@ -40,7 +42,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     model = usv_truth()
     runs = usv_runs(3, 300.0, 0.1, noise="none")
-    b = make_batch(model, runs, ("psi", "u", "v", "r"), Filter("none"))
+    b = batch_of(model, runs, ("psi", "u", "v", "r"), FLT_NONE)
     ts, us, x0 = jnp.asarray(b.ts), jnp.asarray(b.us), jnp.asarray(b.x0)
     print(f"jax {jax.__version__}, devices {jax.devices()}; 3 runs × {b.ts.shape[1]} samples")
     print("| solver | compile+first sim [s] | sim (3 runs) [ms] | compile+first Jacobian [s] | Jacobian 16 params [ms] |")

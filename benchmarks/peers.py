@@ -1,9 +1,13 @@
-"""Peer methods a user would pick today, in NumPy/SciPy (no JAX): shared by ``benchmarks/run.py``.
+"""Peer methods a user would pick today, in NumPy/SciPy (no JAX), shared by the suite's cases and
+``fossen3_speed.py``.
 
-* :class:`NomotoProblem` — diffship's output-error residual for the first-order Nomoto model,
-  re-implemented in NumPy (fixed-step RK4, one step per sample, inputs linearly interpolated,
-  heading wrapped, same channel scales, same scaled parameter space, same per-run initial-state
-  offsets). The Fossen 3-DOF counterpart is ``fossen3_speed.NumpyProblem`` (reused unchanged).
+What they measure against diffship: the same problem solved by another tool (speed at equal
+final cost, accuracy on the same data).
+
+* :class:`NomotoProblem`, :class:`Fossen3Problem` — diffship's output-error residual for the
+  first-order Nomoto and the Fossen 3-DOF model, re-implemented in NumPy (fixed-step RK4, one step
+  per sample, inputs linearly interpolated, heading wrapped, same channel scales, same scaled
+  parameter space, same per-run initial-state offsets, diffship's penalty after a blow-up).
 * :func:`scipy_fit` — :func:`scipy.optimize.least_squares` (``method="lm"``: MINPACK with 2-point
   finite differences) on such a residual, with a wall-clock guard and the time at which its best
   cost first came within 1 % of a target cost (for speed "at equal final cost").
@@ -23,7 +27,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from diffship.fit.output_error import PENALTY
+from benchmarks.fitapi import PENALTY
 
 MAX_ABS = 1e8  # diffship.simulate's blow-up threshold
 
@@ -37,6 +41,7 @@ class ScaledParams:
         self.n_p = len(self.free)
         self.base = spec.values()
         free = [spec[n] for n in self.free]
+        # kind: 0 linear, 1 lower, 2 upper, 3 both (diffship.params conventions)
         self.kind = np.array([p.kind for p in free])
         self.lo = np.array([p.lower if math.isfinite(p.lower) else 0.0 for p in free])
         self.hi = np.array([p.upper if math.isfinite(p.upper) else 0.0 for p in free])
@@ -115,6 +120,112 @@ class NomotoProblem(ScaledParams):
         out, valid = self.simulate(p, x0)
         pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]
         valid = valid.T
+        with np.errstate(all="ignore"):
+            err = pred - self.ys
+            err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)
+            good = (valid & self.mask)[..., None]
+            bad = ((~valid) & self.mask)[..., None]
+            e = np.where(good, err / self.scales, 0.0) + np.where(bad, PENALTY, 0.0)
+        return e.reshape(-1)
+
+
+class Fossen3Problem(ScaledParams):
+    """Output-error residual of :class:`diffship.models.Fossen3` in NumPy (``fossen3_speed.py``'s problem).
+
+    Integrates only (psi, u, v, r): the positions x0, y0 feed nothing back and are not fitted, so
+    dropping them changes no residual (diffship integrates all six states).
+    """
+
+    def __init__(self, spec, model, batch, x0_idx, x0_scale, scales):
+        super().__init__(spec)
+        self.ts = batch.ts
+        self.ys = batch.ys  # (R, N, C), heading unwrapped
+        self.mask = batch.mask
+        self.x0 = batch.x0  # (R, n_x)
+        self.R, self.N = batch.ts.shape
+        self.x0_idx = list(x0_idx)
+        self.x0_scale = np.asarray(x0_scale, dtype=np.float64)
+        self.scales = np.asarray(scales, dtype=np.float64)
+        self.angle = np.array([c in model.angle_outputs for c in batch.channels])
+        sn = model.state_names
+        self.i_psi, self.i_u, self.i_v, self.i_r = (sn.index(c) for c in ("psi", "u", "v", "r"))
+        self.out_cols = [("psi", "u", "v", "r").index(c) for c in batch.channels]
+        # inputs per step: (N-1, 3, R) at the start, middle and end of every interval
+        us = np.transpose(batch.us, (1, 2, 0))  # (N, 3, R)
+        self.u_a = us[:-1]
+        self.u_c = us[1:]
+        self.u_b = 0.5 * (self.u_a + self.u_c)
+        self.h = self.ts[:, 1:] - self.ts[:, :-1]  # (R, N-1)
+        self.h_uniform = float(self.h[0, 0]) if np.allclose(self.h, self.h[0, 0], rtol=0, atol=1e-12) else None
+        self.nfev = 0
+
+    # simulation ---------------------------------------------------------------------------
+    def simulate(self, p, x0):
+        """RK4, one step per sample; returns (psi, u, v, r) each (N, R) and a validity mask (N, R)."""
+        m, xg = p["m"], p["xg"]
+        Xudot, Yvdot, Yrdot, Nvdot, Nrdot = p["Xudot"], p["Yvdot"], p["Yrdot"], p["Nvdot"], p["Nrdot"]
+        Xu, Yv, Yr, Nv, Nr, Xuu, Yvv, Nrr = p["Xu"], p["Yv"], p["Yr"], p["Nv"], p["Nr"], p["Xuu"], p["Yvv"], p["Nrr"]
+        ca = m * xg
+        cy = m - Yvdot
+        cr = 0.5 * (Nvdot + Yrdot)
+        mu = m - Xudot  # M[0,0] and the Coriolis coefficient b/u
+        Mb, Mc = m - Yvdot, m * xg - Yrdot
+        Md, Me = m * xg - Nvdot, p["Iz"] - Nrdot
+        det = Mb * Me - Mc * Md
+        i_mu, i_e, i_c, i_b, i_d = 1.0 / mu, Me / det, Mc / det, Mb / det, Md / det
+        absf = np.abs
+
+        def f(u, v, r, tau):
+            a = ca * r + cy * v - cr * r
+            b = mu * u
+            # rhs = tau - C(nu)nu - D(nu)nu  (component forms of diffship's Fossen3)
+            r0 = tau[0] + a * r + (Xu + Xuu * absf(u)) * u
+            r1 = tau[1] - b * r + (Yv + Yvv * absf(v)) * v + Yr * r
+            r2 = tau[2] - (a * u - b * v) + Nv * v + (Nr + Nrr * absf(r)) * r
+            return r0 * i_mu, i_e * r1 - i_c * r2, i_b * r2 - i_d * r1
+
+        psi, u, v, r = (x0[:, i].copy() for i in (self.i_psi, self.i_u, self.i_v, self.i_r))
+        N = self.N
+        out = np.empty((N, 4, self.R))
+        out[0] = psi, u, v, r
+        ua, ub, uc = self.u_a, self.u_b, self.u_c
+        hs = self.h_uniform
+        with np.errstate(all="ignore"):
+            for k in range(N - 1):
+                h = hs if hs is not None else self.h[:, k]
+                hh = 0.5 * h
+                du1, dv1, dr1 = f(u, v, r, ua[k])
+                u2, v2, r2 = u + hh * du1, v + hh * dv1, r + hh * dr1
+                du2, dv2, dr2 = f(u2, v2, r2, ub[k])
+                u3, v3, r3 = u + hh * du2, v + hh * dv2, r + hh * dr2
+                du3, dv3, dr3 = f(u3, v3, r3, ub[k])
+                u4, v4, r4 = u + h * du3, v + h * dv3, r + h * dr3
+                du4, dv4, dr4 = f(u4, v4, r4, uc[k])
+                h6 = h / 6.0
+                psi = psi + h6 * (r + 2.0 * r2 + 2.0 * r3 + r4)  # psi_dot = r
+                u = u + h6 * (du1 + 2.0 * du2 + 2.0 * du3 + du4)
+                v = v + h6 * (dv1 + 2.0 * dv2 + 2.0 * dv3 + dv4)
+                r = r + h6 * (dr1 + 2.0 * dr2 + 2.0 * dr3 + dr4)
+                out[k + 1, 0] = psi
+                out[k + 1, 1] = u
+                out[k + 1, 2] = v
+                out[k + 1, 3] = r
+            ok = np.all(np.isfinite(out) & (np.abs(out) < MAX_ABS), axis=1)  # (N, R)
+        # diffship freezes the state at the first blow-up and marks every later sample invalid
+        valid = np.cumprod(ok, axis=0).astype(bool)
+        return out, valid
+
+    def residuals(self, z):
+        self.nfev += 1
+        z = np.asarray(z, dtype=np.float64)
+        p = self.params(z)
+        x0 = self.x0.copy()
+        if self.x0_idx:
+            dz = z[self.n_p:].reshape(self.R, len(self.x0_idx))
+            x0[:, self.x0_idx] += dz * self.x0_scale
+        out, valid = self.simulate(p, x0)
+        pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]  # (R, N, C)
+        valid = valid.T  # (R, N)
         with np.errstate(all="ignore"):
             err = pred - self.ys
             err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)

@@ -1,0 +1,99 @@
+"""Every call from the benchmarks into diffship's fitting API, in one place.
+
+The suite's case modules, its peers and the standalone scripts (``fossen3_speed.py``,
+``fossen3_coverage.py``, ``simulate_speed.py``) reach ``fit_output_error``,
+``fit_equation_error``, ``fit_both``, ``make_batch``, ``channel_spread``, the output-error
+problem ``_Problem`` (for the vmapped fixed-iteration LM), ``FitResult`` fields and the KVLCC2
+study only through the functions below. When the library's signatures change, edit here.
+
+The keyword arguments are forwarded exactly as the callers give them: an argument a caller
+leaves out is not passed, so the library's default applies (as in the calls these replace).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+import diffship  # noqa: F401  (enables float64)
+from diffship.fit import fit_both, fit_equation_error, fit_output_error
+from diffship.fit.output_error import PENALTY, _Problem, channel_spread
+from diffship.fit.problem import make_batch
+from diffship.preprocess import Filter
+
+__all__ = ["FLT_NONE", "PENALTY", "fit_oe", "fit_ee", "fit_oe_and_ee", "batch_of", "spread_of", "lm_problem",
+           "initial_states", "fitted_model", "fitted_params", "fit_numbers", "kvlcc2_study"]
+
+#: raw first samples as initial states, no smoothing of the fitted channels (the scipy peer's problem)
+FLT_NONE = Filter("none")
+_UNSET = object()
+
+
+def _given(**kw):
+    return {k: v for k, v in kw.items() if v is not _UNSET}
+
+
+def fit_oe(model, runs, *, spec=_UNSET, estimate_x0=_UNSET, weights=_UNSET, flt=_UNSET, channels=_UNSET,
+           starts=_UNSET, max_steps=_UNSET):
+    """``diffship.fit.fit_output_error(model, runs, **given)``."""
+    return fit_output_error(model, runs, **_given(spec=spec, estimate_x0=estimate_x0, weights=weights, flt=flt,
+                                                  channels=channels, starts=starts, max_steps=max_steps))
+
+
+def fit_ee(model, runs, *, spec=_UNSET):
+    """``diffship.fit.fit_equation_error(model, runs, **given)``."""
+    return fit_equation_error(model, runs, **_given(spec=spec))
+
+
+def fit_oe_and_ee(model, runs):
+    """``diffship.fit.fit_both(model, runs)``: ``{"output_error": ..., "equation_error": ...}``."""
+    return fit_both(model, runs)
+
+
+def batch_of(model, runs, channels, flt):
+    """``diffship.fit.problem.make_batch(model, runs, channels, flt)``: stacked runs (ts, us, ys, mask, x0)."""
+    return make_batch(model, runs, channels, flt)
+
+
+def spread_of(batch) -> np.ndarray:
+    """Per-channel spread of a batch (diffship's ``weights="spread"`` scales)."""
+    return channel_spread(batch)
+
+
+def lm_problem(spec, model, batch, scales, *, out_idx, angle, x0_idx):
+    """diffship's output-error residual as ``(problem, args)`` with ``problem.residuals(z, args)`` jittable.
+
+    ``z`` = scaled free parameters followed by the per-run initial-state offsets (RK4, one step
+    per sample); used by the vmapped fixed-iteration LM of the Nomoto batch benchmark.
+    """
+    problem = _Problem(spec=spec.structural(), out_idx=out_idx, angle=angle, x0_idx=x0_idx, solver="rk4", substeps=1)
+    args = (model, jnp.asarray(batch.ts), jnp.asarray(batch.us), jnp.asarray(batch.ys), jnp.asarray(batch.mask),
+            jnp.asarray(batch.x0), jnp.asarray(scales), jnp.asarray(scales))
+    return problem, args
+
+
+# -- FitResult fields --------------------------------------------------------------------------------------
+def initial_states(res) -> np.ndarray:
+    """Per-run fitted initial states, stacked ``(R, n_states)`` in ``model.state_names`` order."""
+    return np.stack(res.initial_states)
+
+
+def fitted_model(res):
+    return res.model
+
+
+def fitted_params(res) -> dict:
+    return res.params
+
+
+def fit_numbers(res) -> dict:
+    """The numbers the suite records of a fit: compile_s, fit_s, cost, iterations, converged."""
+    return dict(compile_s=res.compile_seconds, fit_s=res.fit_seconds, cost=res.cost, iterations=res.iterations,
+                converged=res.converged)
+
+
+def kvlcc2_study():
+    """``diffship.studies.kvlcc2.kvlcc2_study()`` (MMG output-error fit + predictions); raises ImportError."""
+    from diffship.studies.kvlcc2 import kvlcc2_study as study
+
+    return study()
