@@ -3,7 +3,7 @@
 The suite's case modules, its peers and the standalone scripts (``fossen3_speed.py``,
 ``fossen3_coverage.py``, ``simulate_speed.py``) reach ``fit_output_error``,
 ``fit_equation_error``, ``fit_both``, ``make_batch``, ``channel_spread``, the output-error
-problem ``_Problem`` (for the vmapped fixed-iteration LM), ``FitResult`` fields and the KVLCC2
+kernel (``diffship.fit.kernel``, for the vmapped fixed-iteration LM), ``FitResult`` fields and the KVLCC2
 study only through the functions below. When the library's signatures change, edit here.
 
 The keyword arguments are forwarded exactly as the callers give them: an argument a caller
@@ -12,12 +12,12 @@ leaves out is not passed, so the library's default applies (as in the calls thes
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 
 import diffship  # noqa: F401  (enables float64)
-from diffship.fit import fit_both, fit_equation_error, fit_output_error
-from diffship.fit.output_error import PENALTY, _Problem, channel_spread
+from diffship.fit import OutputErrorOptions, fit_both, fit_equation_error, fit_output_error
+from diffship.fit.kernel import PENALTY, Kernel, kernel_data
+from diffship.fit.output_error import channel_spread
 from diffship.fit.problem import make_batch
 from diffship.preprocess import Filter
 
@@ -35,9 +35,9 @@ def _given(**kw):
 
 def fit_oe(model, runs, *, spec=_UNSET, estimate_x0=_UNSET, weights=_UNSET, flt=_UNSET, channels=_UNSET,
            starts=_UNSET, max_steps=_UNSET):
-    """``diffship.fit.fit_output_error(model, runs, **given)``."""
-    return fit_output_error(model, runs, **_given(spec=spec, estimate_x0=estimate_x0, weights=weights, flt=flt,
-                                                  channels=channels, starts=starts, max_steps=max_steps))
+    """``diffship.fit.fit_output_error(model, runs, spec=..., channels=..., starts=..., options=...)``."""
+    options = OutputErrorOptions(**_given(estimate_x0=estimate_x0, weights=weights, flt=flt, max_steps=max_steps))
+    return fit_output_error(model, runs, options=options, **_given(spec=spec, channels=channels, starts=starts))
 
 
 def fit_ee(model, runs, *, spec=_UNSET):
@@ -61,15 +61,15 @@ def spread_of(batch) -> np.ndarray:
 
 
 def lm_problem(spec, model, batch, scales, *, out_idx, angle, x0_idx):
-    """diffship's output-error residual as ``(problem, args)`` with ``problem.residuals(z, args)`` jittable.
+    """diffship's output-error kernel as ``(kernel, data)`` with ``kernel.residuals(z, data)`` jittable.
 
     ``z`` = scaled free parameters followed by the per-run initial-state offsets (RK4, one step
-    per sample); used by the vmapped fixed-iteration LM of the Nomoto batch benchmark.
+    per sample; offsets in units of the channel ``scales``); used by the vmapped fixed-iteration
+    LM of the Nomoto batch benchmark.
     """
-    problem = _Problem(spec=spec.structural(), out_idx=out_idx, angle=angle, x0_idx=x0_idx, solver="rk4", substeps=1)
-    args = (model, jnp.asarray(batch.ts), jnp.asarray(batch.us), jnp.asarray(batch.ys), jnp.asarray(batch.mask),
-            jnp.asarray(batch.x0), jnp.asarray(scales), jnp.asarray(scales))
-    return problem, args
+    kernel = Kernel(spec=spec.structural(), out_idx=out_idx, angle=angle, x0_idx=x0_idx)
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=scales)
+    return kernel, data
 
 
 # -- FitResult fields --------------------------------------------------------------------------------------

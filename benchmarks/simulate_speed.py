@@ -22,6 +22,7 @@ if __name__ == "__main__":
     sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
 
 from benchmarks.fitapi import FLT_NONE, batch_of  # noqa: E402
+from diffship.integrators import get_integrator  # noqa: E402
 from diffship.simulate import simulate  # noqa: E402
 from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 
@@ -48,9 +49,9 @@ def main(argv=None):
     print("| solver | compile+first sim [s] | sim (3 runs) [ms] | compile+first Jacobian [s] | Jacobian 16 params [ms] |")
     print("|---|---|---|---|---|")
     for solver in ("rk4", "tsit5"):
-        sim = jax.jit(lambda m: jax.vmap(lambda t, u, x: simulate(m, t, u, x, solver=solver).ys)(ts, us, x0))
+        sim = jax.jit(lambda m: jax.vmap(lambda t, u, x: simulate(m, t, u, x, get_integrator(solver)).ys)(ts, us, x0))
         c1, s1 = _time(sim, model, repeat=args.repeat)
-        jac = jax.jit(jax.jacfwd(lambda th: jax.vmap(lambda t, u, x: simulate(model.with_params(th), t, u, x, solver=solver).ys)(ts, us, x0)))
+        jac = jax.jit(jax.jacfwd(lambda th: jax.vmap(lambda t, u, x: simulate(model.with_params(th), t, u, x, get_integrator(solver)).ys)(ts, us, x0)))
         c2, s2 = _time(jac, model.theta(), repeat=max(2, args.repeat // 3))
         print(f"| {solver} | {c1:.2f} | {1e3 * s1:.1f} | {c2:.2f} | {1e3 * s2:.1f} |")
 
