@@ -41,7 +41,6 @@ def _straight_speed(model, n=10.23):
     return lo
 
 
-@pytest.mark.slow
 def test_study_predicts_validation_first_overshoots_within_2deg(runs):
     """The default study (MMG, 10 free parameters, fitted on 10/5, 20/5, 35/5 and 20/10-S, first
     100 s at 5 Hz), reduced to four validation zigzags (10/10 both sides, 20/10 port-first, 15/5),
