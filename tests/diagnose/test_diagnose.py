@@ -6,14 +6,22 @@ import numpy as np
 import pytest
 
 import diffship  # noqa: F401
-from diffship.diagnose import augment, diagnose
+from diffship.diagnose import DiagnoseOptions, augment, diagnose
 from diffship.diagnose.__main__ import main
+from diffship.diagnose.report import write_report
+from diffship.errors import DataError
 from diffship.models import Nomoto1
 from diffship.synthetic import rudder_sequence, simulate_run
 
 D = np.pi / 180
 TRUTH = dict(K=0.2, T1=8.0, delta0=0.01)
 ZIGZAGS = [(10, 20), (-20, 30), (25, 40), (15, 16), (-12, 36)]
+OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
+#: top-level keys of the JSON contract (``Diagnosis.to_dict()``)
+JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "path",
+             "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
+             "noise_floor", "shrink", "shrink_definition", "shrink_total_error", "base_params", "final_params",
+             "not_applicable", "timings_s"]
 
 
 def _runs(truth, seed):
@@ -30,34 +38,44 @@ def _runs(truth, seed):
 def lag_case():
     truth = augment(Nomoto1(**TRUTH), "actuator_lag", T_act=2.5)
     train, val = _runs(truth, 1)
-    return diagnose(Nomoto1(), train, val, effects=["input_delay", "actuator_lag", "damping_rr"])
+    return diagnose(Nomoto1(), train, val, options=OPTIONS)
 
 
-def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case):
+def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     d = lag_case
-    assert d.selected[:1] == ["actuator_lag"]
+    assert d.selected[:1] == ("actuator_lag",)
     assert d.E_before > 1.5  # a real structural gap (× noise floor)
     assert d.E_after < 1.15  # back near the noise floor on held-out runs
     assert d.shrink > 0.85
-    lag = next(r for r in d.ranking if r["effect"] == "actuator_lag")
-    assert lag["params"]["T_act"] == pytest.approx(2.5, rel=0.1)
-    assert lag["verdict"] == "attributed"
+    lag = next(r for r in d.ranking if r.effect == "actuator_lag")
+    assert lag.params["T_act"] == pytest.approx(2.5, rel=0.1)
+    assert lag.verdict == "attributed"
     # the recovered base parameters are the truth's once the effect is in
     fp = d.final_model.param_values()
     assert fp["K"] == pytest.approx(0.2, rel=0.05) and fp["T1"] == pytest.approx(8.0, rel=0.1)
     # where: the error lives in the steering transients more than on the approach
-    ph = d.where["per_phase"]
+    ph = d.where.per_phase
     assert ph["transient"]["E"] > ph["approach"]["E"]
     d2 = d.to_dict()
-    for k in ("where", "ranking", "selected", "validation_rmse_before", "validation_rmse_after", "shrink"):
-        assert k in d2
+    assert list(d2) == JSON_KEYS
     assert d2["validation_rmse_after"]["psi"] < d2["validation_rmse_before"]["psi"]
+    assert d2["shrink_total_error"] == pytest.approx((d.E_before - d.E_after) / d.E_before)
+    # ranking rows: refitted candidates carry validation numbers, inapplicable ones only the reason
+    row = next(r for r in d2["ranking"] if r["effect"] == "actuator_lag")
+    assert list(row) == ["effect", "family", "params", "stderr", "validation_gain", "shrink", "validation_E",
+                         "train_cost_reduction", "screen_fraction", "orthogonal_fraction", "p_value", "verdict",
+                         "confusable_with", "separating_manoeuvre"]
+    assert list(d2["path"][0])[:4] == ["effect", "E_before", "E_after", "shrink_of_structural_gap"]
+    assert "_residuals" not in d2["where"] and set(d2["where"]) >= {"per_channel", "per_phase", "residual_tests"}
+    files = write_report(d, tmp_path)  # Markdown, JSON and the five figures
+    assert {f.name for f in files} >= {"diagnosis.md", "diagnosis.json", "residuals.png", "waterfall.png"}
+    assert json.loads((tmp_path / "diagnosis.json").read_text())["selected"] == ["actuator_lag"]
 
 
 def test_no_effect_data_raise_no_alarm():
     train, val = _runs(Nomoto1(**TRUTH), 2)
-    d = diagnose(Nomoto1(), train, val, effects=["input_delay", "actuator_lag", "damping_rr"])
-    assert d.selected == []
+    d = diagnose(Nomoto1(), train, val, options=OPTIONS)
+    assert d.selected == ()
     assert d.E_before < 1.2
     assert "no structural gap" in d.verdict[1] or "unexplained" in d.verdict[1]
 
@@ -84,6 +102,8 @@ def test_cli_contract_and_bad_input(tmp_path, capsys):
     # bad input: unknown effect, unknown model, missing file -> exit 2 with a one-line message
     assert main(paths[:1] + ["--validate", paths[3], "--model", "nomoto1", "--effects", "gremlins"]) == 2
     assert "unknown effect" in capsys.readouterr().err
+    with pytest.raises(DataError, match="unknown effect"):
+        DiagnoseOptions(effects=["gremlins"])
     assert main(paths[:1] + ["--validate", paths[3], "--model", "mystery"]) == 2
     assert "unknown model" in capsys.readouterr().err
     assert main([str(tmp_path / "missing.csv"), "--validate", paths[3], "--model", "nomoto1"]) == 2

@@ -1,4 +1,8 @@
-"""Every library effect vanishes exactly at its null value, and acts away from it."""
+"""Every library effect vanishes exactly at its null value, and acts away from it; the registry."""
+
+import os
+import subprocess
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -7,12 +11,11 @@ import pytest
 
 import diffship  # noqa: F401
 from diffship.diagnose import EFFECT_NAMES, Augmented, augment, library
-from diffship.diagnose.effects import make_effect
+from diffship.diagnose.effects import EFFECTS, FAMILY, DampingRR, NorrbinRR, applicability, make_effect
 from diffship.errors import ModelError
 from diffship.fit.problem import make_batch
-from diffship.simulate import initial_state
 from diffship.models import Nomoto1, Nomoto2
-from diffship.simulate import simulate
+from diffship.simulate import initial_state, simulate
 from diffship.synthetic import nomoto_runs, simulate_run, usv_excitation, usv_truth
 
 D = np.pi / 180
@@ -96,3 +99,24 @@ def test_parameters_and_bad_names():
         make_effect(base, "gremlins")
     with pytest.raises(ModelError, match="does not apply"):
         make_effect(Nomoto1(), "current")
+
+
+def test_registry_picks_the_implementation_for_the_base_model():
+    assert EFFECT_NAMES == tuple(EFFECTS) and set(FAMILY) == set(EFFECT_NAMES)
+    assert isinstance(make_effect(usv_truth(), "damping_rr"), DampingRR)
+    assert isinstance(make_effect(Nomoto1(), "damping_rr"), NorrbinRR)
+    assert applicability(usv_truth(), "wind") == ""
+    assert "no measured wind" in applicability(usv_truth(), "wind", nomoto_runs(Nomoto1(), n_runs=1, duration=5.0))
+    assert "needs a 3-DOF model" in applicability(Nomoto2(), "current")
+
+
+def test_importing_effects_does_not_load_the_fitter():
+    code = ("import sys, diffship.diagnose.effects; "
+            "print(' '.join(m for m in sys.modules if m.startswith('diffship')))")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                                env=env).stdout.split())
+    assert "diffship.diagnose.effects.registry" in loaded
+    for heavy in ("diffship.fit", "diffship.metrics", "diffship.simulate", "diffship.diagnose.screen",
+                  "diffship.diagnose.diagnosis", "diffship.diagnose.where"):
+        assert heavy not in loaded, heavy

@@ -7,10 +7,10 @@ import sys
 import time
 
 from ..errors import DiffshipError
+from .effects import EFFECT_NAMES
 
-EPILOG = """Effects: current, input_delay, actuator_lag, rate_limit, rudder_offset, heading_bias, damping_vv,
-damping_rr, damping_vr, damping_rv, speed_dependence, wind (wind needs wind_speed and wind_dir columns).
-Exit status: 0 done, 2 user error (message on stderr)."""
+EPILOG = (f"Effects: {', '.join(EFFECT_NAMES)} (wind needs wind_speed and wind_dir columns). "
+          "Exit status: 0 done, 2 user error (message on stderr).")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,25 +45,22 @@ def main(argv: list[str] | None = None) -> int:
         from ..data import load_runs
         from ..models import get_model
         from ..params import parse_assignments
-        from . import EFFECT_NAMES, diagnose
+        from .diagnosis import DiagnoseOptions, diagnose
         from .report import to_markdown, write_json, write_report
 
+        effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
+        options = DiagnoseOptions(effects=effects, refit_all=args.refit_all)
         model = get_model(args.model)
         fix = parse_assignments(args.fix, "--fix")
         spec = model.spec()
         spec = spec.fix(fix) if fix else spec
-        effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
-        if effects != "all":
-            bad = [e for e in effects if e not in EFFECT_NAMES]
-            if bad:
-                raise DiffshipError(f"--effects: unknown effect(s) {', '.join(bad)}; choose from {', '.join(EFFECT_NAMES)}")
         columns = dict(c.split("=", 1) for c in args.columns if "=" in c)
         kw = dict(columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
         train, val = load_runs(args.runs, **kw), load_runs(args.validate, **kw)
         if args.resample:
             train = [r.resample(args.resample) for r in train]
             val = [r.resample(args.resample) for r in val]
-        d = diagnose(model, train, val, spec=spec, effects=effects, refit_all=args.refit_all, progress=say)
+        d = diagnose(model, train, val, spec=spec, options=options, progress=say)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

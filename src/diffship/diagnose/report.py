@@ -1,4 +1,8 @@
-"""Diagnosis report: a three-line verdict (where, which, how far), tables, figures, JSON."""
+"""Diagnosis report: Markdown tables, figures and the JSON file of a :class:`~.diagnosis.Diagnosis`.
+
+The three-line verdict and the per-candidate verdicts are decided in :mod:`.verdict`; this
+module only presents them.
+"""
 
 from __future__ import annotations
 
@@ -8,44 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["verdict_lines", "to_markdown", "plot_all", "write_report"]
+from .verdict import format_params
 
-
-def _fmt_params(p: dict, se: dict | None = None) -> str:
-    out = []
-    for k, v in p.items():
-        s = (se or {}).get(k)
-        out.append(f"{k} = {v:.4g}" + (f" ± {1.96 * s:.2g}" if s is not None and math.isfinite(s) else ""))
-    return ", ".join(out)
-
-
-def verdict_lines(d) -> list[str]:
-    """Where, which, how far — one line each."""
-    pc = d.where["per_channel"]
-    worst = max(pc, key=lambda c: pc[c]["share"])
-    ph = d.where.get("per_phase", {})
-    worst_phase = max(ph, key=lambda p: ph[p]["E"]) if ph else "-"
-    struct = d.gap["share_struct"]
-    where = (f"Where: validation error {d.E_before:.2f}× the noise floor ({100 * struct:.0f} % structural); "
-             f"mostly in {worst} ({100 * pc[worst]['share']:.0f} % of the error), worst phase: {worst_phase}.")
-    if d.E_before < 1.2:
-        which = "Which: no structural gap detected (validation error within 20 % of the noise floor); no effect attributed."
-    elif not d.selected:
-        which = ("Which: gap unexplained by the library — no candidate passed the validation rule "
-                 "(see the ranking for near misses and effects not identifiable from these runs).")
-    else:
-        r = {x["effect"]: x for x in d.ranking}
-        w = d.selected[0]
-        conf = [x["effect"] for x in d.ranking if x["verdict"].startswith("confusable")]
-        rej = [x["effect"] for x in d.ranking if x["verdict"].startswith("rejected on validation")]
-        which = (f"Which: {w} ({_fmt_params(r[w]['params'], r[w].get('stderr'))})"
-                 + (" then " + ", ".join(d.selected[1:]) if len(d.selected) > 1 else "")
-                 + (f"; confusable: {', '.join(conf)}" if conf else "")
-                 + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")
-    how = (f"How far: validation error {d.E_before:.2f} → {d.E_after:.2f} × noise floor; "
-           f"{100 * d.shrink:.0f} % of the structural gap removed"
-           + (f" ({', '.join(d.selected)})." if d.selected else "."))
-    return [where, which, how]
+__all__ = ["to_markdown", "plot_all", "write_json", "write_report"]
 
 
 def to_markdown(d) -> str:
@@ -53,33 +22,35 @@ def to_markdown(d) -> str:
     L += [f"> {x}  " for x in d.verdict] + [""]
     L += ["## Gap budget (validation, normalised by the noise floor)", "",
           "| total E | noise | parameter | structural |", "|---|---|---|---|",
-          f"| {d.gap['E_total']:.3g} | {d.gap['E_noise']:.3g} | {d.gap['E_param']:.3g} | {d.gap['E_struct']:.3g} |", ""]
+          f"| {d.gap.E_total:.3g} | {d.gap.E_noise:.3g} | {d.gap.E_param:.3g} | {d.gap.E_struct:.3g} |", ""]
     L += ["## Where", "", "| channel | RMSE before | RMSE after | noise floor | share of error |", "|---|---|---|---|---|"]
-    for c, v in d.where["per_channel"].items():
+    for c, v in d.where.per_channel.items():
         L.append(f"| {c} | {d.rmse_before[c]:.4g} | {d.rmse_after[c]:.4g} | {v['noise_floor']:.3g} | {100 * v['share']:.0f} % |")
     L += ["", "| phase | time share | E |", "|---|---|---|"]
-    for p, v in d.where["per_phase"].items():
+    for p, v in d.where.per_phase.items():
         L.append(f"| {p} | {100 * v['fraction_of_time']:.0f} % | {v['E']:.3g} |")
-    L += ["", "| run | E |", "|---|---|"] + [f"| {k} | {v['E']:.3g} |" for k, v in d.where["per_run"].items()]
+    L += ["", "| run | E |", "|---|---|"] + [f"| {k} | {v['E']:.3g} |" for k, v in d.where.per_run.items()]
     L += ["", "| region | bins (E per quartile) |", "|---|---|"]
-    for k, bins in d.where["per_region"].items():
+    for k, bins in d.where.per_region.items():
         L.append(f"| {k} | " + ", ".join(f"[{b['low']:.3g}, {b['high']:.3g}]: {b['E']:.3g}" for b in bins) + " |")
     L += ["", "| channel | residual white | independent of input | CCF(input rate) peak lag [s] |", "|---|---|---|---|"]
-    for c, v in d.where["residual_tests"].items():
+    for c, v in d.where.residual_tests.items():
         L.append(f"| {c} | {'yes' if v['white'] else 'no'} | {'yes' if v['independent_of_input'] else 'no'} | {v['ccf_peak_lag_s']:.2f} |")
-    if d.where.get("force_residuals"):
+    if d.where.force_residuals:
         L += ["", "Inverse-dynamics force residuals (RMS, mean): " + ", ".join(
-            f"{k}: {v['rms']:.3g}, {v['mean']:.3g}" for k, v in d.where["force_residuals"].items())]
+            f"{k}: {v['rms']:.3g}, {v['mean']:.3g}" for k, v in d.where.force_residuals.items())]
     L += ["", "## Which (candidates, selected on validation)", "",
           "| effect | screen f_k | o_k | fitted parameters (95 %) | validation gain | shrink | verdict |",
           "|---|---|---|---|---|---|---|"]
+    nan = float("nan")
     for r in d.ranking:
-        L.append(f"| {r['effect']} | {r.get('screen_fraction', float('nan')):.3g} | {r.get('orthogonal_fraction', float('nan')):.2g} | "
-                 f"{_fmt_params(r.get('params', {}), r.get('stderr'))} | {100 * r['validation_gain']:.1f} % | "
-                 f"{r['shrink']:.2f} | {r['verdict']} |")
+        sf = nan if r.screen_fraction is None else r.screen_fraction
+        of = nan if r.orthogonal_fraction is None else r.orthogonal_fraction
+        L.append(f"| {r.effect} | {sf:.3g} | {of:.2g} | {format_params(r.params, r.stderr)} | "
+                 f"{100 * r.validation_gain:.1f} % | {r.shrink:.2f} | {r.verdict} |")
     L += ["", "## How far (greedy path)", "", "| step | effect | E before | E after | shrink of structural gap |", "|---|---|---|---|---|"]
     for i, s in enumerate(d.path):
-        L.append(f"| {i + 1} | {s['effect']} | {s['E_before']:.3g} | {s['E_after']:.3g} | {s['shrink_of_structural_gap']:.2f} |")
+        L.append(f"| {i + 1} | {s.effect} | {s.E_before:.3g} | {s.E_after:.3g} | {s.shrink_of_structural_gap:.2f} |")
     L += ["", "Timings [s]: " + ", ".join(f"{k} {v:.1f}" for k, v in d.timings.items()), ""]
     return "\n".join(L)
 
@@ -93,7 +64,7 @@ def plot_all(d, out: Path) -> list[Path]:
 
     out = Path(out)
     files = []
-    res, lab = d.where["_residuals"], d.where["_phases"]
+    res, lab = d.where.residuals, d.where.phases
     colors = {"approach": "0.9", "transient": "#fdd", "steady_turn": "#dfd", "counter_steer": "#ddf", "straight": "white"}
     # 1. residual time series with phases shaded
     runs = list(d.val_runs)
@@ -119,7 +90,7 @@ def plot_all(d, out: Path) -> list[Path]:
     fig.savefig(files[-1], dpi=90)
     plt.close(fig)
     # 2. ACF / CCF
-    tests = d.where["residual_tests"]
+    tests = d.where.residual_tests
     fig, axes = plt.subplots(2, len(d.channels), figsize=(3.2 * len(d.channels), 5), squeeze=False)
     for i, c in enumerate(d.channels):
         v = tests[c]
@@ -135,7 +106,7 @@ def plot_all(d, out: Path) -> list[Path]:
     fig.savefig(files[-1], dpi=90)
     plt.close(fig)
     # 3. regime heatmap
-    reg = d.where["per_region"]
+    reg = d.where.per_region
     if reg:
         keys = list(reg)
         M = np.full((len(keys), 4), np.nan)
@@ -173,8 +144,8 @@ def plot_all(d, out: Path) -> list[Path]:
     plt.close(fig)
     # 5. shrink waterfall
     fig, ax = plt.subplots(figsize=(5, 3.5))
-    levels = [d.E_before] + [s["E_after"] for s in d.path]
-    labels = ["base"] + ["+ " + s["effect"] for s in d.path]
+    levels = [d.E_before] + [s.E_after for s in d.path]
+    labels = ["base"] + ["+ " + s.effect for s in d.path]
     for i in range(1, len(levels)):
         ax.bar(i, levels[i - 1] - levels[i], bottom=levels[i], color="tab:green")
     ax.bar(0, levels[0], color="tab:red")

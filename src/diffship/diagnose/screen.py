@@ -1,4 +1,4 @@
-r"""Screen candidate effects with a score test, refit the best, judge them on held-out runs.
+r"""The all-effects workspace: score-test screen of every candidate, and warm-started refits.
 
 All candidates live in **one** augmented model (every library effect at its null value), so
 one compiled residual function and one compiled forward-mode Jacobian serve the screen, every
@@ -24,13 +24,11 @@ the predicted fraction of the training cost it removes, :math:`f_k = \hat\sigma^
 e^\top e`, and the orthogonal fraction :math:`o_k = \|G_\perp\|^2/\|G\|^2` (identifiability:
 o_k ≈ 0 means the base parameters can mimic the effect to first order).
 
-**Refit** (Levenberg–Marquardt with Marquardt scaling, warm-started at θ̂ with φ at the
-probe and 0.1·probe, the start with the lower cost wins) of the top candidates by f_k, plus every
-candidate with o_k < 0.1 (the screen under-rates absorbed effects), or all of them.
-
-**Validation** decides: each refit is simulated on the held-out runs (initial states from the
-data exactly as for the base) and scored by the noise-normalised RMS error
-:math:`E = \sqrt{\mathrm{mean}_c (\mathrm{RMSE}_c/\sigma_c)^2}`, σ_c the noise floor.
+**Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base
+parameters, the chosen effects' parameters and the per-run initial states, warm-started at θ̂
+from each given φ start; the start with the lowest cost wins. Which candidates are refitted,
+from which starts, and how they are judged on the held-out runs is decided in :mod:`.which`
+and :mod:`.shrink`.
 """
 
 from __future__ import annotations
@@ -48,7 +46,7 @@ from scipy import stats
 
 from ..errors import FitError
 from ..fit.problem import make_batch
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import simulate
 from .effects import Augmented, Effect

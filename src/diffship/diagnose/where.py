@@ -17,23 +17,32 @@ All errors here are whole-horizon simulation errors on held-out runs (as in
   cross-correlation (lags 0..L, input and input rate) with the same band (Ljung 1999 §16.6).
 * **Force residuals** (inverse dynamics, 3-DOF models): :math:`\tau_{res} = M\dot\nu + C\nu +
   D\nu - \tau` from smoothed measured states, per DOF.
-* **Gap budget**: :math:`E^2 = E_{noise}^2 + E_{param}^2 + E_{struct}^2` with E_param from the
-  base fit covariance propagated through the validation Jacobian.
+* **Gap budget**: :math:`E^2 = E_{noise}^2 + E_{param}^2 + E_{struct}^2` (normalised units,
+  :math:`E_{noise} = 1`), with the first-order approximation :math:`E_{param}^2 \approx E^2 p/N`
+  (p free parameters of the base fit, N residuals) — not a propagation of the covariance
+  through a validation Jacobian.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Sequence
+from typing import ClassVar
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
+from ..fit import FitResult
 from ..metrics import Evaluation
-from ..models._base import AbstractModel
+from ..models import AbstractModel
 from ..preprocess import Filter, smooth_and_derivative
 from .effects import is_ship3, steering_inputs
 
-__all__ = ["noise_floor", "normalised_error", "phases", "where_analysis", "PHASES"]
+__all__ = ["noise_floor", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
+           "gap_budget", "force_residuals", "PHASES"]
 
 PHASES = ("approach", "transient", "steady_turn", "counter_steer", "straight")
 
@@ -104,8 +113,37 @@ def _ccf(e: np.ndarray, u: np.ndarray, L: int) -> np.ndarray:
     return np.array([float(e[k:] @ u[: u.size - k]) / den for k in range(0, L + 1)])
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class WhereAnalysis:
+    """Where the base model misses on the validation runs (``to_dict()``: the JSON ``where``).
+
+    ``per_channel``: RMSE, noise floor, ratio and share of the error per channel; ``per_run``:
+    E and RMSE per run; ``per_phase``: time share, E and RMSE per manoeuvre phase;
+    ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``residual_tests``:
+    ACF, CCF with the input and its rate, whiteness/independence flags; ``force_residuals``:
+    inverse-dynamics RMS and mean per DOF (3-DOF models only, else None). ``residuals`` and
+    ``phases`` (per run and channel / sample) feed the figures, not the JSON.
+    """
+
+    per_channel: dict
+    per_run: dict
+    per_phase: dict
+    per_region: dict
+    residual_tests: dict
+    residuals: dict[str, dict[str, np.ndarray]]
+    phases: dict[str, np.ndarray]
+    force_residuals: dict | None = None
+
+    def to_dict(self) -> dict:
+        out = {"per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
+               "per_region": self.per_region, "residual_tests": self.residual_tests}
+        if self.force_residuals is not None:
+            out["force_residuals"] = self.force_residuals
+        return out
+
+
 def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, floor: dict[str, float],
-                   channels: Sequence[str], max_lag_s: float = 10.0, flt: Filter = Filter()) -> dict:
+                   channels: Sequence[str], max_lag_s: float = 10.0, flt: Filter = Filter()) -> WhereAnalysis:
     """Where the (base) model misses on ``runs`` given its evaluation ``ev``."""
     chans = [c for c in channels if c in ev.rmse]
     res = {}
@@ -198,11 +236,9 @@ def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, fl
                    "white": bool(np.mean(np.abs(acf[1:]) > band) <= 0.1),
                    "independent_of_input": bool(np.mean(np.abs(ccf) > band) <= 0.1 and np.mean(np.abs(ccd) > band) <= 0.1),
                    "ccf_peak_lag_s": float(np.argmax(np.abs(ccd)) * dt)}
-    out = {"per_channel": per_channel, "per_run": per_run, "per_phase": per_phase, "per_region": per_region,
-           "residual_tests": corr, "_residuals": res, "_phases": labels}
-    if is_ship3(model):
-        out["force_residuals"] = force_residuals(model, runs, flt)
-    return out
+    return WhereAnalysis(per_channel=per_channel, per_run=per_run, per_phase=per_phase, per_region=per_region,
+                         residual_tests=corr, residuals=res, phases=labels,
+                         force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None)
 
 
 def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:
@@ -222,8 +258,6 @@ def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Fil
             nud.append(yd)
         nu, nud = np.stack(nu, 1), np.stack(nud, 1)
         us = np.stack([np.asarray(run[n]) for n in model.input_names], 1)
-        import jax
-        import jax.numpy as jnp
 
         def one(nu_k, nud_k, u_k):
             m = model
@@ -239,3 +273,39 @@ def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Fil
             acc[k].append(f[:, j])
     return {k: {"rms": float(np.sqrt(np.mean(np.concatenate(v) ** 2))), "mean": float(np.mean(np.concatenate(v)))}
             for k, v in acc.items() if v}
+
+
+@dataclasses.dataclass(frozen=True)
+class GapBudget:
+    """:math:`E^2 = E_{noise}^2 + E_{param}^2 + E_{struct}^2` on the validation runs
+    (normalised units, noise floor = 1), and each part's share of :math:`E^2`."""
+
+    E_total: float
+    E_noise: float
+    E_param: float
+    E_struct: float
+    share_noise: float
+    share_param: float
+    share_struct: float
+
+    NOTE: ClassVar[str] = ("E is the validation RMS error per channel divided by the channel noise floor, averaged in "
+            "quadrature; E_param is a first-order approximation E*sqrt(p/N) (p free parameters, N residuals), "
+            "not a propagation of the covariance through a validation Jacobian")
+
+    def to_dict(self) -> dict:
+        return {**dataclasses.asdict(self), "note": self.NOTE}
+
+
+def gap_budget(fit: FitResult, E: float) -> GapBudget:
+    """Split the validation error ``E`` of the base fit ``fit`` (see the module docstring)."""
+    # with p parameters fitted to N residuals the prediction variance from parameter uncertainty
+    # is about p/N of the residual variance (no validation Jacobian is formed)
+    n_p = len(fit.free)
+    n = max(int(fit.info.get("n_residuals", 1)), 1)
+    noise_sq = 1.0
+    param_sq = E * E * n_p / n
+    struct_sq = max(E * E - noise_sq - param_sq, 0.0)
+    tot = max(E * E, 1e-300)
+    return GapBudget(E_total=float(E), E_noise=1.0, E_param=float(math.sqrt(param_sq)),
+                     E_struct=float(math.sqrt(struct_sq)), share_noise=float(min(noise_sq / tot, 1.0)),
+                     share_param=float(param_sq / tot), share_struct=float(struct_sq / tot))

@@ -1,0 +1,189 @@
+"""The :func:`diagnose` entry point and its typed result :class:`Diagnosis`.
+
+``diagnose`` sequences the steps: base fit (output error on the training runs, unless given)
+→ noise floor (:func:`~.where.noise_floor`) → screen of the applicable effects
+(:class:`~.screen.Workspace`) → **where** on the validation runs (:mod:`.where`) → refits of
+the best candidates and the greedy path, judged on the validation runs only (:mod:`.which`,
+:mod:`.shrink`) → ranking and verdicts (:mod:`.verdict`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+
+from ..data import Run
+from ..errors import DataError
+from ..fit import FitResult, fit_output_error
+from ..fit.problem import default_channels
+from ..metrics import Evaluation
+from ..models import AbstractModel
+from ..params import ParamSpec
+from .effects import Augmented, library
+from .options import DiagnoseOptions
+from .screen import ScreenResult, Workspace
+from .shrink import PathStep, Validation, rmse_per_channel
+from .verdict import RankedEffect, rank, verdict_lines
+from .where import GapBudget, WhereAnalysis, gap_budget, noise_floor, where_analysis
+from .which import Search, refit_order
+
+__all__ = ["diagnose", "Diagnosis"]
+
+SHRINK_DEFINITION = ("(E_before - E_after) / (E_before - E_floor): fraction of the structural "
+                     "(above-noise) validation error removed by the selected effects")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Everything :func:`diagnose` found (``to_dict()`` gives the JSON).
+
+    E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise).
+    ``shrink`` is the fraction of the structural gap ``E_before − 1`` that the ``selected``
+    effects remove; ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
+    ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
+    with the reason; ``final_model`` the base with the selected effects (and refitted base
+    parameters); ``eval_before`` / ``eval_after`` the validation evaluations of the base and
+    final models on ``val_runs``.
+    """
+
+    model_name: str
+    channels: tuple[str, ...]
+    noise_floor: dict[str, float]
+    where: WhereAnalysis
+    gap: GapBudget
+    screen: tuple[ScreenResult, ...]
+    ranking: tuple[RankedEffect, ...]
+    selected: tuple[str, ...]
+    path: tuple[PathStep, ...]
+    rmse_before: dict[str, float]
+    rmse_after: dict[str, float]
+    E_before: float
+    E_after: float
+    shrink: float
+    verdict: tuple[str, ...]
+    base_fit: FitResult
+    final_model: Augmented
+    eval_before: Evaluation
+    eval_after: Evaluation
+    skipped: dict[str, str]
+    timings: dict[str, float]
+    val_runs: tuple[Run, ...] = ()
+
+    @property
+    def shrink_total_error(self) -> float:
+        """Fraction of the whole validation error removed, (E_before − E_after) / E_before."""
+        return (self.E_before - self.E_after) / self.E_before if self.E_before > 0 else 0.0
+
+    def to_dict(self) -> dict:
+        return {
+            "model": self.model_name,
+            "channels": list(self.channels),
+            "verdict": list(self.verdict),
+            "where": self.where.to_dict(),
+            "gap_budget": self.gap.to_dict(),
+            "screen": [dataclasses.asdict(s) for s in self.screen],
+            "ranking": [r.to_dict() for r in self.ranking],
+            "selected": list(self.selected),
+            "path": [p.to_dict() for p in self.path],
+            "validation_rmse_before": self.rmse_before,
+            "validation_rmse_after": self.rmse_after,
+            "validation_E_before": self.E_before,
+            "validation_E_after": self.E_after,
+            "noise_floor": self.noise_floor,
+            "shrink": self.shrink,
+            "shrink_definition": SHRINK_DEFINITION,
+            "shrink_total_error": self.shrink_total_error,
+            "base_params": self.base_fit.params,
+            "final_params": self.final_model.param_values(),
+            "not_applicable": self.skipped,
+            "timings_s": self.timings,
+        }
+
+
+def diagnose(
+    model: AbstractModel,
+    train: Sequence[Run],
+    val: Sequence[Run],
+    *,
+    fit: FitResult | None = None,
+    spec: ParamSpec | None = None,
+    options: DiagnoseOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Diagnosis:
+    """Diagnose the gap of ``model`` (the rules are in :mod:`.which` and :class:`DiagnoseOptions`).
+
+    Args:
+        model: base model (its values are the fit's start) or the fitted model when ``fit``
+            is given.
+        train, val: training runs and held-out validation runs (validation is required:
+            selection never uses the training fit alone).
+        fit: an existing output-error fit of ``model`` on ``train`` (skips the base fit).
+        spec: free/fixed parameters of the base fit.
+        options: candidates, effort and acceptance rule (default: :class:`DiagnoseOptions()`).
+        progress: called with one line per step.
+    """
+    say = progress or (lambda s: None)
+    o = options or DiagnoseOptions()
+    timings = {}
+    if not train:
+        raise DataError("diagnose: no training runs given")
+    if not val:
+        raise DataError("diagnose: no validation runs given (--validate VAL.csv ...); effects are selected on "
+                        "held-out runs only, never on the training fit")
+    t0 = time.perf_counter()
+    spec = spec or model.spec()
+    if fit is None:
+        say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
+        chans0 = o.channels or default_channels(model, train)
+        fit = fit_output_error(model, train, spec=spec, channels=chans0, max_steps=o.fit_steps, progress=say,
+                               estimate_x0=model.states_for_channels(chans0))
+    timings["base_fit"] = time.perf_counter() - t0
+    base = fit.model
+    chans = tuple(fit.channels)
+    base_spec = spec.with_values({n: fit.params[n] for n in spec.names})
+    floor = dict(o.noise) if o.noise else noise_floor(list(train) + list(val), chans, base.angle_outputs)
+    scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
+
+    # -- which: screen -----------------------------------------------------------------------
+    t0 = time.perf_counter()
+    effs, skipped = library(base, train, o.effect_names)
+    if not effs:
+        raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
+    say(f"screening {len(effs)} candidate effects ({', '.join(e.name for e in effs)})...")
+    x0_train = fit.initial_states if len(fit.initial_states) == len(train) else None
+    ws = Workspace(base, base_spec, effs, train, chans, scales, x0_train=x0_train)
+    scr, sinfo = ws.screen()
+    timings["screen"] = time.perf_counter() - t0
+    validation = Validation(ws, val, floor, chans)
+
+    # -- where ---------------------------------------------------------------------------------
+    t0 = time.perf_counter()
+    before = validation.base()
+    where = where_analysis(base, val, before.evaluation, floor, chans)
+    timings["where"] = time.perf_counter() - t0
+    gap = gap_budget(fit, before.E)
+    say(f"validation error {before.E:.3g} × noise floor; screen took {timings['screen']:.1f} s")
+
+    # -- which: refit, validate, select --------------------------------------------------------
+    search = Search(ws, validation, before, o, say)
+    t0 = time.perf_counter()
+    singles = search.singles(refit_order(scr, o))
+    timings["refits"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    sel = search.select(singles)
+    timings["greedy"] = time.perf_counter() - t0
+
+    # -- how far and verdicts --------------------------------------------------------------------
+    ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o)
+    shrink = sel.shrink(before.E)
+    return Diagnosis(
+        model_name=model.name, channels=chans, noise_floor=floor, where=where, gap=gap, screen=tuple(scr),
+        ranking=ranking, selected=sel.selected, path=sel.path,
+        rmse_before=rmse_per_channel(before.evaluation, chans),
+        rmse_after=rmse_per_channel(sel.final.evaluation, chans),
+        E_before=before.E, E_after=sel.final.E, shrink=shrink,
+        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate),
+        base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
+        eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val),
+    )

@@ -1,0 +1,148 @@
+r"""The :class:`Effect` base: parameters with a null value, hooks, and what a base model offers.
+
+An effect is a small :class:`equinox.Module` holding the parameters ``φ`` of one physical
+effect. **Null-value contract**: every parameter has a null value (``Param.value``) at which the
+effect vanishes exactly, so a model augmented with effects at their null values simulates
+exactly like the base model (the tests check 1e-12). Effects act through one hook each:
+
+* ``input`` — :meth:`Effect.apply_input` transforms the base model's inputs (and may carry
+  extra states, which follow the base states);
+* ``force`` — :meth:`Effect.force` is an added generalised force
+  :math:`\Delta\tau = (\Delta X, \Delta Y, \Delta N)` on a 3-DOF model;
+* ``kinematics`` — handled by :class:`~.augmented.Augmented` itself (current, heading bias).
+
+Each effect class also says when it applies (:meth:`Effect.applicability`) and how it is
+configured from the training data (:meth:`Effect.for_data`, from :class:`DataFacts`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ...models import AbstractModel
+from ...params import Param
+
+__all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "scalar"]
+
+
+def scalar(default: float):
+    """A float64 scalar field (a parameter, or a data fact that must not trigger recompilation)."""
+    return eqx.field(converter=lambda v: jnp.asarray(v, dtype=jnp.float64), default=default)
+
+
+def is_ship3(model: AbstractModel) -> bool:
+    """A 3-DOF model: states ``x0, y0, psi`` and consecutive ``u, v, r``, and a public
+    ``solve_mass(rhs)`` (:math:`M^{-1}\\,\\mathrm{rhs}` with the model's own mass matrix)."""
+    s = tuple(model.state_names)
+    if not all(n in s for n in ("x0", "y0", "psi", "u")):
+        return False
+    i = s.index("u")
+    return s[i:i + 3] == ("u", "v", "r") and hasattr(model, "solve_mass")
+
+
+def steering_inputs(model: AbstractModel) -> tuple[int, ...]:
+    """Indices of the steering inputs that actuator effects act on."""
+    names = model.input_names
+    for group in (("delta",), ("delta_n",), ("tau_y", "tau_z")):
+        if all(n in names for n in group):
+            return tuple(names.index(n) for n in group)
+    return tuple(range(len(names)))
+
+
+def body_velocity(base: AbstractModel, xb):
+    """``(u, v, r)`` from a 3-DOF base state."""
+    i = base.state_names.index("u")
+    return xb[i], xb[i + 1], xb[i + 2]
+
+
+@dataclasses.dataclass(frozen=True)
+class DataFacts:
+    """What effects take from the training runs: steering input indices, their largest
+    magnitudes (rate limit), the median sample interval (time-constant clamps) and the mean
+    speed ``U0`` (speed dependence)."""
+
+    idx: tuple[int, ...]
+    amplitude: tuple[float, ...]
+    dt: float
+    U0: float
+
+    @classmethod
+    def from_runs(cls, base: AbstractModel, runs: Sequence | None) -> DataFacts:
+        idx = steering_inputs(base)
+        amps, dts, speeds = [], [], []
+        for r in runs or ():
+            dts.append(float(np.median(np.diff(np.asarray(r.time)))))
+            if all(r.has(base.input_names[i]) for i in idx):
+                amps.append([float(np.max(np.abs(np.asarray(r[base.input_names[i]])))) for i in idx])
+            if r.has("u"):
+                u = np.asarray(r["u"])
+                v = np.asarray(r["v"]) if r.has("v") else 0.0 * u
+                speeds.append(float(np.mean(np.hypot(u, v))))
+        amp = tuple(float(max(a, 1e-9)) for a in np.max(np.asarray(amps), axis=0)) if amps else tuple(1.0 for _ in idx)
+        return cls(idx=idx, amplitude=amp, dt=float(np.median(dts)) if dts else 0.1,
+                   U0=float(np.mean(speeds)) if speeds else 1.0)
+
+
+class Effect(eqx.Module):
+    """One candidate effect: parameters with null values, a hook, and what to say about it.
+
+    Subclasses set ``name``, ``family``, ``hook``, ``PARAMS`` (values = null values), ``PROBE``
+    (a plausible magnitude per parameter, for the secant screen and refit starts),
+    ``MIN_RELEVANT`` (smallest magnitude worth reporting), ``smooth_null`` (False where the
+    effect switches off at the null, so it is not differentiable there), ``signature``,
+    ``confusable_with`` and ``separating`` (the manoeuvre that tells it from those).
+    """
+
+    name: ClassVar[str] = "effect"
+    family: ClassVar[str] = ""
+    hook: ClassVar[str] = "force"
+    #: order among input effects (delay → rate limit → lag, then the others)
+    input_order: ClassVar[int] = 9
+    PARAMS: ClassVar[tuple[Param, ...]] = ()
+    PROBE: ClassVar[dict[str, float]] = {}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {}
+    smooth_null: ClassVar[bool] = True
+    extra_inputs: ClassVar[tuple[str, ...]] = ()
+    signature: ClassVar[str] = ""
+    confusable_with: ClassVar[tuple[str, ...]] = ()
+    separating: ClassVar[str] = ""
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.PARAMS)
+
+    def null(self) -> dict[str, float]:
+        return {p.name: p.value for p in self.PARAMS}
+
+    # -- where it applies and how it is configured ----------------------------------------
+    @classmethod
+    def applicability(cls, base: AbstractModel, runs: Sequence | None = None) -> str:
+        """Empty string if the effect applies to ``base`` (and ``runs``), else the reason."""
+        return "" if is_ship3(base) else f"{base.name} has no position/velocity states (needs a 3-DOF model)"
+
+    @classmethod
+    def for_data(cls, base: AbstractModel, facts: DataFacts) -> Effect:
+        """The effect at its null value, configured for ``base`` and the training data."""
+        return cls()
+
+    # -- states ----------------------------------------------------------------------------
+    def extra_states(self, base: AbstractModel) -> tuple[str, ...]:
+        return ()
+
+    def extra_init(self, base: AbstractModel, y0: Mapping[str, float]) -> list[float]:
+        return []
+
+    # -- hooks (default: nothing) ------------------------------------------------------------
+    def apply_input(self, base, t, xb, xe, ub):
+        """``(u_new, xe_dot)``: transformed base inputs and extra-state derivatives."""
+        return ub, jnp.zeros((0,), dtype=xb.dtype)
+
+    def force(self, base, t, xb, ub, uext):
+        """Added generalised force (ΔX, ΔY, ΔN) [N, N, N·m]."""
+        return jnp.zeros((3,), dtype=xb.dtype)

@@ -1,0 +1,189 @@
+r"""Actuator effects: input delay, actuator lag, rudder rate limit, rudder offset / asymmetry.
+
+The first three act on the steering inputs (:func:`~._base.steering_inputs`) before the base
+model sees them, in the order delay → rate limit → lag:
+
+* **Input delay** is a Padé(2,2) approximant :math:`e^{-s\tau}\approx
+  (1 - s\tau/2 + s^2\tau^2/12)/(1 + s\tau/2 + s^2\tau^2/12)`, exact in gain and accurate in
+  phase up to :math:`\omega\tau\approx 3`. The alternative — interpolating the sampled input
+  at ``t − τ`` — needs the input table inside the model, which breaks batching over runs of
+  the unchanged fitter. Realisation (scaled so both states carry input units):
+  :math:`\dot z_1 = z_2/\tau,\ \dot z_2 = (12/\tau)(u - z_1 - z_2/2),\ u_d = u - z_2`.
+* **Actuator lag**: first order, :math:`T_a \dot u_a = u - u_a`.
+* **Rate limit** is a fast tracking loop with clipped rate,
+  :math:`\dot u_r = \mathrm{clip}((u - u_r)/\varepsilon, \pm A/T_{slew})`, ε = a fraction of
+  a second (static), so the limited signal follows the command within ε when the limit is
+  inactive; A is the largest |input| in the training data.
+
+These switch to the raw input at the null (``jnp.where``), which makes them exact at the null
+but not differentiable there: the screen uses probe secants for them (``smooth_null =
+False``). Time constants are clamped below at a fraction of the sample interval so RK4 stays
+stable during fits.
+
+**Rudder offset** (propeller walk, rudder/jet offset, thrust asymmetry) is a constant sway
+force and yaw moment on a 3-DOF model (``force`` hook); Nomoto models already carry it as
+``delta0``.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ...params import Param
+from ._base import DataFacts, Effect, is_ship3, scalar
+
+__all__ = ["InputDelay", "ActuatorLag", "RateLimit", "RudderOffset"]
+
+
+class _InputEffect(Effect):
+    """Shared by the effects on the steering inputs ``idx`` (applicable to every model)."""
+
+    family: ClassVar[str] = "actuator"
+    hook: ClassVar[str] = "input"
+    smooth_null: ClassVar[bool] = False
+    idx: tuple[int, ...] = eqx.field(static=True, default=(0,))
+    dt: jnp.ndarray = scalar(0.1)  # data facts are array leaves (not static): no recompilation per data set
+
+    @classmethod
+    def applicability(cls, base, runs=None) -> str:
+        return ""
+
+    @classmethod
+    def for_data(cls, base, facts: DataFacts) -> Effect:
+        return cls(idx=facts.idx, dt=facts.dt)
+
+    def _names(self, base, suffix=""):
+        return tuple(base.input_names[i] + suffix for i in self.idx)
+
+    def _sel(self, ub):
+        return ub[jnp.asarray(self.idx)]
+
+    def _put(self, ub, vals, on):
+        new = ub.at[jnp.asarray(self.idx)].set(vals)
+        return jnp.where(on, new, ub)
+
+
+class InputDelay(_InputEffect):
+    r"""Steering inputs delayed by :math:`\tau_d` (Padé(2,2) realisation, see the module docstring)."""
+
+    name: ClassVar[str] = "input_delay"
+    input_order: ClassVar[int] = 0
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("tau_d", 0.0, lower=0.0, scale=0.5, unit="s", description="input time delay"),
+    )
+    PROBE: ClassVar[dict[str, float]] = {"tau_d": 1.0}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"tau_d": 0.2}
+    signature: ClassVar[str] = "residual/input-rate cross-correlation peaking at lag τ, same for all step sizes"
+    confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag", "rate_limit")
+    separating: ClassVar[str] = "steps or zigzags at two different amplitudes, and fast small PRBS steps"
+    tau_d: jnp.ndarray = scalar(0.0)
+
+    def extra_states(self, base):
+        # the first state per input is named after the input, so it starts at the measured input
+        return self._names(base) + self._names(base, "~pade2")
+
+    def extra_init(self, base, y0):
+        return [float(y0.get(n, 0.0)) for n in self._names(base)] + [0.0] * len(self.idx)
+
+    def apply_input(self, base, t, xb, xe, ub):
+        k = len(self.idx)
+        z1, z2 = xe[:k], xe[k:]
+        on = self.tau_d > 0.0
+        tau = jnp.maximum(jnp.where(on, self.tau_d, 1.0), 1.5 * self.dt)
+        u = self._sel(ub)
+        dz1 = z2 / tau
+        dz2 = (12.0 / tau) * (u - z1 - 0.5 * z2)
+        return self._put(ub, u - z2, on), jnp.concatenate([dz1, dz2])
+
+
+class ActuatorLag(_InputEffect):
+    r"""First-order actuator lag :math:`T_a \dot u_a = u - u_a` on the steering inputs."""
+
+    name: ClassVar[str] = "actuator_lag"
+    input_order: ClassVar[int] = 2
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("T_act", 0.0, lower=0.0, scale=0.5, unit="s", description="actuator time constant"),
+    )
+    PROBE: ClassVar[dict[str, float]] = {"T_act": 1.0}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_act": 0.2}
+    signature: ClassVar[str] = "lagged response after steering steps; CCF with input rate at small positive lag"
+    confusable_with: ClassVar[tuple[str, ...]] = ("input_delay", "rate_limit")
+    separating: ClassVar[str] = "steps at two different amplitudes and fast small PRBS steps"
+    T_act: jnp.ndarray = scalar(0.0)
+
+    def extra_states(self, base):
+        return self._names(base)
+
+    def extra_init(self, base, y0):
+        return [float(y0.get(n, 0.0)) for n in self._names(base)]
+
+    def apply_input(self, base, t, xb, xe, ub):
+        on = self.T_act > 0.0
+        T = jnp.maximum(jnp.where(on, self.T_act, 1.0), 0.5 * self.dt)
+        return self._put(ub, xe, on), (self._sel(ub) - xe) / T
+
+
+class RateLimit(_InputEffect):
+    r"""Steering slew-rate limit: the input moves by at most ``A_i / T_slew`` per second."""
+
+    name: ClassVar[str] = "rate_limit"
+    input_order: ClassVar[int] = 1
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("T_slew", 0.0, lower=0.0, scale=2.0, unit="s", description="time to slew the largest input amplitude"),
+    )
+    PROBE: ClassVar[dict[str, float]] = {"T_slew": 4.0}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_slew": 0.3}
+    signature: ClassVar[str] = "residual spikes right after steering changes, lasting |Δu|/rate"
+    confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag", "input_delay")
+    separating: ClassVar[str] = "steering steps of two very different amplitudes (a rate limit's delay scales with the step)"
+    T_slew: jnp.ndarray = scalar(0.0)
+    amplitude: jnp.ndarray = eqx.field(converter=lambda a: jnp.asarray(a, dtype=jnp.float64), default=(1.0,))
+    eps: jnp.ndarray = scalar(0.1)
+
+    @classmethod
+    def for_data(cls, base, facts: DataFacts) -> Effect:
+        return cls(idx=facts.idx, dt=facts.dt, amplitude=facts.amplitude, eps=max(0.1, 0.6 * facts.dt))
+
+    def extra_states(self, base):
+        return self._names(base)
+
+    def extra_init(self, base, y0):
+        return [float(y0.get(n, 0.0)) for n in self._names(base)]
+
+    def apply_input(self, base, t, xb, xe, ub):
+        on = self.T_slew > 0.0
+        rate = self.amplitude / jnp.where(on, self.T_slew, 1.0)
+        d = jnp.clip((self._sel(ub) - xe) / self.eps, -rate, rate)
+        return self._put(ub, xe, on), d
+
+
+class RudderOffset(Effect):
+    r"""Constant sway force and yaw moment (rudder/jet offset, propeller walk, thrust asymmetry)."""
+
+    name: ClassVar[str] = "rudder_offset"
+    family: ClassVar[str] = "bias"
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("Y0", 0.0, scale=50.0, unit="N", description="constant sway force"),
+        Param("N0", 0.0, scale=200.0, unit="N m", description="constant yaw moment"),
+    )
+    PROBE: ClassVar[dict[str, float]] = {"Y0": 50.0, "N0": 200.0}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"Y0": 5.0, "N0": 20.0}
+    signature: ClassVar[str] = "non-zero mean yaw-rate residual on straight segments; port/starboard asymmetry"
+    confusable_with: ClassVar[tuple[str, ...]] = ("current", "wind")
+    separating: ClassVar[str] = "symmetric port and starboard manoeuvres at the same speed"
+    Y0: jnp.ndarray = scalar(0.0)
+    N0: jnp.ndarray = scalar(0.0)
+
+    @classmethod
+    def applicability(cls, base, runs=None) -> str:
+        if is_ship3(base):
+            return ""
+        if "delta0" in base.param_names:
+            return f"{base.name} already has a rudder offset parameter (delta0)"
+        return f"{base.name} is not a 3-DOF ship model"
+
+    def force(self, base, t, xb, ub, uext):
+        return jnp.stack([jnp.zeros_like(self.Y0), self.Y0, self.N0])

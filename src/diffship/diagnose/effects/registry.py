@@ -1,0 +1,126 @@
+"""The effect library: names, families, which effects apply to a base model, and factories.
+
+Library (names as on the command line, in the order of the issue):
+
+=================  ===============================  ==============================================
+name               parameters (null = 0)            model
+=================  ===============================  ==============================================
+current            Vcx, Vcy [m/s] (NED)             hydrodynamics see the velocity through the water
+                                                    ν_g − Rᵀv_c; states and GNSS are over ground
+input_delay        tau_d [s]                        steering inputs delayed by tau_d, realised with
+                                                    a 2nd-order Padé approximant (2 states/input)
+actuator_lag       T_act [s]                        first-order lag of the steering inputs
+rate_limit         T_slew [s]                       steering slew rate limited to A_i/T_slew
+                                                    (A_i = largest |input| in the training data)
+rudder_offset      Y0 [N], N0 [N m]                 constant sway force and yaw moment (prop walk,
+                                                    rudder/jet offset); 3-DOF models
+heading_bias       b_psi [rad]                      compass reads ψ + b; shows only in positions
+damping_vv         Nvv                              N_|v|v |v|v   (3-DOF; Y_|v|v is in fossen3)
+damping_rr         Yrr  (Norrbin c_rr for Nomoto)   Y_|r|r |r|r   (N_|r|r is in fossen3)
+damping_vr         Yvr, Nvr                         (Y, N)_|v|r |v| r
+damping_rv         Yrv, Nrv                         (Y, N)_|r|v |r| v
+speed_dependence   k_U [-]                          linear damping scaled by 1 + k_U (U − U0)/U0
+wind               Cwx, Cwy, Cwn [N/(m/s)², ·m]     ½ρA C(γ) V_rw² from measured wind_speed,
+                                                    wind_dir (direction the wind comes from)
+=================  ===============================  ==============================================
+
+Each name maps to its implementations (:data:`EFFECTS`); the first whose
+:meth:`~._base.Effect.applicability` accepts the base model is used (``damping_rr`` is a sway
+force on 3-DOF models and Norrbin's term on Nomoto models). A new effect is one class in its
+family's module plus one entry here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ...errors import ModelError
+from ...models import AbstractModel
+from ._base import DataFacts, Effect
+from .actuator import ActuatorLag, InputDelay, RateLimit, RudderOffset
+from .augmented import Augmented
+from .current import Current
+from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
+from .sensor import HeadingBias
+from .wind import Wind
+
+__all__ = ["EFFECTS", "EFFECT_NAMES", "FAMILY", "applicability", "make_effect", "library", "augment"]
+
+#: Implementations per effect name, in the order of the issue (first applicable wins).
+EFFECTS: dict[str, tuple[type[Effect], ...]] = {
+    "current": (Current,),
+    "input_delay": (InputDelay,),
+    "actuator_lag": (ActuatorLag,),
+    "rate_limit": (RateLimit,),
+    "rudder_offset": (RudderOffset,),
+    "heading_bias": (HeadingBias,),
+    "damping_vv": (DampingVV,),
+    "damping_rr": (DampingRR, NorrbinRR),
+    "damping_vr": (DampingVR,),
+    "damping_rv": (DampingRV,),
+    "speed_dependence": (SpeedDependence,),
+    "wind": (Wind,),
+}
+
+#: Effect names accepted by ``--effects``.
+EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
+
+#: Effect family, for "right family" scoring of out-of-family truths.
+FAMILY: dict[str, str] = {n: classes[0].family for n, classes in EFFECTS.items()}
+
+
+def _implementation(base: AbstractModel, name: str, runs=None) -> tuple[type[Effect] | None, str]:
+    """The class implementing ``name`` for ``base``, or ``(None, reason)``."""
+    if name not in EFFECTS:
+        raise ModelError(f"unknown effect {name!r}; choose from: {', '.join(EFFECT_NAMES)}")
+    why = ""
+    for cls in EFFECTS[name]:
+        why = cls.applicability(base, runs)
+        if not why:
+            return cls, ""
+    return None, why
+
+
+def applicability(base: AbstractModel, name: str, runs=None) -> str:
+    """Empty string if ``name`` applies to ``base`` (and the data), else the reason it does not."""
+    return _implementation(base, name, runs)[1]
+
+
+def make_effect(base: AbstractModel, name: str, runs=None, **values: float) -> Effect:
+    """One effect configured for ``base`` (steering inputs, amplitudes, U0 from ``runs``), at its
+    null value or at ``values``."""
+    cls, why = _implementation(base, name)
+    if cls is None:
+        raise ModelError(f"effect {name} does not apply: {why}")
+    eff = cls.for_data(base, DataFacts.from_runs(base, runs))
+    if values:
+        unknown = set(values) - set(eff.param_names)
+        if unknown:
+            raise ModelError(f"effect {name}: unknown parameter(s) {sorted(unknown)}; it has {eff.param_names}")
+        eff = eqx.tree_at(lambda m: tuple(getattr(m, n) for n in values), eff,
+                          tuple(jnp.asarray(float(v), dtype=jnp.float64) for v in values.values()))
+    return eff
+
+
+def library(base: AbstractModel, runs=None, names: Sequence[str] | str = "all") -> tuple[list[Effect], dict[str, str]]:
+    """Effects applicable to ``base`` and ``runs``, and ``{name: reason}`` for those skipped."""
+    if names == "all":
+        names = EFFECT_NAMES
+    out, skipped = [], {}
+    for n in names:
+        why = applicability(base, n, runs)
+        if why:
+            skipped[n] = why
+        else:
+            out.append(make_effect(base, n, runs))
+    return out, skipped
+
+
+def augment(base: AbstractModel, *effects: Effect | str, runs=None, **values: float) -> Augmented:
+    """``Augmented(base, effects)``; effects may be given by name (configured from ``runs``)."""
+    effs = [make_effect(base, e, runs) if isinstance(e, str) else e for e in effects]
+    m = Augmented(base, effs)
+    return m.with_params(values) if values else m

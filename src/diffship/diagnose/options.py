@@ -1,0 +1,70 @@
+"""Options of :func:`~.diagnosis.diagnose`: what to screen, how much to refit, the acceptance rule."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+
+from ..errors import DataError
+from .effects import EFFECT_NAMES
+
+__all__ = ["DiagnoseOptions"]
+
+
+@dataclasses.dataclass(frozen=True)
+class DiagnoseOptions:
+    """What :func:`~.diagnosis.diagnose` screens and how it decides (defaults: the documented rule).
+
+    Candidates:
+        effects: ``"all"`` or names from :data:`~.effects.EFFECT_NAMES`.
+        channels: channels of the base fit (default: what the model predicts and the runs have).
+        noise: per-channel noise floor (known sensor noise); estimated from the data if None.
+
+    Effort:
+        max_refits: candidates refitted by screening rank, plus up to ``max_absorbed`` of those
+            the base parameters absorb (o_k < 0.1), which the screen under-rates.
+        refit_all: refit every candidate instead.
+        greedy_steps: effects on the greedy path at most (after the first, each must pass the
+            rule against the previous step).
+        max_pairs: when no single effect passes, refit up to this many pairs of the best single
+            candidates jointly (two effects that compensate each other alone).
+        max_iter: Levenberg–Marquardt iterations per refit; fit_steps: of the base fit.
+
+    Acceptance rule (see :mod:`.which`):
+        gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor).
+        min_gain: smallest relative validation gain.
+        min_shrink: smallest fraction of the structural gap removed.
+        confusable_margin: candidates that pass and come within this relative margin of the
+            winner's validation error are reported as confusable.
+    """
+
+    effects: Sequence[str] | str = "all"
+    channels: Sequence[str] | None = None
+    noise: Mapping[str, float] | None = None
+    max_refits: int = 4
+    max_absorbed: int = 3
+    refit_all: bool = False
+    greedy_steps: int = 2
+    max_pairs: int = 3
+    max_iter: int = 30
+    fit_steps: int = 200
+    gap_gate: float = 1.2
+    min_gain: float = 0.05
+    min_shrink: float = 0.3
+    confusable_margin: float = 0.05
+
+    def __post_init__(self):
+        if self.effects != "all":
+            if isinstance(self.effects, str):
+                raise DataError(f"effects: 'all' or a sequence of names, got {self.effects!r}")
+            object.__setattr__(self, "effects", tuple(self.effects))
+            bad = [n for n in self.effects if n not in EFFECT_NAMES]
+            if bad:
+                raise DataError(f"unknown effect(s) {', '.join(map(repr, bad))}; "
+                                f"choose from: {', '.join(EFFECT_NAMES)}")
+        if self.channels is not None:
+            object.__setattr__(self, "channels", tuple(self.channels))
+
+    @property
+    def effect_names(self) -> tuple[str, ...]:
+        return EFFECT_NAMES if self.effects == "all" else tuple(self.effects)

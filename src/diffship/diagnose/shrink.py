@@ -1,0 +1,107 @@
+r"""How far the gap shrinks: candidate models scored on the held-out runs, and the greedy path.
+
+Every compared model (the base, each refit, each pair or greedy step) is simulated on the
+validation runs with its initial states estimated per run exactly as for the base
+(:meth:`~.screen.Workspace.fitted_x0`), and scored by the noise-normalised error
+
+.. math::
+    E = \sqrt{\mathrm{mean}_c (\mathrm{RMSE}_c/\sigma_c)^2}
+
+(:func:`~.where.normalised_error`, σ_c the noise floor, so E = 1 at the noise floor), overall
+and per run. The **shrink** of a step from :math:`E_{from}` to :math:`E_{to}` is the fraction of
+the base model's structural gap it removes,
+
+.. math::
+    \mathrm{shrink} = (E_{from} - E_{to}) / (E_0 - 1) \quad (0 \text{ when } E_0 \le 1),
+
+and the shrink of the total error is :math:`(E_0 - E)/E_0`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+from ..data import Run
+from ..metrics import Evaluation, evaluate
+from ..models import AbstractModel
+from .screen import RefitResult, Workspace
+from .where import normalised_error
+
+__all__ = ["Score", "Validation", "PathStep", "structural_shrink", "rmse_per_channel"]
+
+
+def structural_shrink(E0: float, E_from: float, E_to: float) -> float:
+    """Fraction of the base model's structural gap ``E0 − 1`` removed going from ``E_from`` to ``E_to``."""
+    return float((E_from - E_to) / (E0 - 1.0)) if E0 > 1 else 0.0
+
+
+def rmse_per_channel(ev: Evaluation, channels: Sequence[str]) -> dict[str, float]:
+    return {c: float(ev.rmse[c]) for c in channels if c in ev.rmse}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Score:
+    """A model simulated on the validation runs: its evaluation, E overall and per run."""
+
+    model: AbstractModel
+    evaluation: Evaluation
+    E: float
+    E_runs: dict[str, float]
+
+
+class Validation:
+    """The held-out runs, their noise floor and channels; scores the workspace's models."""
+
+    def __init__(self, ws: Workspace, runs: Sequence[Run], floor: dict[str, float], channels: Sequence[str]):
+        self.ws = ws
+        self.runs = tuple(runs)
+        self.floor = floor
+        self.channels = tuple(channels)
+        self.data = ws.data(self.runs)
+
+    def _score(self, model: AbstractModel, x0) -> Score:
+        ev = evaluate(model, self.runs, x0=x0)
+        return Score(model, ev, normalised_error(ev, self.floor, self.channels),
+                     {r.name: normalised_error(ev, self.floor, self.channels, r.name) for r in self.runs})
+
+    def base(self) -> Score:
+        """The base model (no effects)."""
+        nb = len(self.ws.base.state_names)
+        x0 = self.ws.fitted_x0(self.data, {}, None)
+        return self._score(self.ws.base, [x[:nb] for x in x0])
+
+    def refit(self, rf: RefitResult) -> Score:
+        """The workspace model at a refit's effect and base values."""
+        return self._score(self.ws.model_with(rf.values, rf.base_values),
+                           self.ws.fitted_x0(self.data, rf.values, rf.base_values))
+
+
+@dataclasses.dataclass(frozen=True)
+class PathStep:
+    """One step of the greedy path (``effect`` may be ``a+b`` for a joint pair or a swap)."""
+
+    effect: str
+    E_before: float
+    E_after: float
+    shrink_of_structural_gap: float
+    rmse_before: dict[str, float]
+    rmse_after: dict[str, float]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    note: str | None = None
+
+    @classmethod
+    def between(cls, effect: str, before: Score, after: Score, E0: float, rf: RefitResult, channels: Sequence[str],
+                note: str | None = None) -> PathStep:
+        return cls(effect=effect, E_before=float(before.E), E_after=float(after.E),
+                   shrink_of_structural_gap=structural_shrink(E0, before.E, after.E),
+                   rmse_before=rmse_per_channel(before.evaluation, channels),
+                   rmse_after=rmse_per_channel(after.evaluation, channels),
+                   params=dict(rf.values), stderr=dict(rf.stderr), note=note)
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        if self.note is None:
+            del d["note"]
+        return d

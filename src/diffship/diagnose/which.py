@@ -1,0 +1,282 @@
+r"""Which effect explains the gap: refits of the screened candidates, judged on held-out runs only.
+
+After the score-test screen (:mod:`.screen`), the top ``max_refits`` candidates by predicted
+fraction f_k, plus up to ``max_absorbed`` of those the base parameters absorb (0 < o_k < 0.1,
+which the screen under-rates), or all of them, are refitted with warm starts (smooth effects
+from the null, non-smooth ones from the probe magnitude × 1, 0.3, 3) and scored on the
+validation runs (:mod:`.shrink`).
+
+**Acceptance rule** for an effect (all must hold):
+
+* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.2; E normalised by the noise
+  floor, so :math:`E_{floor} = 1`);
+* validation error drops by at least ``min_gain`` (5 %) **and** by more than the noise-level
+  threshold ``max(0.1, 2·SE)`` in normalised units (SE of the mean per-run gain, with four or
+  more validation runs), on a majority of the validation runs;
+* at least one effect parameter is relevant (|φ̂ − φ₀| ≥ MIN_RELEVANT) and its 95 % interval
+  excludes the null;
+* to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
+
+**Path.** The accepted candidate with the lowest validation error is selected; then up to
+``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
+against the previous step. When no single effect passes, up to ``max_pairs`` pairs of the best
+single candidates are refitted jointly (two effects can each fail alone yet pass together).
+With two or more effects in, a **swap** pass replaces one by an accepted alternative when that
+lowers the validation error by more than 2 % (a delay chosen first where lag + damping is the
+truth). At most :data:`~.screen.P_MAX` effect parameters are refitted at once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..errors import FitError
+from ..models import AbstractModel
+from .effects import Augmented, Effect
+from .options import DiagnoseOptions
+from .screen import P_MAX, RefitResult, ScreenResult, Workspace
+from .shrink import PathStep, Score, Validation, structural_shrink
+
+__all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Judgement:
+    """The acceptance rule applied to one refit: pass/fail, relative gain, shrink, reasons."""
+
+    ok: bool
+    gain: float
+    shrink: float
+    why: str
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Candidate:
+    """A refit with some effects switched on, scored on the validation runs and judged."""
+
+    effects: tuple[str, ...]
+    refit: RefitResult
+    score: Score
+    judgement: Judgement
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Selection:
+    """The selected effects, the greedy path, and the final validation score and values."""
+
+    selected: tuple[str, ...]
+    path: tuple[PathStep, ...]
+    final: Score
+    values: dict[str, float]
+    base_values: dict[str, float] | None
+
+    def shrink(self, E0: float) -> float:
+        """Fraction of the structural gap removed by the selected effects (0 if none)."""
+        return float((E0 - self.final.E) / (E0 - 1.0)) if (E0 > 1.0 and self.selected) else 0.0
+
+
+def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:
+    """Candidates to refit, in screening order (see the module docstring)."""
+    order = [s.effect for s in screen if s.orthogonal_fraction > 0 or s.predicted_fraction > 0]
+    if options.refit_all:
+        return order
+    low = [s.effect for s in screen if 0 < s.orthogonal_fraction < 0.1 and s.effect not in order[:options.max_refits]]
+    return order[:options.max_refits] + low[:options.max_absorbed]
+
+
+class Search:
+    """Refits, judgements and the greedy path over one :class:`~.screen.Workspace`.
+
+    Args:
+        ws: the all-effects workspace of the base fit.
+        validation: the held-out runs; ``base``: the base model's score on them.
+        options: effort and acceptance rule; ``say``: progress messages.
+    """
+
+    def __init__(self, ws: Workspace, validation: Validation, base: Score, options: DiagnoseOptions,
+                 say: Callable[[str], None]):
+        self.ws = ws
+        self.validation = validation
+        self.base = base
+        self.options = options
+        self.say = say
+        self.has_gap = base.E >= options.gap_gate
+
+    def effect(self, name: str) -> Effect:
+        return next(e for e in self.ws.effects if e.name == name)
+
+    def n_params(self, names: Sequence[str]) -> int:
+        return sum(len(e.param_names) for e in self.ws.effects if e.name in names)
+
+    def _refit(self, names: Sequence[str], starts: list[dict[str, float]]) -> tuple[RefitResult, Score]:
+        rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say)
+        return rf, self.validation.refit(rf)
+
+    def judge(self, rf: RefitResult, ref: Score, new: Score, effect_names: Sequence[str]) -> Judgement:
+        """The acceptance rule for the effects ``effect_names`` of ``rf``, against ``ref``."""
+        o = self.options
+        E_ref, E = ref.E, new.E
+        gain = (E_ref - E) / E_ref if E_ref > 0 else 0.0
+        d = np.array([ref.E_runs[k] - new.E_runs[k] for k in new.E_runs])
+        # run-to-run standard error only when there are enough validation runs to estimate it
+        se = float(np.std(d, ddof=1) / math.sqrt(d.size)) if d.size >= 4 else 0.0
+        thr = max(0.1, 2 * se)
+        majority = bool(np.sum(d > 0) > d.size / 2)
+        relevant, ci_ok = False, False
+        for e in self.ws.effects:
+            if e.name not in effect_names:
+                continue
+            for n in e.param_names:
+                v, s = rf.values[n], rf.stderr.get(n, float("inf"))
+                relevant |= abs(v - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
+                ci_ok |= abs(v - e.null()[n]) > 1.96 * s
+        ok = self.has_gap and rf.ok and gain >= o.min_gain and (E_ref - E) > thr and majority and relevant and ci_ok
+        reasons = []
+        if not self.has_gap:
+            reasons.append("no structural gap")
+        if gain < o.min_gain or (E_ref - E) <= thr:
+            reasons.append(f"validation gain {100 * gain:.1f} % (ΔE {E_ref - E:.3g}) below the threshold "
+                           f"({100 * o.min_gain:.0f} % and ΔE > {thr:.2g})")
+        elif not majority:
+            reasons.append("improves fewer than half of the validation runs")
+        if not relevant:
+            reasons.append("fitted magnitude below relevance")
+        elif not ci_ok:
+            reasons.append("95 % interval includes the null")
+        return Judgement(ok, gain, structural_shrink(self.base.E, self.base.E, E), "; ".join(reasons))
+
+    # -- single candidates -------------------------------------------------------------------
+    def singles(self, names: Sequence[str]) -> dict[str, Candidate]:
+        """Each candidate refitted alone and judged against the base."""
+        E0 = self.base.E
+        out = {}
+        for name in names:
+            e = self.effect(name)
+            # smooth effects: LM from the null (the score test's point); non-smooth ones have a flat
+            # null, so start them at the probe magnitude and around it
+            starts = [e.null()] if e.smooth_null else [{k: f * v for k, v in e.PROBE.items()} for f in (1.0, 0.3, 3.0)]
+            try:
+                rf, sc = self._refit([name], starts)
+            except FitError as exc:
+                self.say(f"  refit {name} failed: {exc}")
+                continue
+            j = self.judge(rf, self.base, sc, [name])
+            out[name] = Candidate((name,), rf, sc, j)
+            self.say(f"  {name}: validation E {E0:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %), shrink {j.shrink:.2f}"
+                     + ("" if j.ok else f" — not accepted: {j.why}"))
+        return out
+
+    # -- the path ----------------------------------------------------------------------------
+    def select(self, singles: dict[str, Candidate]) -> Selection:
+        """Pair search (if no single passes), the greedy path, and the swap pass."""
+        o, E0 = self.options, self.base.E
+        by_E = sorted(singles, key=lambda n: singles[n].score.E)
+        accepted = [n for n in by_E if singles[n].judgement.ok and singles[n].judgement.shrink >= o.min_shrink]
+        cur = Selection((), (), self.base, {}, None)
+        if not accepted and self.has_gap and o.max_pairs > 0:
+            cur = self._pair(singles, by_E) or cur
+        if accepted:
+            name, w = accepted[0], singles[accepted[0]]
+            step = PathStep.between(name, self.base, w.score, E0, w.refit, self.validation.channels)
+            cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values)
+            cands = [n for n in by_E if n != name and singles[n].judgement.gain > 0][:3]
+            for _ in range(1, o.greedy_steps):
+                nxt = self._greedy_step(cur, cands)
+                if nxt is None:
+                    break
+                cur = nxt
+            if len(cur.selected) >= 2:
+                cur = self._swap(cur, [n for n in accepted if n not in cur.selected]) or cur
+        return cur
+
+    def _pair(self, singles: dict[str, Candidate], by_E: list[str]) -> Selection | None:
+        """Two effects refitted jointly: each can fail alone (compensating the other on some runs)
+        yet pass together; tries the best pairs by single-effect validation error."""
+        o, E0 = self.options, self.base.E
+        top = by_E[:3]
+        pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:o.max_pairs]
+        best = None
+        for a, b in pairs:
+            if self.n_params((a, b)) > P_MAX:
+                continue
+            try:
+                rf, sc = self._refit([a, b], [{**singles[a].refit.values, **singles[b].refit.values}])
+            except FitError:
+                continue
+            j = self.judge(rf, self.base, sc, [a, b])
+            self.say(f"  pair {a}+{b}: validation E {E0:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %)"
+                     + ("" if j.ok else f" — not accepted: {j.why}"))
+            if j.ok and j.shrink >= o.min_shrink and (best is None or sc.E < best[3].E):
+                best = (a, b, rf, sc)
+        if best is None:
+            return None
+        a, b, rf, sc = best
+        order_ab = tuple(sorted((a, b), key=lambda n: singles[n].score.E))
+        step = PathStep.between("+".join(order_ab), self.base, sc, E0, rf, self.validation.channels)
+        return Selection(order_ab, (step,), sc, dict(rf.values), rf.base_values)
+
+    def _greedy_step(self, cur: Selection, cands: list[str]) -> Selection | None:
+        """The best next effect, refitted jointly with those in and judged against ``cur``."""
+        best = None
+        for n in cands:
+            if n in cur.selected:
+                continue
+            effs_now = list(cur.selected) + [n]
+            if self.n_params(effs_now) > P_MAX:
+                continue
+            e = self.effect(n)
+            starts = [{**cur.values, **e.null()}] if e.smooth_null else [
+                {**cur.values, **{k: f * v for k, v in e.PROBE.items()}} for f in (1.0, 3.0)]
+            try:
+                rf, sc = self._refit(effs_now, starts)
+            except FitError:
+                continue
+            j = self.judge(rf, cur.final, sc, [n])
+            self.say(f"  + {n}: validation E {cur.final.E:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %)"
+                     + ("" if j.ok else f" — not accepted: {j.why}"))
+            if j.ok and (best is None or sc.E < best[2].E):
+                best = (n, rf, sc)
+        if best is None:
+            return None
+        n, rf, sc = best
+        step = PathStep.between(n, cur.final, sc, self.base.E, rf, self.validation.channels)
+        return Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values)
+
+    def _swap(self, cur: Selection, alts: list[str]) -> Selection | None:
+        """With two or more effects in, a confusable alternative of an early pick may now fit
+        better (e.g. a delay chosen first where a lag + damping is the truth)."""
+        best = None
+        sel = list(cur.selected)
+        for i in range(len(sel)):
+            for alt in alts:
+                trial = sel[:i] + [alt] + sel[i + 1:]
+                if self.n_params(trial) > P_MAX:
+                    continue
+                owner = self.ws.owner
+                prev = {k: v for k, v in cur.values.items() if k not in owner or owner[k].name != sel[i]}
+                e = self.effect(alt)
+                try:
+                    rf, sc = self._refit(trial, [{**prev, **(e.null() if e.smooth_null else e.PROBE)}])
+                except FitError:
+                    continue
+                self.say(f"  swap {sel[i]} -> {alt}: validation E {cur.final.E:.3g} → {sc.E:.3g}")
+                if sc.E < cur.final.E * 0.98 and (best is None or sc.E < best[2].E):
+                    best = (tuple(trial), rf, sc)
+        if best is None:
+            return None
+        trial, rf, sc = best
+        step = PathStep.between("+".join(trial), self.base, sc, self.base.E, rf, self.validation.channels,
+                                note="after a swap of confusable effects")
+        return Selection(trial, (step,), sc, dict(rf.values), rf.base_values)
+
+    def final_model(self, sel: Selection) -> Augmented:
+        """The base model with the selected effects at their fitted values (and the refitted base)."""
+        if not sel.selected:
+            return Augmented(self.ws.base, [])
+        base: AbstractModel = self.ws.base
+        m = Augmented(base.with_params(sel.base_values), [e for e in self.ws.effects if e.name in sel.selected])
+        return m.with_params({n: v for n, v in sel.values.items() if n in m.param_names})
