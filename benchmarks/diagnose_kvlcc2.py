@@ -20,7 +20,7 @@ from pathlib import Path
 
 import diffship  # noqa: F401
 from diffship.data import kvlcc2_runs
-from diffship.diagnose import diagnose
+from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.diagnose.report import to_markdown, write_json, plot_all
 from diffship.models import get_model
 
@@ -41,7 +41,7 @@ def main(argv=None):
     train, val = [prep[k] for k in TRAIN], [prep[k] for k in VALIDATE]
     t0 = time.perf_counter()
     effects = "all" if a.effects == "all" else a.effects.split(",")
-    d = diagnose(get_model(a.model), train, val, effects=effects, progress=print)
+    d = diagnose(get_model(a.model), train, val, options=DiagnoseOptions(effects=effects), progress=print)
     secs = time.perf_counter() - t0
     OUT.mkdir(exist_ok=True)
     stem = OUT / f"diagnose_kvlcc2_{a.model}"

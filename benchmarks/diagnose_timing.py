@@ -16,7 +16,7 @@ import numpy as np
 
 import diffship
 from diffship.diagnose import diagnose
-from diffship.diagnose.effects import augment
+from diffship.models.effects import augment
 from diffship.models import Fossen3
 from diffship.synthetic import simulate_run, usv_excitation, usv_truth
 

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import diffship  # noqa: F401  (float64)
-from diffship.diagnose import FAMILY, augment, diagnose
+from diffship.diagnose import FAMILY, DiagnoseOptions, augment, diagnose
 from diffship.diagnose.where import noise_floor, normalised_error
 from diffship.metrics import evaluate
 from diffship.models import Fossen3, Nomoto1
@@ -171,7 +171,7 @@ def run_one(family, kind, hidden, make_truth, phi, seed, opts, progress=None):
     train, val = [r[0] for r in train], [v[0] for v in val]
     t0 = time.perf_counter()
     kw = dict(max_refits=3, max_absorbed=2) if family == "fossen3" else {}
-    d = diagnose(base0, train, val, progress=progress, **kw)
+    d = diagnose(base0, train, val, options=DiagnoseOptions(**kw), progress=progress)
     secs = time.perf_counter() - t0
     # E of the truth on the validation runs (the real floor), same normalisation
     floor = d.noise_floor
@@ -180,7 +180,7 @@ def run_one(family, kind, hidden, make_truth, phi, seed, opts, progress=None):
     E_ref = E_truth if np.isfinite(E_truth) else 1.0
     shrink_true = (d.E_before - d.E_after) / (d.E_before - E_ref) if d.E_before > E_ref else float("nan")
     top = d.selected[0] if d.selected else "none"
-    ranked = [r["effect"] for r in d.ranking if r.get("validation_gain", 0) > 0 or r["effect"] in d.selected][:3]
+    ranked = [r.effect for r in d.ranking if (r.validation_gain or 0) > 0 or r.effect in d.selected][:3]
     if kind == "none":
         top1 = not d.selected
         top3 = top1
@@ -196,8 +196,8 @@ def run_one(family, kind, hidden, make_truth, phi, seed, opts, progress=None):
     rec = []
     for r in d.ranking:
         for k, v in phi.items():
-            if k in r.get("params", {}):
-                rec.append(abs(r["params"][k] - v) / abs(v))
+            if k in (r.params or {}):
+                rec.append(abs(r.params[k] - v) / abs(v))
     return {"model": family, "kind": kind, "hidden": "+".join(hidden) or "none", "seed": seed, "selected": "+".join(d.selected) or "none",
             "top1": top1, "top3": top3, "E_base": d.E_before, "E_after": d.E_after, "E_truth": E_truth,
             "shrink": shrink_true, "param_rel_err": float(np.max(rec)) if rec else float("nan"),

@@ -7,7 +7,7 @@ import sys
 import time
 
 from ..errors import DiffshipError
-from .effects import EFFECT_NAMES
+from ..models.effects import EFFECT_NAMES
 
 EPILOG = (f"Effects: {', '.join(EFFECT_NAMES)} (wind needs wind_speed and wind_dir columns). "
           "Exit status: 0 done, 2 user error (message on stderr).")

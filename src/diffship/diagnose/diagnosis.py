@@ -15,12 +15,12 @@ from collections.abc import Callable, Sequence
 
 from ..data import Run
 from ..errors import DataError
-from ..fit import FitResult, fit_output_error
+from ..fit import FitResult, OutputErrorOptions, fit_output_error
 from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
-from .effects import Augmented, library
+from ..models.effects import Augmented, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
@@ -136,8 +136,9 @@ def diagnose(
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
         chans0 = o.channels or default_channels(model, train)
-        fit = fit_output_error(model, train, spec=spec, channels=chans0, max_steps=o.fit_steps, progress=say,
-                               estimate_x0=model.states_for_channels(chans0))
+        fit = fit_output_error(model, train, spec=spec, channels=chans0, progress=say,
+                               options=OutputErrorOptions(max_steps=o.fit_steps,
+                                                          estimate_x0=model.states_for_channels(chans0)))
     timings["base_fit"] = time.perf_counter() - t0
     base = fit.model
     chans = tuple(fit.channels)
@@ -152,7 +153,7 @@ def diagnose(
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
     say(f"screening {len(effs)} candidate effects ({', '.join(e.name for e in effs)})...")
     x0_train = fit.initial_states if len(fit.initial_states) == len(train) else None
-    ws = Workspace(base, base_spec, effs, train, chans, scales, x0_train=x0_train)
+    ws = Workspace(base, base_spec, effs, train, chans, scales, x0_train=x0_train, integrator=fit.integrator)
     scr, sinfo = ws.screen()
     timings["screen"] = time.perf_counter() - t0
     validation = Validation(ws, val, floor, chans)

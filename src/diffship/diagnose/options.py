@@ -6,7 +6,7 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 
 from ..errors import DataError
-from .effects import EFFECT_NAMES
+from ..models.effects import EFFECT_NAMES
 
 __all__ = ["DiagnoseOptions"]
 

@@ -38,73 +38,23 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
-import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
 from ..errors import FitError
+from ..fit.covariance import covariance
+from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data
 from ..fit.problem import make_batch
+from ..integrators import RK4, AbstractIntegrator
 from ..models import AbstractModel
+from ..models.effects import Augmented, Effect
 from ..params import ParamSpec
-from ..simulate import simulate
-from .effects import Augmented, Effect
 
 __all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX"]
 
 #: Largest number of effect parameters refitted at once (one or two effects).
 P_MAX = 5
-PENALTY = 1e3
-_CACHE: dict = {}
-
-
-def _wrap(e):
-    return jnp.arctan2(jnp.sin(e), jnp.cos(e))
-
-
-class _Kernel(eqx.Module):
-    """Static structure shared by the compiled functions."""
-
-    spec: ParamSpec = eqx.field(static=True)
-    out_idx: tuple[int, ...] = eqx.field(static=True)
-    angle: tuple[bool, ...] = eqx.field(static=True)
-    substeps: int = eqx.field(static=True)
-
-    def residuals(self, z, model, S, phi0, lo, hi, ts, us, ys, mask, x0, scales, idx, x0_scale):
-        """z = (scaled base parameters, P_MAX effect coordinates, per-run initial-state offsets)."""
-        n = len(self.spec.free_names)
-        th = self.spec.full_values(z[:n], model.base.theta())
-        phi = jnp.clip(phi0 + S @ z[n:n + P_MAX], lo, hi)
-        mdl = model.with_params(jnp.concatenate([th, phi]))
-        if idx.size:
-            x0 = x0.at[:, idx].add(z[n + P_MAX:].reshape(x0.shape[0], idx.size) * x0_scale)
-        sol = jax.vmap(lambda t, u, x: simulate(mdl, t, u, x, substeps=self.substeps))(ts, us, x0)
-        err = sol.ys[..., jnp.asarray(self.out_idx)] - ys
-        err = jnp.where(jnp.asarray(self.angle), _wrap(err), err)
-        good = (sol.valid & mask)[..., None]
-        bad = ((~sol.valid) & mask)[..., None]
-        return (jnp.where(good, err / scales, 0.0) + jnp.where(bad, PENALTY, 0.0)).reshape(-1)
-
-    def jacobian(self, z, *args):
-        return jax.jacfwd(self.residuals)(z, *args)
-
-    def jacobian_x0(self, z, *args):
-        """Jacobian with respect to the initial-state offsets only."""
-        k = len(self.spec.free_names) + P_MAX
-
-        def f(d):
-            return self.residuals(jnp.concatenate([z[:k], d]), *args)
-
-        return jax.jacfwd(f)(z[k:])
-
-
-def _compiled(kernel, name, args):
-    leaves, treedef = jax.tree_util.tree_flatten(args)
-    key = (kernel, name, treedef, tuple((np.shape(x), str(jnp.asarray(x).dtype)) for x in leaves))
-    if key not in _CACHE:
-        _CACHE[key] = jax.jit(getattr(kernel, name)).lower(*args).compile()
-    return _CACHE[key]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,92 +96,87 @@ class Workspace:
     """
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
-                 scales: dict[str, float], substeps: int = 1, x0_train: Sequence[np.ndarray] | None = None):
+                 scales: dict[str, float], x0_train: Sequence[np.ndarray] | None = None,
+                 integrator: AbstractIntegrator = RK4()):
         self.base = base
         self.spec = spec
+        self.integrator = integrator
         self.effects = list(effects)
         self.model = Augmented(base, self.effects)
         self.effects = list(self.model.effects)  # canonical order
         self.phi_names = tuple(n for e in self.effects for n in e.param_names)
         self.owner = {n: e for e in self.effects for n in e.param_names}
         self.phi_null = np.array([self.owner[n].null()[n] for n in self.phi_names])
-        lo, hi = [], []
+        lo, hi, sc = [], [], []
         for e in self.effects:
             for p in e.PARAMS:
                 lo.append(p.lower if math.isfinite(p.lower) else -1e12)
                 hi.append(p.upper if math.isfinite(p.upper) else 1e12)
-        self.lo, self.hi = np.asarray(lo), np.asarray(hi)
+                sc.append(p.scale)
+        self.lo, self.hi, self.phi_scale = np.asarray(lo), np.asarray(hi), np.asarray(sc)
         self.channels = tuple(channels)
         self.scales = np.asarray([scales[c] for c in self.channels])
-        # the compiled functions only need the spec's structure: drop the values so that fits
-        # of other data share them
-        shape_spec = ParamSpec(tuple(dataclasses.replace(p, value=0.0) for p in spec.params))
-        self.kernel = _Kernel(spec=shape_spec, out_idx=tuple(self.model.output_names.index(c) for c in self.channels),
-                              angle=tuple(c in self.model.angle_outputs for c in self.channels), substeps=int(substeps))
         self.n_theta = len(spec.free_names)
         self.z_theta = spec.to_z()
         states = base.states_for_channels(self.channels)
-        self.x0_idx = np.asarray([i for i, s in enumerate(base.state_names) if s in states], dtype=np.int64)
-        self.train = self._data(runs, x0_train)
-        b = self.train["batch"]
-        spread = [float(np.std(b.ys[..., j][b.mask])) or 1.0 for j in range(len(self.channels))]
-        sc = getattr(base, "STATE_CHANNEL", {})
+        self.x0_idx = tuple(i for i, s in enumerate(base.state_names) if s in states)
+        # One kernel for the screen, the refits and evaluation (the spec's structure only: other
+        # data of the same shapes share the compiled programs), and one for the initial states
+        # alone (every parameter held).
+        common = dict(out_idx=tuple(self.model.output_names.index(c) for c in self.channels),
+                      angle=tuple(c in self.model.angle_outputs for c in self.channels), x0_idx=self.x0_idx,
+                      integrator=integrator)
+        n_base = len(base.param_names)
+        self.kernel = Kernel(spec=spec.structural(), extra_idx=tuple(range(n_base, n_base + len(self.phi_names))),
+                             n_extra=P_MAX, **common)
+        self.x0_kernel = Kernel(spec=spec.fix(spec.names).structural(), **common)
+        batch = make_batch(self.model, runs, self.channels)
+        spread = [float(np.std(batch.ys[..., j][batch.mask])) or 1.0 for j in range(len(self.channels))]
+        state_channel = getattr(base, "STATE_CHANNEL", {})
 
         def _scale(st):
-            c = st if st in self.channels else sc.get(st)
+            c = st if st in self.channels else state_channel.get(st)
             return spread[self.channels.index(c)] if c in self.channels else 1.0
 
         self.x0_scale = np.asarray([_scale(base.state_names[i]) for i in self.x0_idx], dtype=np.float64)
+        self.train = self._data(runs, x0_train)
 
-    def _data(self, runs, x0_base=None):
+    def _data(self, runs, x0_base=None) -> dict:
         b = make_batch(self.model, runs, self.channels)
         x0 = np.asarray(b.x0).copy()
         if x0_base is not None:
             x0[:, :len(self.base.state_names)] = np.stack([np.asarray(v)[:len(self.base.state_names)] for v in x0_base])
-        return dict(batch=b, x0=x0, arrays=tuple(jnp.asarray(a) for a in (b.ts, b.us, b.ys, b.mask, x0)))
+        kd = kernel_data(self.model, b.ts, b.us, b.ys, b.mask, x0, self.scales, x0_scale=self.x0_scale,
+                         S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo, hi=self.hi)
+        return dict(batch=b, x0=x0, kd=kd)
 
     def data(self, runs):
         """Arrays for other runs (e.g. validation), initial states from the data."""
         return self._data(runs)
 
     def fitted_x0(self, data, values: dict[str, float], base_values: dict[str, float] | None = None,
-                  iters: int = 6) -> list[np.ndarray]:
-        """Initial states of the fitted channels' states estimated per run by Gauss–Newton with
-        the model fixed (as MATLAB ``compare`` does), so validation errors do not depend on the
-        noise of the first samples. The same procedure is used for every compared model."""
-        z = self.z0(data, base_values)
-        S, phi0 = self.selection([]), self.phi_vector(dict(values))
-        R, k = data["x0"].shape[0], self.x0_idx.size
-        if k == 0:
+                  max_steps: int = 20) -> list[np.ndarray]:
+        """Initial states of the fitted channels' states estimated per run with the model fixed
+        (as MATLAB ``compare`` does), so validation errors do not depend on the noise of the
+        first samples: the kernel's Levenberg–Marquardt over the initial-state offsets alone. The
+        same procedure is used for every compared model."""
+        if not self.x0_idx:
             return list(data["x0"])
-        nk = self.n_theta + P_MAX
-        r = self.residuals(z, S, phi0, data)
-        cost = float(r @ r)
-        for _ in range(iters):
-            J = self.jacobian_x0(z, S, phi0, data)
-            H = J.T @ J
-            step = np.linalg.solve(H + 1e-6 * np.diag(np.maximum(np.diag(H), 1e-12)), -J.T @ r)
-            zn = z.copy()
-            zn[nk:] += step
-            rn = self.residuals(zn, S, phi0, data)
-            cn = float(rn @ rn)
-            if not math.isfinite(cn) or cn >= cost:
-                break
-            rel = (cost - cn) / cost
-            z, r, cost = zn, rn, cn
-            if rel < 1e-8:
-                break
-        x0 = data["x0"].copy()
-        x0[:, self.x0_idx] += z[nk:].reshape(R, k) * self.x0_scale
-        return list(x0)
+        kd = data["kd"].replace(model=self.model_with(values, base_values))
+        z0 = np.zeros(data["x0"].shape[0] * len(self.x0_idx))
+        z, _, _, r = self.x0_kernel.call("solve", z0, kd, max_steps=max_steps, rtol=1e-8, atol=1e-8)
+        if not np.all(np.isfinite(np.asarray(r))) or np.any(np.abs(np.asarray(r)) >= PENALTY):
+            return list(data["x0"])
+        return list(np.asarray(self.x0_kernel.initial_states(z, kd)))
 
     # -- evaluation helpers ------------------------------------------------------------
-    def _args(self, data, S, phi0, model=None):
-        return ((model or self.model), jnp.asarray(S), jnp.asarray(phi0), jnp.asarray(self.lo), jnp.asarray(self.hi),
-                *data["arrays"], jnp.asarray(self.scales), jnp.asarray(self.x0_idx), jnp.asarray(self.x0_scale))
+    def _kd(self, data, S, phi0, model=None) -> KernelData:
+        d = (data or self.train)["kd"]
+        return d.replace(S=jnp.asarray(S, dtype=jnp.float64), phi0=jnp.asarray(phi0, dtype=jnp.float64),
+                         model=model or self.model)
 
     def n_x0(self, data=None) -> int:
-        return (data or self.train)["x0"].shape[0] * self.x0_idx.size
+        return (data or self.train)["x0"].shape[0] * len(self.x0_idx)
 
     def z0(self, data=None, base_values=None) -> np.ndarray:
         zt = self.z_theta if not base_values else self.spec.with_values(
@@ -239,19 +184,10 @@ class Workspace:
         return np.concatenate([zt, np.zeros(P_MAX), np.zeros(self.n_x0(data))])
 
     def residuals(self, z, S, phi0, data=None, model=None):
-        args = self._args(data or self.train, S, phi0, model)
-        fn = _compiled(self.kernel, "residuals", (jnp.asarray(z),) + args)
-        return np.asarray(fn(jnp.asarray(z), *args))
+        return np.asarray(self.kernel.call("residuals", z, self._kd(data, S, phi0, model)))
 
     def jacobian(self, z, S, phi0, data=None, model=None):
-        args = self._args(data or self.train, S, phi0, model)
-        fn = _compiled(self.kernel, "jacobian", (jnp.asarray(z),) + args)
-        return np.asarray(fn(jnp.asarray(z), *args))
-
-    def jacobian_x0(self, z, S, phi0, data=None, model=None):
-        args = self._args(data or self.train, S, phi0, model)
-        fn = _compiled(self.kernel, "jacobian_x0", (jnp.asarray(z),) + args)
-        return np.asarray(fn(jnp.asarray(z), *args))
+        return np.asarray(self.kernel.call("jacobian", z, self._kd(data, S, phi0, model)))
 
     def selection(self, names: Sequence[str]) -> np.ndarray:
         S = np.zeros((len(self.phi_names), P_MAX))
@@ -320,44 +256,16 @@ class Workspace:
         return out, info
 
     # -- refit -----------------------------------------------------------------------------
-    def _lm(self, S, phi0, active, max_iter):
-        z = self.z0()
-        r = self.residuals(z, S, phi0)
-        cost = 0.5 * float(r @ r)
-        if not math.isfinite(cost) or np.any(np.abs(r) >= PENALTY):
-            return z, r, math.inf, 0
-        lam, it = 1e-3, 0
-        for it in range(1, max_iter + 1):
-            J = self.jacobian(z, S, phi0)[:, active]
-            g = J.T @ r
-            H = J.T @ J
-            d = np.maximum(np.diag(H), 1e-12 * max(np.max(np.diag(H)), 1e-300))
-            improved, rel = False, 0.0
-            for _ in range(12):
-                try:
-                    step = np.linalg.solve(H + lam * np.diag(d), -g)
-                except np.linalg.LinAlgError:
-                    lam *= 10
-                    continue
-                zn = z.copy()
-                zn[active] += step
-                rn = self.residuals(zn, S, phi0)
-                cn = 0.5 * float(rn @ rn)
-                if math.isfinite(cn) and cn < cost:
-                    improved = True
-                    rel = (cost - cn) / max(cost, 1e-300)
-                    z, r, cost = zn, rn, cn
-                    lam = max(lam / 5, 1e-9)
-                    break
-                lam *= 6
-            if not improved or rel < 1e-9:
-                break
-        return z, r, cost, it
-
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               max_iter: int = 60, progress: Callable[[str], None] | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
-        values held, e.g. already accepted effects that are refitted jointly are in ``names``)."""
+        values held, e.g. already accepted effects that are refitted jointly are in ``names``).
+
+        Each start is solved by the output-error kernel's Levenberg–Marquardt (the unselected
+        effect coordinates have zero Jacobian columns and stay at zero); the start with the
+        lowest cost wins. Standard errors come from :func:`diffship.fit.covariance.covariance`
+        on the active unknowns: an effect parameter the data do not inform gets an infinite one.
+        """
         t0 = time.perf_counter()
         pn = [n for e in self.effects if e.name in names for n in e.param_names]
         if len(pn) > P_MAX:
@@ -367,26 +275,31 @@ class Workspace:
         nk = self.n_theta + P_MAX
         active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))] + \
             list(range(nk, nk + self.n_x0()))
+        z_start = self.z0()
         best = None
         for st in starts:  # LM from every start (non-smooth effects have flat regions)
             phi0 = base_phi.copy()
             for n in pn:
                 phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
-            z, r, cost, it = self._lm(S, phi0, active, max_iter)
+            kd = self._kd(None, S, phi0)
+            r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
+            if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
+                continue
+            z, _, steps, r = self.kernel.call("solve", z_start, kd, max_steps=max_iter, rtol=1e-7, atol=1e-7)
+            r = np.asarray(r)
+            cost = 0.5 * float(r @ r)
             if math.isfinite(cost) and (best is None or cost < best[2]):
-                best = (z, r, cost, it, phi0)
+                best = (np.asarray(z), r, cost, int(steps), phi0)
         if best is None:
             raise FitError(f"refit with {names}: every start blows up")
         z, r, cost, it, phi0 = best
         J = self.jacobian(z, S, phi0)[:, active]
-        s2 = float(r @ r) / max(r.size - len(active), 1)
-        try:
-            cov = s2 * np.linalg.pinv(J.T @ J)
-        except np.linalg.LinAlgError:
-            cov = np.full((len(active), len(active)), np.inf)
-        phi = np.clip(phi0 + self.selection(pn) @ z[self.n_theta:nk], self.lo, self.hi)
+        cov = covariance(J, r).matrix
+        w = self.selection(pn) @ z[self.n_theta:nk]
+        phi = np.clip(phi0 + self.phi_scale * w, self.lo, self.hi)
         values = {n: float(phi[self.phi_names.index(n)]) for n in pn}
-        stderr = {n: float(math.sqrt(max(cov[self.n_theta + j, self.n_theta + j], 0.0))) for j, n in enumerate(pn)}
+        stderr = {n: float(self.phi_scale[self.phi_names.index(n)] * math.sqrt(cov[self.n_theta + j, self.n_theta + j]))
+                  if cov[self.n_theta + j, self.n_theta + j] >= 0 else math.nan for j, n in enumerate(pn)}
         th = np.asarray(self.spec.full_values(jnp.asarray(z[:self.n_theta]), self.base.theta()))
         base_values = {n: float(th[i]) for i, n in enumerate(self.base.param_names)}
         fixed_out = {n: float(base_phi[self.phi_names.index(n)]) for n in (fixed or {}) if n not in pn}

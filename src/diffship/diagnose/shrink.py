@@ -61,7 +61,7 @@ class Validation:
         self.data = ws.data(self.runs)
 
     def _score(self, model: AbstractModel, x0) -> Score:
-        ev = evaluate(model, self.runs, x0=x0)
+        ev = evaluate(model, self.runs, x0=x0, integrator=self.ws.integrator)
         return Score(model, ev, normalised_error(ev, self.floor, self.channels),
                      {r.name: normalised_error(ev, self.floor, self.channels, r.name) for r in self.runs})
 

@@ -16,7 +16,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
-from .effects import FAMILY, Effect
+from ..models.effects import FAMILY, Effect
 from .options import DiagnoseOptions
 from .screen import ScreenResult
 from .where import GapBudget, WhereAnalysis

@@ -39,7 +39,7 @@ from ..fit import FitResult
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..preprocess import Filter, smooth_and_derivative
-from .effects import is_ship3, steering_inputs
+from ..models.effects import is_ship3, steering_inputs
 
 __all__ = ["noise_floor", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
            "gap_budget", "force_residuals", "PHASES"]

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..models import AbstractModel
-from .effects import Augmented, Effect
+from ..models.effects import Augmented, Effect
 from .options import DiagnoseOptions
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace
 from .shrink import PathStep, Score, Validation, structural_shrink

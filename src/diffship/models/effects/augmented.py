@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ModelError
-from ...models import AbstractModel
+from .._base import AbstractModel
 from ...params import Param, ParamSpec
 from ._base import Effect, body_velocity, is_ship3
 from .current import Current

@@ -25,7 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ...models import AbstractModel
+from .._base import AbstractModel
 from ...params import Param
 
 __all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "scalar"]

@@ -38,7 +38,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from ...errors import ModelError
-from ...models import AbstractModel
+from .._base import AbstractModel
 from ._base import DataFacts, Effect
 from .actuator import ActuatorLag, InputDelay, RateLimit, RudderOffset
 from .augmented import Augmented

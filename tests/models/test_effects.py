@@ -11,7 +11,7 @@ import pytest
 
 import diffship  # noqa: F401
 from diffship.diagnose import EFFECT_NAMES, Augmented, augment, library
-from diffship.diagnose.effects import EFFECTS, FAMILY, DampingRR, NorrbinRR, applicability, make_effect
+from diffship.models.effects import EFFECTS, FAMILY, DampingRR, NorrbinRR, applicability, make_effect
 from diffship.errors import ModelError
 from diffship.fit.problem import make_batch
 from diffship.models import Nomoto1, Nomoto2
@@ -111,12 +111,12 @@ def test_registry_picks_the_implementation_for_the_base_model():
 
 
 def test_importing_effects_does_not_load_the_fitter():
-    code = ("import sys, diffship.diagnose.effects; "
+    code = ("import sys, diffship.models.effects; "
             "print(' '.join(m for m in sys.modules if m.startswith('diffship')))")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                                 env=env).stdout.split())
-    assert "diffship.diagnose.effects.registry" in loaded
+    assert "diffship.models.effects.registry" in loaded
     for heavy in ("diffship.fit", "diffship.metrics", "diffship.simulate", "diffship.diagnose.screen",
                   "diffship.diagnose.diagnosis", "diffship.diagnose.where"):
         assert heavy not in loaded, heavy
