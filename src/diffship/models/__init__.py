@@ -2,7 +2,8 @@
 
 from collections.abc import Callable
 
-from ._base import AbstractModel as AbstractModel
+from ._base import AbstractModel as AbstractModel, LinearForm as LinearForm, param as param
+from ._rigid3 import AbstractShip3 as AbstractShip3
 from .actuators import ForceInput as ForceInput, WaterJet as WaterJet
 from .fossen3 import Fossen3 as Fossen3, USV_STANDARD as USV_STANDARD, usv_standard as usv_standard
 from .nomoto import Nomoto1 as Nomoto1, Nomoto2 as Nomoto2
