@@ -145,7 +145,7 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_cli_both_methods_vmm_linear(tmp_path):
-    truth = vmm_truth()  # 30 % off the defaults, one of output error's candidate starts
+    truth = vmm_truth()  # 23–43 % off the defaults, one of output error's candidate starts
     runs = vmm_runs(truth, n_runs=3, duration=200.0, dt=0.5, noise="realistic")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
@@ -154,8 +154,12 @@ def test_cli_both_methods_vmm_linear(tmp_path):
     doc = json.loads(js.read_text())
     oe = doc["methods"]["output_error"]
     assert oe["converged"]
-    err = _rel_err(oe["params"], truth.param_values(), ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd"))
-    assert max(err.values()) < 0.05, err
+    tv = truth.param_values()
+    names = ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd")
+    err = _rel_err(oe["params"], tv, names)
+    assert max(err.values()) < 0.10, err  # Y'_r, the derivative least excited by zigzags, is the worst
+    for n in names:
+        assert abs(oe["params"][n] - tv[n]) < 4 * oe["stderr"][n], (n, oe["params"][n], tv[n], oe["stderr"][n])
     # the held-out yaw rate is simulated to within the gyro noise (0.2°/s) over the whole 200 s run
     assert oe["validation"]["rmse"]["r"] < 0.25 * DEG
     # and output error tracks the training heading better than the equation-error baseline
