@@ -35,7 +35,7 @@ from diffship.diagnose import FAMILY, DiagnoseOptions, augment, diagnose
 from diffship.diagnose.where import noise_floor, normalised_error
 from diffship.metrics import evaluate
 from diffship.models import Fossen3, Nomoto1
-from diffship.models._base import scalar
+from diffship.models import scalar
 from diffship.synthetic import rudder_sequence, simulate_run, usv_excitation, usv_truth
 
 D = np.pi / 180

@@ -5,7 +5,7 @@ import pytest
 
 from diffship.decay import decay_run, fit_first_order_decay, fit_second_order_decay
 from diffship.errors import DataError
-from diffship.fit import fit_equation_error, fit_output_error
+from diffship.fit import OutputErrorOptions, fit_equation_error, fit_output_error
 from diffship.models import MODELS, Decay1, Decay2
 
 # surge decay of a 1.2 t craft (incl. added mass) with D = 150 kg/s: time constant 8 s
@@ -61,7 +61,7 @@ def test_second_order_curve_fit(roll_decay):
 
 
 def test_output_error_decay1_matches_curve_fit(surge_decay):
-    oe = fit_output_error(Decay1(m=M_SURGE, D=50.0), [surge_decay], estimate_x0=("velocity",))
+    oe = fit_output_error(Decay1(m=M_SURGE, D=50.0), [surge_decay], options=OutputErrorOptions(estimate_x0=("velocity",)))
     assert oe.converged
     assert oe.params["D"] == pytest.approx(D_SURGE, rel=0.02)
     cf = fit_first_order_decay(surge_decay.time, surge_decay["velocity"], M_SURGE)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from diffship.models import Fossen3, Nomoto1
-from diffship.integrators import RK4, Tsit5, get_integrator
+from diffship.integrators import get_integrator
 from diffship.simulate import simulate
 
 

@@ -8,7 +8,7 @@ from diffship.decay import decay_run
 from diffship.errors import DataError, FitError
 from diffship.fit import fit_equation_error
 from diffship.models import Decay1, Nomoto1
-from diffship.preprocess import delay_input, estimate_input_delay
+from diffship.fit.delay import delay_input, estimate_input_delay
 
 rng = np.random.default_rng(3)
 

@@ -33,7 +33,7 @@ from benchmarks.fitapi import (FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, 
 from benchmarks.record import (EE_KEYS, METHODS, convergence, log_uniform_starts, record_common, record_fit,
                                record_zig, say, seed_summary, timed, traced_peak)
 from diffship.models import Nomoto1
-from diffship.models._base import AbstractModel, scalar
+from diffship.models import AbstractModel, scalar
 from diffship.params import Param
 from diffship.synthetic import rudder_sequence, simulate_run
 

@@ -191,31 +191,22 @@ def bootstrap_equation_error(model, runs: Sequence, result, *, n_boot: int = 200
         flt: the filter used in the fit (default ``Filter()``).
         allow_linearised: accept a residual that is not affine in the free parameters.
     """
-    from .fit.equation_error import _TRIM, _residual_fn, equation_data
+    from .fit.equation_error import equation_residuals, equation_samples
     from .preprocess import Filter
 
     if result.method != "equation_error":
         raise FitError("bootstrap_equation_error needs an equation-error FitResult")
     flt = flt or Filter()
     fitted = model.with_params(result.params)
-    e_fn, eq_names = _residual_fn(fitted)
-    data = [equation_data(fitted, r, flt) for r in runs]
-    parts = []
-    for d in data:
-        n = d[0].shape[0]
-        k = int(_TRIM * n)
-        parts.append([a[k:n - k] for a in d])
-    Z, ZD, ZDD, U = (jnp.asarray(np.concatenate([p[i] for p in parts])) for i in range(4))
-    w = jnp.asarray([result.channel_scales.get(n, 1.0) for n in eq_names])
+    data = equation_samples(fitted, runs, flt)
+    w = jnp.asarray([result.channel_scales.get(n, 1.0) for n in fitted.EQUATIONS])
     names = fitted.param_names
     free = tuple(result.free)
     idx = np.array([names.index(n) for n in free])
     base = fitted.theta()
 
     def resid(theta_free):
-        m = fitted.with_params(base.at[idx].set(theta_free))
-        e = jax.vmap(lambda z, zd, zdd, u: e_fn(m, z, zd, zdd, u))(Z, ZD, ZDD, U)
-        return e / w
+        return equation_residuals(fitted.with_params(base.at[idx].set(theta_free)), data) / w
 
     th = jnp.asarray([result.params[n] for n in free])
     jac = jax.jit(jax.jacfwd(lambda t: resid(t).reshape(-1)))

@@ -2,10 +2,23 @@
 
 import numpy as np
 
+from diffship.models import VMMLinear
 from diffship.models.vmm import U0_REF, approach_thrust
 from diffship.synthetic import rudder_sequence, simulate_run
 
 DEG = np.pi / 180
+
+
+#: Test truth factors: the reference ship's free derivatives scaled by DOF (surge and sway ×1.3,
+#: yaw ×0.7), so that the model defaults (the reference ship) are 30 % off the truth.
+TRUTH_FACTORS = {"X": 1.3, "Y": 1.3, "N": 0.7}
+
+
+def vmm_truth(cls=VMMLinear):
+    """A stable test ship that differs from ``cls()`` in every free derivative (``TRUTH_FACTORS``)."""
+    ref = cls()
+    free = ref.spec().free_names
+    return ref.with_params({n: TRUTH_FACTORS[n[0]] * v for n, v in ref.param_values().items() if n in free})
 
 
 def vmm_runs(model, n_runs=2, duration=300.0, dt=0.5, noise="realistic", seed=0):
@@ -24,4 +37,4 @@ def vmm_runs(model, n_runs=2, duration=300.0, dt=0.5, noise="realistic", seed=0)
     return out
 
 
-__all__ = ["vmm_runs", "U0_REF"]
+__all__ = ["vmm_runs", "vmm_truth", "TRUTH_FACTORS", "U0_REF"]

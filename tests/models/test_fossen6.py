@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffship.fit import fit_equation_error, fit_output_error
+from diffship.fit import OutputErrorOptions, fit_equation_error, fit_output_error
 from diffship.models import MODELS, Fossen6, get_model
 from diffship.preprocess import Filter
 from diffship.simulate import simulate
@@ -59,8 +59,13 @@ def test_equation_error_least_squares_with_known_thrust():
     inflating the added masses)."""
     truth = Fossen6()
     runs = rov_runs(truth, n_runs=2, duration=60.0, dt=0.05, noise=ROV_NOISE)
-    ee = fit_equation_error(truth, runs, flt=Filter("savgol", window=1.0))
-    err = _abs_err(ee.params, truth.param_values(), truth.spec(), ee.free)
+    spec, tv = truth.spec(), truth.param_values()
+    # start far from the truth: ±60 % of max(|value|, scale), alternating
+    start = truth.with_params({n: tv[n] + (0.6 if i % 2 else -0.6) * max(abs(tv[n]), spec[n].scale)
+                               for i, n in enumerate(spec.free_names)})
+    assert min(_abs_err(start.param_values(), tv, spec, spec.free_names).values()) > 0.59
+    ee = fit_equation_error(start, runs, flt=Filter("savgol", window=1.0))
+    err = _abs_err(ee.params, tv, spec, ee.free)
     assert max(err.values()) < 0.10, err
     assert ee.converged
 
@@ -72,7 +77,7 @@ def test_output_error_refines_rov():
     runs = rov_runs(truth, n_runs=2, duration=60.0, dt=0.05, noise=ROV_NOISE)
     ee = fit_equation_error(truth, runs, flt=Filter("savgol", window=1.0))
     start = {n: min(ee.params[n], -1e-3) if n.endswith("dot") else ee.params[n] for n in ee.free}
-    oe = fit_output_error(truth.with_params(start), runs, estimate_x0=("u", "v", "w", "p", "q", "r", "phi", "theta"))
+    oe = fit_output_error(truth.with_params(start), runs, options=OutputErrorOptions(estimate_x0=("u", "v", "w", "p", "q", "r", "phi", "theta")))
     assert oe.converged, oe.status
     err = _abs_err(oe.params, truth.param_values(), truth.spec(), oe.free)
     ee_err = _abs_err(ee.params, truth.param_values(), truth.spec(), ee.free)

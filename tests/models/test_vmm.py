@@ -11,14 +11,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from diffship.fit import fit_equation_error, fit_output_error
+from diffship.fit import OutputErrorOptions, fit_equation_error, fit_output_error
+from diffship.fit.equation_error import equation_residuals, equation_samples
 from diffship.models import MODELS, VMMAbkowitz, VMMLinear, VMMSimple, get_model
 from diffship.models.vmm import approach_thrust
 from diffship.preprocess import Filter
 from diffship.simulate import simulate
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _vmm_data import DEG, vmm_runs  # noqa: E402
+from _vmm_data import DEG, vmm_runs, vmm_truth  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -62,34 +63,32 @@ def test_reference_ship_physics(cls):
 
 
 def test_equation_error_is_per_dof_motion_regression():
-    """On noise-free zigzags, inverse dynamics + least squares recovers the linear model within 1 %
-    (Savitzky–Golay derivatives), and equals seed 000's separate OLS per DOF on the model's own features."""
-    truth = VMMLinear()
+    """On noise-free zigzags, inverse dynamics + least squares from the model defaults (23–43 % off the
+    truth) recovers the linear model within 1 % (Savitzky–Golay derivatives), and equals seed 000's
+    separate OLS per DOF on the model's own regressors (inverse-dynamics labels, monomial features)."""
+    truth = vmm_truth()
     runs = vmm_runs(truth, n_runs=2, duration=300.0, dt=0.5, noise="none")
     flt = Filter("savgol", window=5.0)
-    start = truth.with_params({n: 0.5 * v for n, v in truth.param_values().items() if n in truth.spec().free_names})
+    start = VMMLinear()
+    assert min(_rel_err(start.param_values(), truth.param_values(), start.spec().free_names).values()) > 0.2
     ee = fit_equation_error(start, runs, flt=flt)
     err = _rel_err(ee.params, truth.param_values(), ee.free)
     assert max(err.values()) < 0.01, err
-    # seed-000 form: labels from inverse dynamics, features from the model's monomials, OLS per DOF
-    from diffship.fit.equation_error import _TRIM
-
-    feats, labels = {"X": [], "Y": [], "N": []}, {"X": [], "Y": [], "N": []}
-    for r in runs:
-        z, zd, _, u = truth.equation_data(r, flt)
-        k = int(_TRIM * z.shape[0])
-        z, zd, u = z[k:-k], zd[k:-k], u[k:-k]
-        fX, fY, fN = (np.asarray(a) for a in truth.inverse_dynamics_prime(jnp.asarray(z.T), jnp.asarray(zd.T)))
-        U = np.hypot(z[:, 0], z[:, 1])
-        fX = fX - float(truth.XT) * u[:, 1] / (0.5 * float(truth.rho) * float(truth.L) ** 2 * U**2)  # known thrust
-        F = truth.features(z, u)
-        for dof, y in (("X", fX), ("Y", fY), ("N", fN)):
-            feats[dof].append(F[dof][1])
-            labels[dof].append(y)
-    for dof in ("X", "Y", "N"):
-        beta, *_ = np.linalg.lstsq(np.concatenate(feats[dof]), np.concatenate(labels[dof]), rcond=None)
-        for name, b in zip(truth.features(z, u)[dof][0], beta):
+    # seed-000 form, one OLS per DOF on the model's regressors (the known thrust is in the labels)
+    samples = equation_samples(truth, runs, flt)
+    forms = truth.regressors(*(jnp.asarray(a) for a in samples))
+    assert set(forms) == {"X", "Y", "N"}
+    for dof, form in forms.items():
+        assert form.names == getattr(VMMLinear, f"{dof}_TERMS")
+        beta, *_ = np.linalg.lstsq(np.asarray(form.A), np.asarray(form.y), rcond=None)
+        for name, b in zip(form.names, beta):
             assert b == pytest.approx(ee.params[name], rel=1e-6, abs=1e-12), name
+    # the labels are the inverse dynamics: the regression residual is the equation residual
+    e = np.asarray(equation_residuals(ee.model, samples))
+    for j, dof in enumerate("XYN"):
+        form = forms[dof]
+        coef = np.array([ee.params[n] for n in form.names])
+        np.testing.assert_allclose(np.asarray(form.y) - np.asarray(form.A) @ coef, e[:, j], rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.slow
@@ -103,7 +102,7 @@ def test_output_error_recovers_linear_vmm_from_noisy_zigzags():
     ee = fit_equation_error(truth, runs)
     tv = truth.param_values()
     start = truth.with_params({n: 1.3 * tv[n] for n in ee.free})
-    oe = fit_output_error(start, runs, starts=[{n: ee.params[n] for n in ee.free}], estimate_x0=("u", "v", "r"))
+    oe = fit_output_error(start, runs, starts=[{n: ee.params[n] for n in ee.free}], options=OutputErrorOptions(estimate_x0=("u", "v", "r")))
     assert oe.converged, oe.status
     err = _rel_err(oe.params, tv, oe.free)
     assert max(err.values()) < 0.10, err
@@ -130,7 +129,7 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     to save the interpreter start; the slow test below runs the real subprocess)."""
     from diffship.fit.cli import main as fit_main
 
-    truth = VMMLinear()
+    truth = vmm_truth()  # 30 % off the defaults the command line starts from
     runs = vmm_runs(truth, n_runs=2, duration=200.0, dt=1.0, noise="none")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
@@ -141,12 +140,12 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     assert doc["model"] == "vmm_linear"
     params = doc["methods"]["equation_error"]["params"]
     err = _rel_err(params, truth.param_values(), ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd"))
-    assert max(err.values()) < 0.02, err
+    assert max(err.values()) < 0.03, err  # 1 s samples, 9 s window: derivative bias (measured ≤ 2.1 %, N'_v)
 
 
 @pytest.mark.slow
 def test_cli_both_methods_vmm_linear(tmp_path):
-    truth = VMMLinear()
+    truth = vmm_truth()  # 23–43 % off the defaults, one of output error's candidate starts
     runs = vmm_runs(truth, n_runs=3, duration=200.0, dt=0.5, noise="realistic")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
@@ -155,8 +154,12 @@ def test_cli_both_methods_vmm_linear(tmp_path):
     doc = json.loads(js.read_text())
     oe = doc["methods"]["output_error"]
     assert oe["converged"]
-    err = _rel_err(oe["params"], truth.param_values(), ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd"))
-    assert max(err.values()) < 0.05, err
+    tv = truth.param_values()
+    names = ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd")
+    err = _rel_err(oe["params"], tv, names)
+    assert max(err.values()) < 0.10, err  # Y'_r, the derivative least excited by zigzags, is the worst
+    for n in names:
+        assert abs(oe["params"][n] - tv[n]) < 4 * oe["stderr"][n], (n, oe["params"][n], tv[n], oe["stderr"][n])
     # the held-out yaw rate is simulated to within the gyro noise (0.2°/s) over the whole 200 s run
     assert oe["validation"]["rmse"]["r"] < 0.25 * DEG
     # and output error tracks the training heading better than the equation-error baseline

@@ -19,7 +19,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["Covariance", "covariance"]
+__all__ = ["Covariance", "covariance", "relabelled"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -73,3 +73,13 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         bad = tuple(int(i) for i in np.flatnonzero(involved))
         inv = inv + np.diag(np.where(involved, np.inf, 0.0))
     return Covariance(s2 * inv, s2, sv, int(np.sum(keep)), bad)
+
+
+def relabelled(cov: np.ndarray, values: dict[str, float], new: dict[str, float], free: tuple[str, ...]) -> np.ndarray:
+    """``cov`` (over ``free``) with rows and columns permuted after a canonical relabelling of
+    interchangeable parameters (``new = model.canonical(values)``, e.g. Nomoto T1 ↔ T2)."""
+    perm = []
+    for n in free:
+        match = [i for i, m in enumerate(free) if values[m] == new[n]]
+        perm.append(match[0] if match else free.index(n))
+    return cov[np.ix_(perm, perm)]

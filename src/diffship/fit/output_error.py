@@ -46,7 +46,7 @@ from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
 from ._lm import result_message
-from .covariance import covariance
+from .covariance import covariance, relabelled
 from .kernel import PENALTY, Kernel, kernel_data, listening
 from .problem import Batch, make_batch
 from .result import FitResult
@@ -272,12 +272,10 @@ def fit_output_error(
     cov = cov_all.matrix[:n_p, :n_p] * np.outer(dth, dth)
     theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
     values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
-    if hasattr(model, "canonical"):
-        swapped = model.canonical(values)
-        if swapped != values:
-            perm = [spec.free_names.index(n) for n in _swap_names(values, swapped, spec.free_names)]
-            cov = cov[np.ix_(perm, perm)]
-            values = swapped
+    swapped = model.canonical(values)
+    if swapped != values:
+        cov = relabelled(cov, values, swapped, spec.free_names)
+        values = swapped
     stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
     x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
     noise = channel_rms(r, batch.mask, scales)
@@ -311,12 +309,3 @@ def fit_output_error(
               "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
               "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1]},
     )
-
-
-def _swap_names(old, new, free):
-    """Permutation of free names after a canonical relabelling (e.g. Nomoto T1 <-> T2)."""
-    out = []
-    for n in free:
-        match = [m for m in free if old[m] == new[n]]
-        out.append(match[0] if match else n)
-    return out

@@ -1,8 +1,7 @@
 """Models as pure JAX vector fields (one module per model family)."""
 
-from collections.abc import Callable
-
-from ._base import AbstractModel as AbstractModel
+from ._base import AbstractModel as AbstractModel, LinearForm as LinearForm, param as param, scalar as scalar
+from ._rigid3 import AbstractShip3 as AbstractShip3
 from .actuators import ForceInput as ForceInput, WaterJet as WaterJet
 from .fossen3 import Fossen3 as Fossen3, USV_STANDARD as USV_STANDARD, usv_standard as usv_standard
 from .nomoto import Nomoto1 as Nomoto1, Nomoto2 as Nomoto2
@@ -10,28 +9,10 @@ from .mmg import MMG as MMG, kvlcc2_mmg as kvlcc2_mmg
 from .vmm import VMMAbkowitz as VMMAbkowitz, VMMLinear as VMMLinear, VMMSimple as VMMSimple
 from .fossen6 import Fossen6 as Fossen6
 from .decay import Decay1 as Decay1, Decay2 as Decay2
+from .registry import MODELS as MODELS, get_model as get_model
 
-#: Models selectable by name (``--model NAME``).
-MODELS: dict[str, type[AbstractModel] | Callable[[], AbstractModel]] = {
-    "nomoto1": Nomoto1,
-    "nomoto2": Nomoto2,
-    "fossen3": Fossen3,
-    "fossen3_waterjet": lambda: usv_standard(actuator=WaterJet()),
-    "mmg": MMG,
-    "vmm_linear": VMMLinear,
-    "vmm_simple": VMMSimple,
-    "vmm_abkowitz": VMMAbkowitz,
-    "fossen6": Fossen6,
-    "decay1": Decay1,
-    "decay2": Decay2,
-}
-
-
-def get_model(name: str) -> AbstractModel:
-    """A model instance with its reference (default) parameter values, by name."""
-    from ..errors import ModelError
-
-    try:
-        return MODELS[name]()
-    except KeyError:
-        raise ModelError(f"unknown model {name!r}; choose one of: {', '.join(MODELS)}") from None
+__all__ = [
+    "AbstractModel", "AbstractShip3", "LinearForm", "param", "scalar", "ForceInput", "WaterJet", "Fossen3", "USV_STANDARD",
+    "usv_standard", "Nomoto1", "Nomoto2", "MMG", "kvlcc2_mmg", "VMMAbkowitz", "VMMLinear", "VMMSimple", "Fossen6",
+    "Decay1", "Decay2", "MODELS", "get_model",
+]

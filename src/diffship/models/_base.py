@@ -1,4 +1,4 @@
-"""The model interface shared by every diffship model.
+r"""The model interface shared by every diffship model.
 
 A model is data plus a vector field: an :class:`equinox.Module` whose fields are its scalar
 parameters (float64 JAX arrays) and static options, with
@@ -9,13 +9,49 @@ parameters (float64 JAX arrays) and static options, with
 * ``initial_state(y0)`` — a state built from measured values at the first sample.
 
 Models act on one trajectory; batching over runs or parameter sets is ``jax.vmap`` outside.
+A model describes physics only: it imports nothing above :mod:`diffship.params` and
+:mod:`diffship.errors` (no data handling, filtering or fitting).
+
+**Parameters are declared once**, as fields made with :func:`param`::
+
+    class Nomoto1(AbstractModel):
+        K: jnp.ndarray = param(0.5, scale=0.5, unit="1/s", description="rudder gain")
+        T1: jnp.ndarray = param(5.0, lower=0.0, scale=5.0, unit="s", description="yaw time constant")
+
+``Model.PARAMS`` (and ``model.PARAMS``) is derived from those fields, in declaration order:
+one :class:`~diffship.params.Param` each, its ``value`` the field default. A family that
+declares every coefficient on one base class and uses a subset per member (the VMMs)
+overrides :meth:`AbstractModel._select_params`. A subclass may still set ``PARAMS`` itself
+(a class variable, or a property as :class:`diffship.diagnose.effects.Augmented` does);
+fields made with :func:`scalar` are plain float64 fields that are not parameters.
+
+**Equation-error form** (optional; what :func:`diffship.fit.fit_equation_error` needs). A
+model declares which measured signals its equations use, and the equations themselves; the
+fitter does all numerics (filtering, derivatives, trimming, stacking runs, least squares):
+
+* ``EQUATION_CHANNELS`` — measured channels whose smoothed values ``z`` and time derivatives
+  ``ż`` (and ``z̈`` when ``EQUATION_ORDER == 2``) the equations need, in column order;
+* ``EQUATION_ORDER`` — the highest derivative needed (1 or 2);
+* ``EQUATION_RATE_OF`` — ``{channel: source}``: a channel that is the time derivative of
+  another (e.g. ``{"r": "psi"}``), used when the channel itself is not measured;
+* ``EQUATION_INPUT_RATES`` — inputs whose smoothed time derivatives are appended to ``u``
+  (e.g. the rudder rate ``δ̇`` for Nomoto 2's lead term);
+* ``EQUATIONS`` — names of the entries of the residual;
+* :meth:`AbstractModel.equation_residual` ``(z, zd, zdd, u) -> e`` — the equations at one
+  sample, zero for the true parameters and noise-free signals;
+* optionally :meth:`AbstractModel.regressors` ``(z, zd, zdd, u) -> {form: LinearForm}`` — a
+  form linear in a set of coefficients, :math:`y = A c`, and
+  :meth:`AbstractModel.from_regression` mapping the least-squares coefficients back to
+  parameter values (the fitter's start).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from collections.abc import Mapping
-from typing import ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -25,7 +61,7 @@ from jaxtyping import Array, Float
 from ..errors import ModelError
 from ..params import Param, ParamSpec
 
-__all__ = ["AbstractModel", "scalar"]
+__all__ = ["AbstractModel", "LinearForm", "param", "scalar"]
 
 
 def _as_f64(v):
@@ -33,26 +69,87 @@ def _as_f64(v):
 
 
 def scalar(default: float | None = None):
-    """A float64 scalar parameter field."""
+    """A float64 scalar field that is not a model parameter (see :func:`param`)."""
     if default is None:
         return eqx.field(converter=_as_f64)
     return eqx.field(converter=_as_f64, default=default)
 
 
+def param(
+    default: float,
+    *,
+    scale: float = 1.0,
+    lower: float = -math.inf,
+    upper: float = math.inf,
+    free: bool = True,
+    unit: str = "",
+    description: str = "",
+) -> Any:
+    """A float64 scalar parameter field: the one declaration of a model parameter.
+
+    Args:
+        default: reference value (the field default and ``Param.value`` in ``PARAMS``).
+        scale, lower, upper, free, unit, description: as in :class:`~diffship.params.Param`.
+    """
+    meta = Param("", float(default), free=free, lower=lower, upper=upper, scale=scale, unit=unit,
+                 description=description)
+    return eqx.field(converter=_as_f64, default=default, metadata={"param": meta})
+
+
+@functools.cache
+def _declared_params(cls: type) -> tuple[Param, ...]:
+    found = {f.name: dataclasses.replace(f.metadata["param"], name=f.name)
+             for f in dataclasses.fields(cls) if "param" in f.metadata}
+    return tuple(found[n] for n in cls._select_params(tuple(found)))
+
+
+class _DeclaredParams:
+    """``PARAMS`` on classes and instances alike: derived from the :func:`param` fields."""
+
+    def __get__(self, obj, owner) -> tuple[Param, ...]:
+        return _declared_params(owner)
+
+
+class LinearForm(NamedTuple):
+    r"""Equations linear in a set of coefficients, :math:`y = A c`, broadcast over samples.
+
+    Attributes:
+        A: regressors, shape ``(..., k)``.
+        y: regressand, shape ``(...)``.
+        names: the ``k`` coefficient names (columns of ``A``).
+    """
+
+    A: Float[Array, "*n k"]
+    y: Float[Array, "*n"]
+    names: tuple[str, ...]
+
+
 class AbstractModel(eqx.Module):
     """Base class: a vector field with named states, inputs, outputs and parameters.
 
-    Subclasses set the class variables ``name``, ``state_names``, ``output_names`` and
-    ``PARAMS`` (a tuple of :class:`~diffship.params.Param` holding default bounds, scales and
-    reference values), declare one scalar field per parameter, and implement
-    :meth:`vector_field`.
+    Subclasses set the class variables ``name``, ``state_names`` and ``output_names``,
+    declare each parameter once as a :func:`param` field, and implement
+    :meth:`vector_field` (and ``input_names``). See the module docstring for the optional
+    equation-error form.
     """
 
     name: ClassVar[str] = "abstract"
     state_names: ClassVar[tuple[str, ...]] = ()
     output_names: ClassVar[tuple[str, ...]] = ()
     angle_outputs: ClassVar[tuple[str, ...]] = ("psi",)
-    PARAMS: ClassVar[tuple[Param, ...]] = ()
+    PARAMS: ClassVar[tuple[Param, ...]] = _DeclaredParams()  # type: ignore[assignment]
+
+    # equation-error form (module docstring); empty EQUATIONS: none
+    EQUATIONS: ClassVar[tuple[str, ...]] = ()
+    EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ()
+    EQUATION_ORDER: ClassVar[int] = 1
+    EQUATION_RATE_OF: ClassVar[dict[str, str]] = {}
+    EQUATION_INPUT_RATES: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def _select_params(cls, declared: tuple[str, ...]) -> tuple[str, ...]:
+        """Which of the declared :func:`param` fields are this class's parameters (default: all)."""
+        return declared
 
     # -- declared structure -------------------------------------------------------------
     @property
@@ -88,6 +185,10 @@ class AbstractModel(eqx.Module):
             new = {n: _as_f64(theta[i]) for i, n in enumerate(names)}
         return eqx.tree_at(lambda m: tuple(getattr(m, n) for n in names), self, tuple(new[n] for n in names))
 
+    def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Relabel interchangeable parameters into a canonical order (identity unless overridden)."""
+        return dict(values)
+
     # -- dynamics -------------------------------------------------------------------------
     def vector_field(self, t: Float[Array, ""], x: Float[Array, " n_x"], u: Float[Array, " n_u"]) -> Float[Array, " n_x"]:
         raise NotImplementedError
@@ -105,7 +206,36 @@ class AbstractModel(eqx.Module):
         """States whose initial values determine the given measured channels at t0."""
         return tuple(c for c in channels if c in self.state_names)
 
-    # -- equation error (linear-in-parameters form) ----------------------------------------
-    def derivative_channels(self) -> tuple[str, ...]:
-        """Channels whose time derivatives the equation-error baseline needs."""
-        return ()
+    # -- equation-error form (module docstring) -----------------------------------------------
+    def equation_residual(
+        self,
+        z: Float[Array, " n_z"],
+        zd: Float[Array, " n_z"],
+        zdd: Float[Array, " n_z"],
+        u: Float[Array, " n_u"],
+    ) -> Float[Array, " n_eq"]:
+        """Equation residual at one sample: ``z``, ``zd``, ``zdd`` hold the smoothed
+        ``EQUATION_CHANNELS`` and their first and second time derivatives (``zdd`` is zero
+        unless ``EQUATION_ORDER == 2``), ``u`` the inputs followed by ``EQUATION_INPUT_RATES``."""
+        raise ModelError(f"model {self.name} has no equation-error form; use output error")
+
+    def regressors(
+        self,
+        z: Float[Array, "*n n_z"],
+        zd: Float[Array, "*n n_z"],
+        zdd: Float[Array, "*n n_z"],
+        u: Float[Array, "*n n_u"],
+    ) -> dict[str, LinearForm]:
+        """Linear regression form(s) of the equations (broadcast over leading sample axes); none by default."""
+        return {}
+
+    def from_regression(self, coefficients: Mapping[str, Mapping[str, float]]) -> dict[str, float] | None:
+        """Parameter values from the least-squares coefficients of each form of :meth:`regressors`.
+
+        Default: the coefficients are parameters of this model (merged over the forms).
+        ``None``: the regression gives no usable values.
+        """
+        out: dict[str, float] = {}
+        for coef in coefficients.values():
+            out.update({n: float(v) for n, v in coef.items() if n in self.param_names})
+        return out or None

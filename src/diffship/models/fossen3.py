@@ -36,8 +36,8 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ..params import Param
-from ._base import AbstractModel, scalar
+from ._base import param
+from ._rigid3 import AbstractShip3, Mass3
 from .actuators import ForceInput, WaterJet
 
 __all__ = ["Fossen3", "USV_STANDARD", "usv_standard"]
@@ -61,49 +61,42 @@ USV_STANDARD: dict[str, float] = dict(
 )  # fmt: skip
 
 _NEG = dict(upper=0.0)
+_S = USV_STANDARD
 
 
-class Fossen3(AbstractModel):
-    """Fossen 3-DOF model (see module docstring); defaults are the seed-002 USV standard model."""
+class Fossen3(AbstractShip3):
+    r"""Fossen 3-DOF model (see module docstring); defaults are the seed-002 USV standard model.
+
+    Free by default: the three diagonal added masses and the seven damping derivatives the
+    seed-002 model has (``Yr`` and the off-diagonal added masses are fixed at 0); m, I_z and
+    x_g are fixed (known).
+
+    Equation-error form (inverse dynamics in force space, seed 000 / 004):
+    :math:`e = M\dot\nu + C(\nu)\nu + D(\nu)\nu - \tau` on measured ``(u, v, r)`` and their
+    derivatives; affine in the added masses and damping derivatives when m, I_z and x_g are
+    known, so the least-squares problem is linear.
+    """
 
     name: ClassVar[str] = "fossen3"
-    state_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
-    output_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("m", 4935.14, free=False, lower=0.0, scale=5e3, unit="kg", description="mass"),
-        Param("Iz", 20928.0, free=False, lower=0.0, scale=2e4, unit="kg m2", description="yaw inertia about CO"),
-        Param("xg", 0.0, free=False, scale=1.0, unit="m", description="longitudinal CG"),
-        Param("Xudot", 0.0, scale=500.0, unit="kg", description="surge added mass (−)", **_NEG),
-        Param("Yvdot", 0.0, scale=2e3, unit="kg", description="sway added mass (−)", **_NEG),
-        Param("Yrdot", 0.0, free=False, scale=2e3, unit="kg m", description="sway–yaw added mass"),
-        Param("Nvdot", 0.0, free=False, scale=2e3, unit="kg m", description="yaw–sway added mass"),
-        Param("Nrdot", 0.0, scale=1e4, unit="kg m2", description="yaw added inertia (−)", **_NEG),
-        Param("Xu", -50.0, scale=50.0, unit="kg/s", description="linear surge damping", **_NEG),
-        Param("Yv", -200.0, scale=200.0, unit="kg/s", description="linear sway damping", **_NEG),
-        Param("Yr", 0.0, free=False, scale=500.0, unit="kg m/s", description="sway force from yaw rate"),
-        Param("Nv", 1281.0, scale=1e3, unit="kg m/s", description="yaw moment from sway"),
-        Param("Nr", -1281.0, scale=1e3, unit="kg m2/s", description="linear yaw damping", **_NEG),
-        Param("Xuu", -243.0, scale=200.0, unit="kg/m", description="quadratic surge damping X_|u|u", **_NEG),
-        Param("Yvv", -2000.0, scale=2e3, unit="kg/m", description="quadratic sway damping Y_|v|v", **_NEG),
-        Param("Nrr", -3594.38, scale=3e3, unit="kg m2", description="quadratic yaw damping N_|r|r", **_NEG),
-    )
+    EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "N")
+    EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("u", "v", "r")
 
-    m: jnp.ndarray = scalar(USV_STANDARD["m"])
-    Iz: jnp.ndarray = scalar(USV_STANDARD["Iz"])
-    xg: jnp.ndarray = scalar(0.0)
-    Xudot: jnp.ndarray = scalar(0.0)
-    Yvdot: jnp.ndarray = scalar(0.0)
-    Yrdot: jnp.ndarray = scalar(0.0)
-    Nvdot: jnp.ndarray = scalar(0.0)
-    Nrdot: jnp.ndarray = scalar(0.0)
-    Xu: jnp.ndarray = scalar(USV_STANDARD["Xu"])
-    Yv: jnp.ndarray = scalar(USV_STANDARD["Yv"])
-    Yr: jnp.ndarray = scalar(0.0)
-    Nv: jnp.ndarray = scalar(USV_STANDARD["Nv"])
-    Nr: jnp.ndarray = scalar(USV_STANDARD["Nr"])
-    Xuu: jnp.ndarray = scalar(USV_STANDARD["Xuu"])
-    Yvv: jnp.ndarray = scalar(USV_STANDARD["Yvv"])
-    Nrr: jnp.ndarray = scalar(USV_STANDARD["Nrr"])
+    m: jnp.ndarray = param(_S["m"], free=False, lower=0.0, scale=5e3, unit="kg", description="mass")
+    Iz: jnp.ndarray = param(_S["Iz"], free=False, lower=0.0, scale=2e4, unit="kg m2", description="yaw inertia about CO")
+    xg: jnp.ndarray = param(_S["xg"], free=False, scale=1.0, unit="m", description="longitudinal CG")
+    Xudot: jnp.ndarray = param(_S["Xudot"], scale=500.0, unit="kg", description="surge added mass (−)", **_NEG)
+    Yvdot: jnp.ndarray = param(_S["Yvdot"], scale=2e3, unit="kg", description="sway added mass (−)", **_NEG)
+    Yrdot: jnp.ndarray = param(_S["Yrdot"], free=False, scale=2e3, unit="kg m", description="sway–yaw added mass")
+    Nvdot: jnp.ndarray = param(_S["Nvdot"], free=False, scale=2e3, unit="kg m", description="yaw–sway added mass")
+    Nrdot: jnp.ndarray = param(_S["Nrdot"], scale=1e4, unit="kg m2", description="yaw added inertia (−)", **_NEG)
+    Xu: jnp.ndarray = param(_S["Xu"], scale=50.0, unit="kg/s", description="linear surge damping", **_NEG)
+    Yv: jnp.ndarray = param(_S["Yv"], scale=200.0, unit="kg/s", description="linear sway damping", **_NEG)
+    Yr: jnp.ndarray = param(_S["Yr"], free=False, scale=500.0, unit="kg m/s", description="sway force from yaw rate")
+    Nv: jnp.ndarray = param(_S["Nv"], scale=1e3, unit="kg m/s", description="yaw moment from sway")
+    Nr: jnp.ndarray = param(_S["Nr"], scale=1e3, unit="kg m2/s", description="linear yaw damping", **_NEG)
+    Xuu: jnp.ndarray = param(_S["Xuu"], scale=200.0, unit="kg/m", description="quadratic surge damping X_|u|u", **_NEG)
+    Yvv: jnp.ndarray = param(_S["Yvv"], scale=2e3, unit="kg/m", description="quadratic sway damping Y_|v|v", **_NEG)
+    Nrr: jnp.ndarray = param(_S["Nrr"], scale=3e3, unit="kg m2", description="quadratic yaw damping N_|r|r", **_NEG)
     actuator: ForceInput | WaterJet = eqx.field(default_factory=ForceInput)
 
     @property
@@ -111,16 +104,10 @@ class Fossen3(AbstractModel):
         return self.actuator.input_names
 
     # -- matrices ---------------------------------------------------------------------
-    def mass_matrix(self):
-        """M = M_RB + M_A (symmetric when ``Yrdot == Nvdot``)."""
-        m, mx = self.m, self.m * self.xg
-        return jnp.array(
-            [
-                [m - self.Xudot, 0.0, 0.0],
-                [0.0, m - self.Yvdot, mx - self.Yrdot],
-                [0.0, mx - self.Nvdot, self.Iz - self.Nrdot],
-            ]
-        )
+    def mass_entries(self) -> Mass3:
+        """M = M_RB + M_A (symmetric when ``Yrdot == Nvdot``): surge decoupled, sway–yaw block."""
+        mx = self.m * self.xg
+        return Mass3(self.m - self.Xudot, self.m - self.Yvdot, mx - self.Yrdot, mx - self.Nvdot, self.Iz - self.Nrdot)
 
     def coriolis_matrix(self, nu):
         """C(ν) = C_RB(ν) + C_A(ν); skew-symmetric for every ν."""
@@ -148,11 +135,14 @@ class Fossen3(AbstractModel):
 
     def vector_field(self, t, x, u):
         psi, nu = x[2], x[3:]
-        c, s = jnp.cos(psi), jnp.sin(psi)
-        eta_dot = jnp.stack([c * nu[0] - s * nu[1], s * nu[0] + c * nu[1], nu[2]])
+        xd, yd = self.position_rates(psi, nu[0], nu[1])
         tau = self.forces(u, nu)
         rhs = tau - self.coriolis_vector(nu) - self.damping_vector(nu)
-        return jnp.concatenate([eta_dot, self.solve_mass(rhs)])
+        return jnp.concatenate([jnp.stack([xd, yd, nu[2]]), self.solve_mass(rhs)])
+
+    def equation_residual(self, z, zd, zdd, u):
+        """e = Mν̇ + C(ν)ν + D(ν)ν − τ at one sample (z = ν = (u, v, r), zd = ν̇) [N, N, N·m]."""
+        return self.mass_matrix() @ zd + self.coriolis_vector(z) + self.damping_vector(z) - self.forces(u, z)
 
     # Component forms of C(ν)ν and D(ν)ν: the same numbers as the matrix products above
     # (checked in the tests) without 3×3 matrix products, which XLA on CPU runs as separate
@@ -172,14 +162,6 @@ class Fossen3(AbstractModel):
             (self.Yv + self.Yvv * jnp.abs(v)) * v + self.Yr * r,
             self.Nv * v + (self.Nr + self.Nrr * jnp.abs(r)) * r,
         ])
-
-    def solve_mass(self, rhs):
-        """M⁻¹·rhs in closed form (surge decoupled, 2×2 sway–yaw block); no LAPACK call per step."""
-        a = self.m - self.Xudot
-        b, c = self.m - self.Yvdot, self.m * self.xg - self.Yrdot
-        d, e = self.m * self.xg - self.Nvdot, self.Iz - self.Nrdot
-        det = b * e - c * d
-        return jnp.stack([rhs[0] / a, (e * rhs[1] - c * rhs[2]) / det, (b * rhs[2] - d * rhs[1]) / det])
 
 
 def usv_standard(actuator: ForceInput | WaterJet | None = None, **overrides: float) -> Fossen3:

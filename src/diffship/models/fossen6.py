@@ -46,6 +46,12 @@ vector field; ``Fossen6(..., rigid_body_cg=True)`` uses the full r_g-dependent f
 Free by default: the six added masses (≤ 0) and the six linear damping coefficients — what
 seed 004 identifies by least squares with known thrust; the quadratic damping, mass,
 inertia, W, B and the CG/CB offsets are fixed at the reference values and can be freed.
+Each parameter is declared once, as a field ``_p(name, free, scale, unit, description)`` at
+its :data:`BLUEROV2_HEAVY` value.
+
+Equation error (seed 004): :math:`e = M\dot\nu + C(\nu)\nu + D(\nu)\nu + g(\eta) - \tau` on the
+measured attitude (φ, θ) and body velocities ν with filtered ν̇; affine in the added masses
+and damping, so least squares with known thrust is linear.
 
 Reference values: BlueROV2 Heavy, from C. J. Wu, *6-DoF Modelling and Control of a Remotely
 Operated Vehicle*, MSc thesis, Flinders University 2018, as collected in M. von Benzon,
@@ -68,11 +74,8 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 
-from ..params import Param
-from ..preprocess import Filter, smooth_and_derivative
-from ._base import AbstractModel, scalar
+from ._base import AbstractModel, param
 
 __all__ = ["Fossen6", "BLUEROV2_HEAVY"]
 
@@ -89,33 +92,11 @@ BLUEROV2_HEAVY: dict[str, float] = dict(
 _ADDED = ("Xudot", "Yvdot", "Zwdot", "Kpdot", "Mqdot", "Nrdot")
 _LIN = ("Xu", "Yv", "Zw", "Kp", "Mq", "Nr")
 _QUAD = ("Xuu", "Yvv", "Zww", "Kpp", "Mqq", "Nrr")
-_DOF = ("surge", "sway", "heave", "roll", "pitch", "yaw")
 
 
 def _p(name, free, scale, unit, desc, **kw):
-    return Param(name, BLUEROV2_HEAVY[name], free=free, scale=scale, unit=unit, description=desc, **kw)
-
-
-_PARAMS = (
-    _p("m", False, 10.0, "kg", "mass", lower=0.0),
-    _p("Ix", False, 0.3, "kg m2", "roll inertia about CG", lower=0.0),
-    _p("Iy", False, 0.3, "kg m2", "pitch inertia about CG", lower=0.0),
-    _p("Iz", False, 0.3, "kg m2", "yaw inertia about CG", lower=0.0),
-    _p("xg", False, 0.01, "m", "CG x (body)"), _p("yg", False, 0.01, "m", "CG y (body)"),
-    _p("zg", False, 0.01, "m", "CG z (body, down)"),
-    _p("xb", False, 0.01, "m", "CB x (body)"), _p("yb", False, 0.01, "m", "CB y (body)"),
-    _p("zb", False, 0.01, "m", "CB z (body, down)"),
-    _p("W", False, 100.0, "N", "weight m g", lower=0.0), _p("B", False, 100.0, "N", "buoyancy ρ g ∇", lower=0.0),
-) + tuple(
-    _p(n, True, 10.0 if i < 3 else 0.2, "kg" if i < 3 else "kg m2", f"{_DOF[i]} added mass (−)", upper=0.0)
-    for i, n in enumerate(_ADDED)
-) + tuple(
-    _p(n, True, 10.0 if i < 3 else 0.5, "kg/s" if i < 3 else "kg m2/s", f"linear {_DOF[i]} damping")
-    for i, n in enumerate(_LIN)
-) + tuple(
-    _p(n, False, 100.0 if i < 3 else 1.0, "kg/m" if i < 3 else "kg m2", f"quadratic {_DOF[i]} damping")
-    for i, n in enumerate(_QUAD)
-)
+    """A parameter field at its BlueROV2 Heavy value."""
+    return param(BLUEROV2_HEAVY[name], free=free, scale=scale, unit=unit, description=desc, **kw)
 
 
 def _cross(a, b):
@@ -139,38 +120,38 @@ class Fossen6(AbstractModel):
     output_names: ClassVar[tuple[str, ...]] = state_names
     angle_outputs: ClassVar[tuple[str, ...]] = ("phi", "theta", "psi")
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "Z", "K", "M", "N")
-    PARAMS: ClassVar[tuple[Param, ...]] = _PARAMS
+    EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("phi", "theta", "u", "v", "w", "p", "q", "r")
 
-    m: jnp.ndarray = scalar(BLUEROV2_HEAVY["m"])
-    Ix: jnp.ndarray = scalar(BLUEROV2_HEAVY["Ix"])
-    Iy: jnp.ndarray = scalar(BLUEROV2_HEAVY["Iy"])
-    Iz: jnp.ndarray = scalar(BLUEROV2_HEAVY["Iz"])
-    xg: jnp.ndarray = scalar(0.0)
-    yg: jnp.ndarray = scalar(0.0)
-    zg: jnp.ndarray = scalar(0.0)
-    xb: jnp.ndarray = scalar(0.0)
-    yb: jnp.ndarray = scalar(0.0)
-    zb: jnp.ndarray = scalar(BLUEROV2_HEAVY["zb"])
-    W: jnp.ndarray = scalar(BLUEROV2_HEAVY["W"])
-    B: jnp.ndarray = scalar(BLUEROV2_HEAVY["B"])
-    Xudot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Xudot"])
-    Yvdot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Yvdot"])
-    Zwdot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Zwdot"])
-    Kpdot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Kpdot"])
-    Mqdot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Mqdot"])
-    Nrdot: jnp.ndarray = scalar(BLUEROV2_HEAVY["Nrdot"])
-    Xu: jnp.ndarray = scalar(BLUEROV2_HEAVY["Xu"])
-    Yv: jnp.ndarray = scalar(BLUEROV2_HEAVY["Yv"])
-    Zw: jnp.ndarray = scalar(BLUEROV2_HEAVY["Zw"])
-    Kp: jnp.ndarray = scalar(BLUEROV2_HEAVY["Kp"])
-    Mq: jnp.ndarray = scalar(BLUEROV2_HEAVY["Mq"])
-    Nr: jnp.ndarray = scalar(BLUEROV2_HEAVY["Nr"])
-    Xuu: jnp.ndarray = scalar(BLUEROV2_HEAVY["Xuu"])
-    Yvv: jnp.ndarray = scalar(BLUEROV2_HEAVY["Yvv"])
-    Zww: jnp.ndarray = scalar(BLUEROV2_HEAVY["Zww"])
-    Kpp: jnp.ndarray = scalar(BLUEROV2_HEAVY["Kpp"])
-    Mqq: jnp.ndarray = scalar(BLUEROV2_HEAVY["Mqq"])
-    Nrr: jnp.ndarray = scalar(BLUEROV2_HEAVY["Nrr"])
+    m: jnp.ndarray = _p("m", False, 10.0, "kg", "mass", lower=0.0)
+    Ix: jnp.ndarray = _p("Ix", False, 0.3, "kg m2", "roll inertia about CG", lower=0.0)
+    Iy: jnp.ndarray = _p("Iy", False, 0.3, "kg m2", "pitch inertia about CG", lower=0.0)
+    Iz: jnp.ndarray = _p("Iz", False, 0.3, "kg m2", "yaw inertia about CG", lower=0.0)
+    xg: jnp.ndarray = _p("xg", False, 0.01, "m", "CG x (body)")
+    yg: jnp.ndarray = _p("yg", False, 0.01, "m", "CG y (body)")
+    zg: jnp.ndarray = _p("zg", False, 0.01, "m", "CG z (body, down)")
+    xb: jnp.ndarray = _p("xb", False, 0.01, "m", "CB x (body)")
+    yb: jnp.ndarray = _p("yb", False, 0.01, "m", "CB y (body)")
+    zb: jnp.ndarray = _p("zb", False, 0.01, "m", "CB z (body, down)")
+    W: jnp.ndarray = _p("W", False, 100.0, "N", "weight m g", lower=0.0)
+    B: jnp.ndarray = _p("B", False, 100.0, "N", "buoyancy ρ g ∇", lower=0.0)
+    Xudot: jnp.ndarray = _p("Xudot", True, 10.0, "kg", "surge added mass (−)", upper=0.0)
+    Yvdot: jnp.ndarray = _p("Yvdot", True, 10.0, "kg", "sway added mass (−)", upper=0.0)
+    Zwdot: jnp.ndarray = _p("Zwdot", True, 10.0, "kg", "heave added mass (−)", upper=0.0)
+    Kpdot: jnp.ndarray = _p("Kpdot", True, 0.2, "kg m2", "roll added mass (−)", upper=0.0)
+    Mqdot: jnp.ndarray = _p("Mqdot", True, 0.2, "kg m2", "pitch added mass (−)", upper=0.0)
+    Nrdot: jnp.ndarray = _p("Nrdot", True, 0.2, "kg m2", "yaw added mass (−)", upper=0.0)
+    Xu: jnp.ndarray = _p("Xu", True, 10.0, "kg/s", "linear surge damping")
+    Yv: jnp.ndarray = _p("Yv", True, 10.0, "kg/s", "linear sway damping")
+    Zw: jnp.ndarray = _p("Zw", True, 10.0, "kg/s", "linear heave damping")
+    Kp: jnp.ndarray = _p("Kp", True, 0.5, "kg m2/s", "linear roll damping")
+    Mq: jnp.ndarray = _p("Mq", True, 0.5, "kg m2/s", "linear pitch damping")
+    Nr: jnp.ndarray = _p("Nr", True, 0.5, "kg m2/s", "linear yaw damping")
+    Xuu: jnp.ndarray = _p("Xuu", False, 100.0, "kg/m", "quadratic surge damping")
+    Yvv: jnp.ndarray = _p("Yvv", False, 100.0, "kg/m", "quadratic sway damping")
+    Zww: jnp.ndarray = _p("Zww", False, 100.0, "kg/m", "quadratic heave damping")
+    Kpp: jnp.ndarray = _p("Kpp", False, 1.0, "kg m2", "quadratic roll damping")
+    Mqq: jnp.ndarray = _p("Mqq", False, 1.0, "kg m2", "quadratic pitch damping")
+    Nrr: jnp.ndarray = _p("Nrr", False, 1.0, "kg m2", "quadratic yaw damping")
     #: Use the CG offset r_g in the rigid-body inertia and Coriolis terms (M_RB, C_RB). False
     #: (default): those terms are taken with r_g = 0 — exact for the BlueROV2 reference (CG at
     #: the origin) and a common simplification for small offsets — while r_g still enters the
@@ -344,19 +325,11 @@ class Fossen6(AbstractModel):
         return jnp.concatenate([self.kinematics(eta, nu), self.solve_mass(rhs)])
 
     # -- equation error (seed 004: least squares with known thrust, Coriolis included) -------
-    def equation_data(self, run, flt: Filter):
-        """z = (φ, θ, u, v, w, p, q, r) smoothed, ż (derivatives; the ν̇ part is used), inputs."""
-        names = ("phi", "theta", "u", "v", "w", "p", "q", "r")
-        run.require(names, f"equation error for {self.name} (needs measured attitude and body velocities)")
-        run.require(self.input_names, f"the inputs of model {self.name}")
-        cols = [smooth_and_derivative(run.time, np.asarray(run[c]), flt, f"run {run.name}, column {c}") for c in names]
-        z = np.stack([c[0] for c in cols], 1)
-        zd = np.stack([c[1] for c in cols], 1)
-        inp = np.stack([np.asarray(run[n], dtype=np.float64) for n in self.input_names], 1)
-        return z, zd, np.zeros_like(zd), inp
-
     def equation_residual(self, z, zd, zdd, u):
-        """e = Mν̇ + C(ν)ν + D(ν)ν + g(η) − τ (6 entries, N and N·m): affine in M_A and D."""
+        """e = Mν̇ + C(ν)ν + D(ν)ν + g(η) − τ (6 entries, N and N·m): affine in M_A and D.
+
+        ``z = (φ, θ, u, v, w, p, q, r)`` (smoothed), ``zd`` their derivatives (the ν̇ part is used).
+        """
         nu, nud = z[2:], zd[2:]
         Mnud = self.mass_times(nud)
         return Mnud + self.coriolis_vector(nu) + self.damping_vector(nu) + self.restoring(z[0], z[1]) - u

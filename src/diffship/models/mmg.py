@@ -68,6 +68,10 @@ Yoshimura (2015, Tables 1–3), with x_G = 0.0348 L and k_zz = 0.2486 L from the
 ``R0`` and ``delta0`` — what the real-data study (:mod:`diffship.studies.kvlcc2`) needs; every
 other parameter is fixed at its reference value.
 
+Each parameter is declared once, as a field made by ``_p(name, unit, description, ...)``:
+value from :data:`KVLCC2_L7`, free when listed in ``_FREE``, scale ``max(|value|, 0.01)``.
+The mass solve is the shared closed-form 3-DOF one (:mod:`diffship.models._rigid3`).
+
 Reference: H. Yasukawa, Y. Yoshimura, "Introduction of MMG standard method for ship
 maneuvering predictions", J. Mar. Sci. Technol. 20 (2015) 37–52,
 doi:10.1007/s00773-014-0293-y.
@@ -80,8 +84,8 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from ..params import Param
-from ._base import AbstractModel, scalar
+from ._base import param
+from ._rigid3 import AbstractShip3, Mass3
 
 __all__ = ["MMG", "KVLCC2_L7", "kvlcc2_mmg"]
 
@@ -111,124 +115,75 @@ KVLCC2_L7: dict[str, float] = dict(
 _FREE = ("Yv", "Yr", "Nv", "Nr", "Nvvr", "Nrrr", "Jz", "f_alpha", "R0", "delta0")
 
 
-def _p(name: str, unit: str, description: str, **kw) -> Param:
+def _p(name: str, unit: str, description: str, **kw):
+    """A parameter field at its KVLCC2 L7 value, free if in ``_FREE``, scale max(|value|, 0.01)."""
     v = KVLCC2_L7[name]
     scale = kw.pop("scale", max(abs(v), 0.01))
-    return Param(name, v, free=name in _FREE, scale=scale, unit=unit, description=description, **kw)
+    return param(v, free=name in _FREE, scale=scale, unit=unit, description=description, **kw)
 
 
 _ND = "-"
 
 
-class MMG(AbstractModel):
-    """MMG 3-DOF model (see module docstring); defaults: KVLCC2 L7 model, fresh water."""
+class MMG(AbstractShip3):
+    """MMG 3-DOF model (see module docstring); defaults: KVLCC2 L7 model, fresh water.
+
+    Parameters are declared once each below (:func:`_p`: the KVLCC2 L7 value, free when in
+    ``_FREE``). No equation-error form (the rudder and propeller submodels are not linear in
+    the free parameters): fit by output error.
+    """
 
     name: ClassVar[str] = "mmg"
-    state_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
-    output_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        _p("R0", _ND, "straight-ahead resistance coefficient R'_0", lower=0.0),
-        _p("Xvv", _ND, "surge force derivative X'_vv"),
-        _p("Xvr", _ND, "surge force derivative X'_vr"),
-        _p("Xrr", _ND, "surge force derivative X'_rr"),
-        _p("Xvvvv", _ND, "surge force derivative X'_vvvv"),
-        _p("Yv", _ND, "sway force derivative Y'_v"),
-        _p("Yr", _ND, "sway force derivative Y'_r"),
-        _p("Yvvv", _ND, "sway force derivative Y'_vvv"),
-        _p("Yvvr", _ND, "sway force derivative Y'_vvr"),
-        _p("Yvrr", _ND, "sway force derivative Y'_vrr"),
-        _p("Yrrr", _ND, "sway force derivative Y'_rrr"),
-        _p("Nv", _ND, "yaw moment derivative N'_v"),
-        _p("Nr", _ND, "yaw moment derivative N'_r"),
-        _p("Nvvv", _ND, "yaw moment derivative N'_vvv"),
-        _p("Nvvr", _ND, "yaw moment derivative N'_vvr"),
-        _p("Nvrr", _ND, "yaw moment derivative N'_vrr"),
-        _p("Nrrr", _ND, "yaw moment derivative N'_rrr"),
-        _p("mx", _ND, "surge added mass m'_x", lower=0.0),
-        _p("my", _ND, "sway added mass m'_y", lower=0.0),
-        _p("Jz", _ND, "yaw added moment of inertia J'_z", lower=0.0),
-        _p("tP", _ND, "thrust deduction factor t_P", lower=-0.5, upper=1.0),
-        _p("wP0", _ND, "propeller wake fraction in straight motion w_P0", lower=-0.5, upper=1.0),
-        _p("xP", _ND, "propeller position x'_P (from midship, / L)"),
-        _p("C1", _ND, "wake correction coefficient C_1"),
-        _p("C2_plus", _ND, "wake correction coefficient C_2 for beta_P > 0"),
-        _p("C2_minus", _ND, "wake correction coefficient C_2 for beta_P <= 0"),
-        _p("k0", _ND, "open-water thrust coefficient K_T(J=0)"),
-        _p("k1", _ND, "open-water K_T slope k_1"),
-        _p("k2", _ND, "open-water K_T curvature k_2"),
-        _p("tR", _ND, "steering resistance deduction factor t_R"),
-        _p("aH", _ND, "rudder force increase factor a_H"),
-        _p("xH", _ND, "position of the hull force increase by steering x'_H"),
-        _p("xR", _ND, "rudder position x'_R (from midship, / L)"),
-        _p("eps", _ND, "ratio of wake fractions at rudder and propeller epsilon", lower=0.0),
-        _p("kappa", _ND, "propeller slipstream correction kappa", lower=0.0),
-        _p("lR", _ND, "effective longitudinal rudder position l'_R"),
-        _p("gammaR_minus", _ND, "flow straightening coefficient for beta_R < 0", lower=0.0),
-        _p("gammaR_plus", _ND, "flow straightening coefficient for beta_R >= 0", lower=0.0),
-        _p("f_alpha", _ND, "rudder lift gradient coefficient f_alpha", lower=0.0),
-        _p("delta0", "rad", "rudder neutral-angle offset (not in the MMG paper)", scale=0.01),
-        _p("L", "m", "length between perpendiculars", lower=0.0),
-        _p("B", "m", "breadth (not used by the equations; for reference)", lower=0.0),
-        _p("d", "m", "draught", lower=0.0),
-        _p("DP", "m", "propeller diameter", lower=0.0),
-        _p("HR", "m", "rudder span", lower=0.0),
-        _p("AR", "m2", "rudder area", lower=0.0),
-        _p("m", "kg", "mass", lower=0.0),
-        _p("xG", "m", "longitudinal centre of gravity from midship (forward positive)"),
-        _p("kzz", _ND, "yaw radius of gyration about G divided by L", lower=0.0),
-        _p("rho", "kg/m3", "water density", lower=0.0),
-    )
-
-    R0: jnp.ndarray = scalar(KVLCC2_L7["R0"])
-    Xvv: jnp.ndarray = scalar(KVLCC2_L7["Xvv"])
-    Xvr: jnp.ndarray = scalar(KVLCC2_L7["Xvr"])
-    Xrr: jnp.ndarray = scalar(KVLCC2_L7["Xrr"])
-    Xvvvv: jnp.ndarray = scalar(KVLCC2_L7["Xvvvv"])
-    Yv: jnp.ndarray = scalar(KVLCC2_L7["Yv"])
-    Yr: jnp.ndarray = scalar(KVLCC2_L7["Yr"])
-    Yvvv: jnp.ndarray = scalar(KVLCC2_L7["Yvvv"])
-    Yvvr: jnp.ndarray = scalar(KVLCC2_L7["Yvvr"])
-    Yvrr: jnp.ndarray = scalar(KVLCC2_L7["Yvrr"])
-    Yrrr: jnp.ndarray = scalar(KVLCC2_L7["Yrrr"])
-    Nv: jnp.ndarray = scalar(KVLCC2_L7["Nv"])
-    Nr: jnp.ndarray = scalar(KVLCC2_L7["Nr"])
-    Nvvv: jnp.ndarray = scalar(KVLCC2_L7["Nvvv"])
-    Nvvr: jnp.ndarray = scalar(KVLCC2_L7["Nvvr"])
-    Nvrr: jnp.ndarray = scalar(KVLCC2_L7["Nvrr"])
-    Nrrr: jnp.ndarray = scalar(KVLCC2_L7["Nrrr"])
-    mx: jnp.ndarray = scalar(KVLCC2_L7["mx"])
-    my: jnp.ndarray = scalar(KVLCC2_L7["my"])
-    Jz: jnp.ndarray = scalar(KVLCC2_L7["Jz"])
-    tP: jnp.ndarray = scalar(KVLCC2_L7["tP"])
-    wP0: jnp.ndarray = scalar(KVLCC2_L7["wP0"])
-    xP: jnp.ndarray = scalar(KVLCC2_L7["xP"])
-    C1: jnp.ndarray = scalar(KVLCC2_L7["C1"])
-    C2_plus: jnp.ndarray = scalar(KVLCC2_L7["C2_plus"])
-    C2_minus: jnp.ndarray = scalar(KVLCC2_L7["C2_minus"])
-    k0: jnp.ndarray = scalar(KVLCC2_L7["k0"])
-    k1: jnp.ndarray = scalar(KVLCC2_L7["k1"])
-    k2: jnp.ndarray = scalar(KVLCC2_L7["k2"])
-    tR: jnp.ndarray = scalar(KVLCC2_L7["tR"])
-    aH: jnp.ndarray = scalar(KVLCC2_L7["aH"])
-    xH: jnp.ndarray = scalar(KVLCC2_L7["xH"])
-    xR: jnp.ndarray = scalar(KVLCC2_L7["xR"])
-    eps: jnp.ndarray = scalar(KVLCC2_L7["eps"])
-    kappa: jnp.ndarray = scalar(KVLCC2_L7["kappa"])
-    lR: jnp.ndarray = scalar(KVLCC2_L7["lR"])
-    gammaR_minus: jnp.ndarray = scalar(KVLCC2_L7["gammaR_minus"])
-    gammaR_plus: jnp.ndarray = scalar(KVLCC2_L7["gammaR_plus"])
-    f_alpha: jnp.ndarray = scalar(KVLCC2_L7["f_alpha"])
-    delta0: jnp.ndarray = scalar(KVLCC2_L7["delta0"])
-    L: jnp.ndarray = scalar(KVLCC2_L7["L"])
-    B: jnp.ndarray = scalar(KVLCC2_L7["B"])
-    d: jnp.ndarray = scalar(KVLCC2_L7["d"])
-    DP: jnp.ndarray = scalar(KVLCC2_L7["DP"])
-    HR: jnp.ndarray = scalar(KVLCC2_L7["HR"])
-    AR: jnp.ndarray = scalar(KVLCC2_L7["AR"])
-    m: jnp.ndarray = scalar(KVLCC2_L7["m"])
-    xG: jnp.ndarray = scalar(KVLCC2_L7["xG"])
-    kzz: jnp.ndarray = scalar(KVLCC2_L7["kzz"])
-    rho: jnp.ndarray = scalar(KVLCC2_L7["rho"])
+    R0: jnp.ndarray = _p("R0", _ND, "straight-ahead resistance coefficient R'_0", lower=0.0)
+    Xvv: jnp.ndarray = _p("Xvv", _ND, "surge force derivative X'_vv")
+    Xvr: jnp.ndarray = _p("Xvr", _ND, "surge force derivative X'_vr")
+    Xrr: jnp.ndarray = _p("Xrr", _ND, "surge force derivative X'_rr")
+    Xvvvv: jnp.ndarray = _p("Xvvvv", _ND, "surge force derivative X'_vvvv")
+    Yv: jnp.ndarray = _p("Yv", _ND, "sway force derivative Y'_v")
+    Yr: jnp.ndarray = _p("Yr", _ND, "sway force derivative Y'_r")
+    Yvvv: jnp.ndarray = _p("Yvvv", _ND, "sway force derivative Y'_vvv")
+    Yvvr: jnp.ndarray = _p("Yvvr", _ND, "sway force derivative Y'_vvr")
+    Yvrr: jnp.ndarray = _p("Yvrr", _ND, "sway force derivative Y'_vrr")
+    Yrrr: jnp.ndarray = _p("Yrrr", _ND, "sway force derivative Y'_rrr")
+    Nv: jnp.ndarray = _p("Nv", _ND, "yaw moment derivative N'_v")
+    Nr: jnp.ndarray = _p("Nr", _ND, "yaw moment derivative N'_r")
+    Nvvv: jnp.ndarray = _p("Nvvv", _ND, "yaw moment derivative N'_vvv")
+    Nvvr: jnp.ndarray = _p("Nvvr", _ND, "yaw moment derivative N'_vvr")
+    Nvrr: jnp.ndarray = _p("Nvrr", _ND, "yaw moment derivative N'_vrr")
+    Nrrr: jnp.ndarray = _p("Nrrr", _ND, "yaw moment derivative N'_rrr")
+    mx: jnp.ndarray = _p("mx", _ND, "surge added mass m'_x", lower=0.0)
+    my: jnp.ndarray = _p("my", _ND, "sway added mass m'_y", lower=0.0)
+    Jz: jnp.ndarray = _p("Jz", _ND, "yaw added moment of inertia J'_z", lower=0.0)
+    tP: jnp.ndarray = _p("tP", _ND, "thrust deduction factor t_P", lower=-0.5, upper=1.0)
+    wP0: jnp.ndarray = _p("wP0", _ND, "propeller wake fraction in straight motion w_P0", lower=-0.5, upper=1.0)
+    xP: jnp.ndarray = _p("xP", _ND, "propeller position x'_P (from midship, / L)")
+    C1: jnp.ndarray = _p("C1", _ND, "wake correction coefficient C_1")
+    C2_plus: jnp.ndarray = _p("C2_plus", _ND, "wake correction coefficient C_2 for beta_P > 0")
+    C2_minus: jnp.ndarray = _p("C2_minus", _ND, "wake correction coefficient C_2 for beta_P <= 0")
+    k0: jnp.ndarray = _p("k0", _ND, "open-water thrust coefficient K_T(J=0)")
+    k1: jnp.ndarray = _p("k1", _ND, "open-water K_T slope k_1")
+    k2: jnp.ndarray = _p("k2", _ND, "open-water K_T curvature k_2")
+    tR: jnp.ndarray = _p("tR", _ND, "steering resistance deduction factor t_R")
+    aH: jnp.ndarray = _p("aH", _ND, "rudder force increase factor a_H")
+    xH: jnp.ndarray = _p("xH", _ND, "position of the hull force increase by steering x'_H")
+    xR: jnp.ndarray = _p("xR", _ND, "rudder position x'_R (from midship, / L)")
+    eps: jnp.ndarray = _p("eps", _ND, "ratio of wake fractions at rudder and propeller epsilon", lower=0.0)
+    kappa: jnp.ndarray = _p("kappa", _ND, "propeller slipstream correction kappa", lower=0.0)
+    lR: jnp.ndarray = _p("lR", _ND, "effective longitudinal rudder position l'_R")
+    gammaR_minus: jnp.ndarray = _p("gammaR_minus", _ND, "flow straightening coefficient for beta_R < 0", lower=0.0)
+    gammaR_plus: jnp.ndarray = _p("gammaR_plus", _ND, "flow straightening coefficient for beta_R >= 0", lower=0.0)
+    f_alpha: jnp.ndarray = _p("f_alpha", _ND, "rudder lift gradient coefficient f_alpha", lower=0.0)
+    delta0: jnp.ndarray = _p("delta0", "rad", "rudder neutral-angle offset (not in the MMG paper)", scale=0.01)
+    L: jnp.ndarray = _p("L", "m", "length between perpendiculars", lower=0.0)
+    B: jnp.ndarray = _p("B", "m", "breadth (not used by the equations; for reference)", lower=0.0)
+    d: jnp.ndarray = _p("d", "m", "draught", lower=0.0)
+    DP: jnp.ndarray = _p("DP", "m", "propeller diameter", lower=0.0)
+    HR: jnp.ndarray = _p("HR", "m", "rudder span", lower=0.0)
+    AR: jnp.ndarray = _p("AR", "m2", "rudder area", lower=0.0)
+    m: jnp.ndarray = _p("m", "kg", "mass", lower=0.0)
+    xG: jnp.ndarray = _p("xG", "m", "longitudinal centre of gravity from midship (forward positive)")
+    kzz: jnp.ndarray = _p("kzz", _ND, "yaw radius of gyration about G divided by L", lower=0.0)
+    rho: jnp.ndarray = _p("rho", "kg/m3", "water density", lower=0.0)
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -300,20 +255,19 @@ class MMG(AbstractModel):
         return (self.m + half * self.mx, self.m + half * self.my, self.xG * self.m,
                 izg + self.xG * self.xG * self.m + half * self.L * self.L * self.Jz)
 
+    def mass_entries(self) -> Mass3:
+        """M = [[m + m_x, 0, 0], [0, m + m_y, x_G m], [0, x_G m, I_zG + x_G² m + J_z]] (midship)."""
+        a, b, c, e = self.masses()
+        return Mass3(a, b, c, c, e)
+
     def vector_field(self, t, x, u):
         psi, uu, v, r = x[2], x[3], x[4], x[5]
         X, Y, N = self.forces(x, u)
-        a, b, c, e = self.masses()
-        # surge: a u' = X + b v r + c r²
-        du = (X + b * v * r + c * r * r) / a
-        # [b c; c e] [v'; r'] = [Y - a u r; N - c u r]
-        f1 = Y - a * uu * r
-        f2 = N - c * uu * r
-        det = b * e - c * c
-        dv = (e * f1 - c * f2) / det
-        dr = (b * f2 - c * f1) / det
-        cp, sp = jnp.cos(psi), jnp.sin(psi)
-        return jnp.stack([cp * uu - sp * v, sp * uu + cp * v, r, du, dv, dr])
+        a, b, c, _ = self.masses()
+        # M ν̇ = (X + b v r + c r², Y − a u r, N − c u r)
+        acc = self.solve_mass(jnp.stack([X + b * v * r + c * r * r, Y - a * uu * r, N - c * uu * r]))
+        xd, yd = self.position_rates(psi, uu, v)
+        return jnp.concatenate([jnp.stack([xd, yd, r]), acc])
 
 
 def kvlcc2_mmg(**overrides: float) -> MMG:

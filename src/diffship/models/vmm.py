@@ -66,6 +66,13 @@ three regressions are independent ordinary least squares (what
 :func:`diffship.fit.fit_equation_error` solves, in one Gauss–Newton step); output error then
 refines from there.
 
+**Parameters** are declared once, as fields of the common base :class:`VMM` (every
+derivative of the monomial table, the added masses and the fixed rigid-body and reference
+quantities); a member's ``PARAMS`` are the fixed quantities, the added masses and the
+derivatives of its own polynomial (``X_TERMS + Y_TERMS + N_TERMS``), in declaration order. The
+mass matrix is the shared 3-DOF one (:mod:`diffship.models._rigid3`), with the prime added
+masses made dimensional.
+
 Reference values: an illustrative single-screw cargo ship, derivative magnitudes after the
 Mariner-class derivatives of Chislett & Strøm-Tejsen (1965) as tabulated in Fossen's MSS
 toolbox (``mariner.m``), with the rudder sign flipped to starboard-positive, the rigid-body
@@ -88,11 +95,9 @@ from __future__ import annotations
 from typing import ClassVar
 
 import jax.numpy as jnp
-import numpy as np
 
-from ..params import Param
-from ..preprocess import Filter, smooth_and_derivative
-from ._base import AbstractModel, scalar
+from ._base import LinearForm, param
+from ._rigid3 import AbstractShip3, Mass3
 
 __all__ = ["VMM", "VMMLinear", "VMMSimple", "VMMAbkowitz", "VMM_REFERENCE", "approach_thrust"]
 
@@ -139,67 +144,54 @@ _POWERS: dict[str, tuple[int, int, int, int]] = {
     "Nud": (1, 0, 0, 1), "Nuud": (2, 0, 0, 1), "Nvdd": (0, 1, 0, 2), "Nvvd": (0, 2, 0, 1), "N0": (0, 0, 0, 0),
 }  # fmt: skip
 
-_FIXED_PARAMS: tuple[Param, ...] = (
-    Param("m", M_REF, free=False, lower=0.0, scale=M_REF, unit="kg", description="mass"),
-    Param("Iz", IZ_REF, free=False, lower=0.0, scale=IZ_REF, unit="kg m2", description="yaw inertia about CO"),
-    Param("xG", XG_REF, free=False, scale=L_REF / 50, unit="m", description="longitudinal CG (from CO, + forward)"),
-    Param("L", L_REF, free=False, lower=0.0, scale=L_REF, unit="m", description="reference length (Lpp)"),
-    Param("rho", RHO_REF, free=False, lower=0.0, scale=1000.0, unit="kg/m3", description="water density"),
-    Param("U0", U0_REF, free=False, lower=0.0, scale=U0_REF, unit="m/s", description="approach speed (Δu' = (u−U0)/U)"),
-    Param("XT", 0.8, free=False, scale=1.0, unit="-", description="thrust factor 1 − t (X'_T)"),
-)
-
 _ADDED = {"Xudot": "surge added mass", "Yvdot": "sway added mass", "Yrdot": "sway–yaw added mass",
           "Nvdot": "yaw–sway added mass", "Nrdot": "yaw added inertia"}
 
 
-def _hydro_param(name: str) -> Param:
+def _added(name: str):
+    """A prime added mass: fixed ("given") by default."""
     v = VMM_REFERENCE[name]
-    what = f"prime derivative of {name[0]} w.r.t. {name[1:] or 'const'}"
-    return Param(name, v, scale=max(abs(v), 1e-3), unit="-", description=what)
+    return param(v, free=False, scale=max(abs(v), 1e-4), unit="-", description=f"{_ADDED[name]} (prime)")
 
 
-def _params(terms: tuple[str, ...]) -> tuple[Param, ...]:
-    added = tuple(
-        Param(n, VMM_REFERENCE[n], free=False, scale=max(abs(VMM_REFERENCE[n]), 1e-4), unit="-",
-              description=f"{d} (prime)")
-        for n, d in _ADDED.items()
-    )
-    return _FIXED_PARAMS + added + tuple(_hydro_param(n) for n in terms)
+def _ref(name: str):
+    """A prime hydrodynamic derivative (free); used by a member only if in its polynomial."""
+    v = VMM_REFERENCE[name]
+    return param(v, scale=max(abs(v), 1e-3), unit="-",
+                 description=f"prime derivative of {name[0]} w.r.t. {name[1:] or 'const'}")
 
 
-def _ref(name):
-    return scalar(VMM_REFERENCE[name])
-
-
-class VMM(AbstractModel):
+class VMM(AbstractShip3):
     """Base of the polynomial manoeuvring models (see the module docstring).
 
     Subclasses choose the polynomial by the class variables ``X_TERMS``, ``Y_TERMS``,
-    ``N_TERMS`` (names from the monomial table); every derivative is a field here, those not
-    in the polynomial are ignored.
+    ``N_TERMS`` (names from the monomial table). Every derivative is declared once here as a
+    parameter field; a member's ``PARAMS`` are the fixed rigid-body and reference quantities,
+    the added masses and the derivatives of its own polynomial (:meth:`_select_params`); the
+    other fields are ignored.
     """
 
     name: ClassVar[str] = "vmm"
-    state_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
-    output_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "psi", "u", "v", "r")
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X'", "Y'", "N'")
+    EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("u", "v", "r")
     X_TERMS: ClassVar[tuple[str, ...]] = ()
     Y_TERMS: ClassVar[tuple[str, ...]] = ()
     N_TERMS: ClassVar[tuple[str, ...]] = ()
 
-    m: jnp.ndarray = scalar(M_REF)
-    Iz: jnp.ndarray = scalar(IZ_REF)
-    xG: jnp.ndarray = scalar(XG_REF)
-    L: jnp.ndarray = scalar(L_REF)
-    rho: jnp.ndarray = scalar(RHO_REF)
-    U0: jnp.ndarray = scalar(U0_REF)
-    XT: jnp.ndarray = scalar(0.8)
-    Xudot: jnp.ndarray = _ref("Xudot")
-    Yvdot: jnp.ndarray = _ref("Yvdot")
-    Yrdot: jnp.ndarray = _ref("Yrdot")
-    Nvdot: jnp.ndarray = _ref("Nvdot")
-    Nrdot: jnp.ndarray = _ref("Nrdot")
+    m: jnp.ndarray = param(M_REF, free=False, lower=0.0, scale=M_REF, unit="kg", description="mass")
+    Iz: jnp.ndarray = param(IZ_REF, free=False, lower=0.0, scale=IZ_REF, unit="kg m2", description="yaw inertia about CO")
+    xG: jnp.ndarray = param(XG_REF, free=False, scale=L_REF / 50, unit="m",
+                            description="longitudinal CG (from CO, + forward)")
+    L: jnp.ndarray = param(L_REF, free=False, lower=0.0, scale=L_REF, unit="m", description="reference length (Lpp)")
+    rho: jnp.ndarray = param(RHO_REF, free=False, lower=0.0, scale=1000.0, unit="kg/m3", description="water density")
+    U0: jnp.ndarray = param(U0_REF, free=False, lower=0.0, scale=U0_REF, unit="m/s",
+                            description="approach speed (Δu' = (u−U0)/U)")
+    XT: jnp.ndarray = param(VMM_REFERENCE["XT"], free=False, scale=1.0, unit="-", description="thrust factor 1 − t (X'_T)")
+    Xudot: jnp.ndarray = _added("Xudot")
+    Yvdot: jnp.ndarray = _added("Yvdot")
+    Yrdot: jnp.ndarray = _added("Yrdot")
+    Nvdot: jnp.ndarray = _added("Nvdot")
+    Nrdot: jnp.ndarray = _added("Nrdot")
     X0: jnp.ndarray = _ref("X0")
     Xu: jnp.ndarray = _ref("Xu")
     Xuu: jnp.ndarray = _ref("Xuu")
@@ -238,6 +230,11 @@ class VMM(AbstractModel):
     Nvdd: jnp.ndarray = _ref("Nvdd")
     Nvvd: jnp.ndarray = _ref("Nvvd")
     N0: jnp.ndarray = _ref("N0")
+
+    @classmethod
+    def _select_params(cls, declared):
+        used = set(cls.X_TERMS + cls.Y_TERMS + cls.N_TERMS)
+        return tuple(n for n in declared if n not in _POWERS or n in used)
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -282,12 +279,11 @@ class VMM(AbstractModel):
         return (self.Xudot * h * L**3, self.Yvdot * h * L**3, self.Yrdot * h * L**4,
                 self.Nvdot * h * L**4, self.Nrdot * h * L**5)
 
-    def mass_matrix(self):
-        """M = M_RB + M_A (3×3, dimensional)."""
+    def mass_entries(self) -> Mass3:
+        """M = M_RB + M_A (dimensional): surge decoupled, sway–yaw block."""
         Xud, Yvd, Yrd, Nvd, Nrd = self.added_masses()
-        m, mx = self.m, self.m * self.xG
-        z = jnp.zeros_like(m)
-        return jnp.array([[m - Xud, z, z], [z, m - Yvd, mx - Yrd], [z, mx - Nvd, self.Iz - Nrd]])
+        mx = self.m * self.xG
+        return Mass3(self.m - Xud, self.m - Yvd, mx - Yrd, mx - Nvd, self.Iz - Nrd)
 
     def vector_field(self, t, x, inp):
         psi, u, v, r = x[2], x[3], x[4], x[5]
@@ -298,26 +294,10 @@ class VMM(AbstractModel):
         X = q * Xp + self.m * (v * r + self.xG * r * r)
         Y = q * Yp - self.m * u * r
         N = q * self.L * Np - self.m * self.xG * u * r
-        Xud, Yvd, Yrd, Nvd, Nrd = self.added_masses()
-        a = self.m - Xud
-        b, c = self.m - Yvd, self.m * self.xG - Yrd
-        d, e = self.m * self.xG - Nvd, self.Iz - Nrd
-        det = b * e - c * d
-        c_, s_ = jnp.cos(psi), jnp.sin(psi)
-        return jnp.stack([c_ * u - s_ * v, s_ * u + c_ * v, r, X / a, (e * Y - c * N) / det, (b * N - d * Y) / det])
+        xd, yd = self.position_rates(psi, u, v)
+        return jnp.concatenate([jnp.stack([xd, yd, r]), self.solve_mass(jnp.stack([X, Y, N]))])
 
     # -- equation error (inverse dynamics + motion regression) ----------------------------
-    def equation_data(self, run, flt: Filter):
-        """Smoothed (u, v, r), their derivatives, zeros, and inputs (δ, T), one row per sample."""
-        run.require(("u", "v", "r"), f"equation error for {self.name} (needs measured u, v, r)")
-        run.require(self.input_names, f"the inputs of model {self.name}")
-        cols = [smooth_and_derivative(run.time, np.asarray(run[c]), flt, f"run {run.name}, column {c}")
-                for c in ("u", "v", "r")]
-        z = np.stack([c[0] for c in cols], 1)
-        zd = np.stack([c[1] for c in cols], 1)
-        u = np.stack([np.asarray(run[n], dtype=np.float64) for n in self.input_names], 1)
-        return z, zd, np.zeros_like(zd), u
-
     def inverse_dynamics_prime(self, nu, nu_dot):
         """Prime hydrodynamic forces that the measured motion requires (the regression labels)."""
         u, v, r = nu[0], nu[1], nu[2]
@@ -331,21 +311,36 @@ class VMM(AbstractModel):
         return fX / q, fY / q, fN / (q * self.L)
 
     def equation_residual(self, z, zd, zdd, inp):
+        """(e_X, e_Y, e_N) at one sample: inverse-dynamics prime forces minus the polynomial."""
         fX, fY, fN = self.inverse_dynamics_prime(z, zd)
         Xp, Yp, Np = self.hydro_prime(z, inp)
         return jnp.stack([fX - Xp, fY - Yp, fN - Np])
 
-    def features(self, nu, inp):
-        """Regression features per DOF (NumPy, rows = samples): dict DOF -> (names, matrix)."""
-        nu, inp = np.asarray(nu), np.asarray(inp)
-        u, v, r = nu[:, 0], nu[:, 1], nu[:, 2]
-        U = np.sqrt(u * u + v * v + 1e-6)
-        P = {"u": (u - float(self.U0)) / U, "v": v / U, "r": r * float(self.L) / U, "d": inp[:, 0]}
+    def regressors(self, z, zd, zdd, inp):
+        """Seed 000's motion regression, one linear form per DOF (broadcast over samples).
+
+        Labels: the inverse-dynamics prime forces (the known thrust term taken out of X');
+        regressors: the model's own monomials of (Δu', v', r', δ); coefficients: its
+        derivatives. Exact least squares of the equation error when the added masses are fixed.
+        """
+        nu, nud, u = (jnp.moveaxis(a, -1, 0) for a in (z, zd, inp))
+        fX, fY, fN = self.inverse_dynamics_prime(nu, nud)
+        du, v, r, d, T, _ = self.primes(nu, u)
+        pw = {"u": du, "v": v, "r": r, "d": d}
+        labels = {"X": fX - self.XT * T, "Y": fY, "N": fN}
         out = {}
         for dof, terms in (("X", self.X_TERMS), ("Y", self.Y_TERMS), ("N", self.N_TERMS)):
-            cols = [P["u"] ** a * P["v"] ** b * P["r"] ** c * P["d"] ** e for a, b, c, e in (_POWERS[n] for n in terms)]
-            out[dof] = (terms, np.stack(cols, 1))
+            cols = [_monomial(pw, _POWERS[n]) for n in terms]
+            out[dof] = LinearForm(jnp.stack(cols, -1), labels[dof], terms)
         return out
+
+
+def _monomial(pw, powers):
+    out = jnp.ones_like(pw["u"])
+    for k, e in zip("uvrd", powers):
+        for _ in range(e):
+            out = out * pw[k]
+    return out
 
 
 class VMMLinear(VMM):
@@ -356,7 +351,6 @@ class VMMLinear(VMM):
     X_TERMS: ClassVar[tuple[str, ...]] = ("X0", "Xu")
     Y_TERMS: ClassVar[tuple[str, ...]] = ("Yv", "Yr", "Yd")
     N_TERMS: ClassVar[tuple[str, ...]] = ("Nv", "Nr", "Nd")
-    PARAMS: ClassVar[tuple[Param, ...]] = _params(("X0", "Xu", "Yv", "Yr", "Yd", "Nv", "Nr", "Nd"))
 
 
 class VMMSimple(VMM):
@@ -368,7 +362,6 @@ class VMMSimple(VMM):
     X_TERMS: ClassVar[tuple[str, ...]] = ("X0", "Xu", "Xvv", "Xrr", "Xvr", "Xdd")
     Y_TERMS: ClassVar[tuple[str, ...]] = ("Yv", "Yr", "Yd", "Yvvv", "Yvvr")
     N_TERMS: ClassVar[tuple[str, ...]] = ("Nv", "Nr", "Nd", "Nvvv", "Nvvr")
-    PARAMS: ClassVar[tuple[Param, ...]] = _params(X_TERMS + Y_TERMS + N_TERMS)
 
 
 class VMMAbkowitz(VMM):
@@ -382,5 +375,4 @@ class VMMAbkowitz(VMM):
                                           "Yvvd", "Y0")
     N_TERMS: ClassVar[tuple[str, ...]] = ("Nv", "Nr", "Nd", "Nvvv", "Nvvr", "Nvu", "Nru", "Nddd", "Nud", "Nuud", "Nvdd",
                                           "Nvvd", "N0")
-    PARAMS: ClassVar[tuple[Param, ...]] = _params(X_TERMS + Y_TERMS + N_TERMS)
 

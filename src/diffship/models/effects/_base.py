@@ -25,25 +25,17 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._base import AbstractModel
+from .._base import AbstractModel, scalar
+from .._rigid3 import AbstractShip3
 from ...params import Param
 
 __all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "scalar"]
 
 
-def scalar(default: float):
-    """A float64 scalar field (a parameter, or a data fact that must not trigger recompilation)."""
-    return eqx.field(converter=lambda v: jnp.asarray(v, dtype=jnp.float64), default=default)
-
-
 def is_ship3(model: AbstractModel) -> bool:
-    """A 3-DOF model: states ``x0, y0, psi`` and consecutive ``u, v, r``, and a public
-    ``solve_mass(rhs)`` (:math:`M^{-1}\\,\\mathrm{rhs}` with the model's own mass matrix)."""
-    s = tuple(model.state_names)
-    if not all(n in s for n in ("x0", "y0", "psi", "u")):
-        return False
-    i = s.index("u")
-    return s[i:i + 3] == ("u", "v", "r") and hasattr(model, "solve_mass")
+    """A 3-DOF surface vessel (:class:`~diffship.models.AbstractShip3`: states ``x0, y0, psi,
+    u, v, r`` and ``solve_mass(rhs)`` with the model's own mass matrix)."""
+    return isinstance(model, AbstractShip3)
 
 
 def steering_inputs(model: AbstractModel) -> tuple[int, ...]:

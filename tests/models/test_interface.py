@@ -1,0 +1,152 @@
+"""The model interface: layering (models describe physics only), parameters declared once,
+the shared 3-DOF mass solve, and the declarative equation-error form."""
+
+import ast
+import dataclasses
+from pathlib import Path
+from typing import ClassVar
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import diffship
+from diffship.models import (
+    MMG,
+    MODELS,
+    AbstractModel,
+    Fossen3,
+    Nomoto1,
+    VMMAbkowitz,
+    VMMLinear,
+    VMMSimple,
+    get_model,
+    param,
+)
+from diffship.models._base import scalar
+from diffship.models.vmm import _POWERS
+from diffship.params import Param
+
+SRC = Path(diffship.__file__).parent
+
+
+def _imports(path):
+    """(level, module) of every import in a file: level 0 absolute, 1 ``.x``, 2 ``..x``."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            out.append((node.level, node.module or ""))
+        elif isinstance(node, ast.Import):
+            out.extend((0, a.name) for a in node.names)
+    return out
+
+
+@pytest.mark.parametrize("path", sorted((SRC / "models").glob("*.py")), ids=lambda p: p.name)
+def test_models_import_nothing_above_params(path):
+    for level, module in _imports(path):
+        if level == 2:
+            assert module in ("params", "errors"), (path.name, module)
+        assert level <= 2 and not module.startswith("diffship"), (path.name, module)
+
+
+def test_equation_error_names_no_concrete_model():
+    path = SRC / "fit" / "equation_error.py"
+    tree = ast.parse(path.read_text())
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    names |= {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
+    assert "isinstance" not in names
+    assert [m for lvl, m in _imports(path) if m.startswith("models")] == ["models._base"]
+    concrete = {"Nomoto1", "Nomoto2", "Fossen3", "Fossen6", "VMM", "VMMLinear", "MMG", "Decay1", "Decay2"}
+    assert not names & concrete, names & concrete
+
+
+# -- parameters declared once -------------------------------------------------------------
+class _Toy(AbstractModel):
+    name: ClassVar[str] = "toy"
+    a: jnp.ndarray = param(2.0, lower=0.0, scale=3.0, unit="s", description="a time")
+    offset: jnp.ndarray = scalar(1.0)  # a plain field, not a parameter
+    b: jnp.ndarray = param(-1.0, free=False)
+
+
+def test_params_derived_from_the_fields():
+    assert _Toy.PARAMS == (Param("a", 2.0, lower=0.0, scale=3.0, unit="s", description="a time"),
+                           Param("b", -1.0, free=False))
+    toy = _Toy(a=5.0)
+    assert toy.PARAMS is _Toy.PARAMS and toy.param_names == ("a", "b")
+    assert toy.spec()["a"].value == 5.0 and toy.param_values() == {"a": 5.0, "b": -1.0}
+    assert float(toy.with_params({"b": 3.0}).b) == 3.0 and toy.theta().dtype == jnp.float64
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_every_param_is_a_field_with_its_default(name):
+    model = get_model(name)
+    fields = {f.name: f for f in dataclasses.fields(model)}
+    for p in type(model).PARAMS:
+        assert "param" in fields[p.name].metadata, p.name
+    if name != "fossen3_waterjet":  # built by usv_standard, defaults are the class's
+        assert model.spec() == type(model)().spec()
+
+
+def test_vmm_members_select_their_polynomial():
+    for cls in (VMMLinear, VMMSimple, VMMAbkowitz):
+        hydro = tuple(p.name for p in cls.PARAMS if p.name in _POWERS)
+        assert hydro == cls.X_TERMS + cls.Y_TERMS + cls.N_TERMS
+        assert cls().param_names[:12] == ("m", "Iz", "xG", "L", "rho", "U0", "XT",
+                                          "Xudot", "Yvdot", "Yrdot", "Nvdot", "Nrdot")
+    assert "Xvv" not in VMMLinear().param_names and "Xvv" in VMMSimple().param_names
+
+
+def test_explicit_params_class_variable_still_overrides():
+    class Explicit(_Toy):
+        PARAMS: ClassVar[tuple[Param, ...]] = (Param("a", 7.0),)
+
+    assert Explicit().param_names == ("a",) and _Toy().param_names == ("a", "b")
+
+
+# -- one 3-DOF mass solve -----------------------------------------------------------------
+@pytest.mark.parametrize("model", [Fossen3(Xudot=-300.0, Yvdot=-900.0, Yrdot=-50.0, Nvdot=80.0, Nrdot=-4e3, xg=0.4),
+                                   VMMAbkowitz(), MMG()], ids=["fossen3", "vmm", "mmg"])
+def test_solve_mass_inverts_mass_matrix(model):
+    rng = np.random.default_rng(1)
+    M = np.asarray(model.mass_matrix())
+    assert M[0, 1] == M[0, 2] == M[1, 0] == M[2, 0] == 0.0
+    for _ in range(5):
+        b = rng.normal(size=3) * np.abs(np.diag(M))
+        np.testing.assert_allclose(M @ np.asarray(model.solve_mass(jnp.asarray(b))), b, rtol=1e-12)
+
+
+def test_vector_fields_use_the_mass_solve():
+    """VMM and MMG accelerations are M⁻¹ times their generalised forces (dense check)."""
+    x = jnp.asarray([1.0, 2.0, 0.3, 7.0, -0.3, 0.01])
+    m = VMMSimple()
+    inp = jnp.asarray([0.1, 5e5])
+    xd = np.asarray(m.vector_field(0.0, x, inp))
+    Xp, Yp, Np = m.hydro_prime(x[3:], inp)
+    q = 0.5 * float(m.rho) * float(m.L) ** 2 * float(m.speed(x[3], x[4])) ** 2
+    u, v, r = (float(a) for a in x[3:])
+    rhs = np.array([q * float(Xp) + float(m.m) * (v * r + float(m.xG) * r * r), q * float(Yp) - float(m.m) * u * r,
+                    q * float(m.L) * float(Np) - float(m.m) * float(m.xG) * u * r])
+    np.testing.assert_allclose(xd[3:], np.linalg.solve(np.asarray(m.mass_matrix()), rhs), rtol=1e-10)
+
+
+# -- equation-error form --------------------------------------------------------------------
+def test_equation_error_forms_are_declared():
+    for name in ("nomoto1", "nomoto2", "fossen3", "fossen3_waterjet", "vmm_linear", "fossen6", "decay1", "decay2"):
+        m = get_model(name)
+        assert m.EQUATIONS and m.EQUATION_CHANNELS and m.EQUATION_ORDER in (1, 2), name
+    assert not MMG.EQUATIONS
+
+
+def test_nomoto1_regression_is_exact_for_its_own_equation():
+    """The linear form ṙ = a r + b δ + c maps back to K, T1, δ0 that zero the equation residual."""
+    truth = Nomoto1(K=0.3, T1=6.0, delta0=0.02)
+    rng = np.random.default_rng(0)
+    z, u = rng.normal(size=(50, 1)), rng.normal(size=(50, 1))
+    zd = (0.3 * (u + 0.02) - z) / 6.0
+    form = truth.regressors(jnp.asarray(z), jnp.asarray(zd), jnp.zeros_like(zd), jnp.asarray(u))["first_order"]
+    c, *_ = np.linalg.lstsq(np.asarray(form.A), np.asarray(form.y), rcond=None)
+    got = truth.from_regression({"first_order": dict(zip(form.names, c))})
+    assert got == pytest.approx({"K": 0.3, "T1": 6.0, "delta0": 0.02})
+    e = truth.equation_residual(jnp.asarray(z[0]), jnp.asarray(zd[0]), jnp.zeros(1), jnp.asarray(u[0]))
+    assert abs(float(e[0])) < 1e-15
