@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from diffship.data import Run
+from diffship.integrators import RK4
 from diffship.simulate import simulate
 
 #: ROV sensor noise (1σ): USBL position 0.1 m, depth 0.02 m, attitude 0.3°, DVL 0.01 m/s, gyro 0.2°/s.
@@ -30,7 +31,7 @@ def rov_excitation(duration=60.0, dt=0.05, seed=0):
     return t, {n: _levels(rng, t, rng.uniform(2.0, 4.0), a) for n, a in zip(names, AMPLITUDE)}
 
 
-_SIM = jax.jit(jax.vmap(lambda m, t, u, x: simulate(m, t, u, x, substeps=2), in_axes=(None, None, 0, 0)))
+_SIM = jax.jit(jax.vmap(lambda m, t, u, x: simulate(m, t, u, x, RK4(substeps=2)), in_axes=(None, None, 0, 0)))
 
 
 def rov_runs(model, n_runs=2, duration=60.0, dt=0.05, noise=ROV_NOISE, seed=0):

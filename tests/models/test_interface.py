@@ -1,16 +1,13 @@
-"""The model interface: layering (models describe physics only), parameters declared once,
-the shared 3-DOF mass solve, and the declarative equation-error form."""
+"""The model interface: parameters declared once, the shared 3-DOF mass solve, and the
+declarative equation-error form (the layering itself is checked in tests/test_architecture.py)."""
 
-import ast
 import dataclasses
-from pathlib import Path
 from typing import ClassVar
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import diffship
 from diffship.models import (
     MMG,
     MODELS,
@@ -22,44 +19,10 @@ from diffship.models import (
     VMMSimple,
     get_model,
     param,
+    scalar,
 )
-from diffship.models._base import scalar
 from diffship.models.vmm import _POWERS
 from diffship.params import Param
-
-SRC = Path(diffship.__file__).parent
-
-
-def _imports(path):
-    """(level, module) of every import in a file: level 0 absolute, 1 ``.x``, 2 ``..x``."""
-    out = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom):
-            out.append((node.level, node.module or ""))
-        elif isinstance(node, ast.Import):
-            out.extend((0, a.name) for a in node.names)
-    return out
-
-
-@pytest.mark.parametrize("path", sorted((SRC / "models").glob("*.py")), ids=lambda p: p.name)
-def test_models_import_nothing_above_params(path):
-    for level, module in _imports(path):
-        if level == 2:
-            assert module in ("params", "errors"), (path.name, module)
-        assert level <= 2 and not module.startswith("diffship"), (path.name, module)
-
-
-def test_equation_error_names_no_concrete_model():
-    path = SRC / "fit" / "equation_error.py"
-    tree = ast.parse(path.read_text())
-    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
-    names |= {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
-    names |= {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) for a in n.names}
-    assert "isinstance" not in names
-    assert [m for lvl, m in _imports(path) if m.startswith("models")] == ["models._base"]
-    concrete = {"Nomoto1", "Nomoto2", "Fossen3", "Fossen6", "VMM", "VMMLinear", "MMG", "Decay1", "Decay2"}
-    assert not names & concrete, names & concrete
-
 
 # -- parameters declared once -------------------------------------------------------------
 class _Toy(AbstractModel):

@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from diffship.integrators import RK4
 from diffship.manoeuvres import turning_circle, turning_metrics
 from diffship.models import MODELS, get_model
 from diffship.models.mmg import KVLCC2_L7, MMG, kvlcc2_mmg
@@ -92,7 +93,7 @@ def test_turning_circle_35deg_matches_hsva_measurements():
     diameter 3.23 L (steady turning diameter 2.33 L).
     """
     run = turning_circle(kvlcc2_mmg(), {"u": U0}, rudder_deg=35.0, inputs={"n": N_RPS}, duration=120.0, dt=0.2,
-                         t_execute=1.0, rudder_rate_deg_s=15.8, substeps=1)
+                         t_execute=1.0, rudder_rate_deg_s=15.8, integrator=RK4(substeps=1))
     tm = turning_metrics(run, length=7.0).in_lengths()
     assert 0.9 * 3.0 <= tm["advance"] <= 1.1 * 3.1
     assert 0.9 * 3.1 <= tm["tactical_diameter"] <= 1.1 * 3.3

@@ -285,7 +285,8 @@ class Workspace:
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
                 continue
-            z, _, steps, r = self.kernel.call("solve", z_start, kd, max_steps=max_iter, rtol=1e-7, atol=1e-7)
+            z, _, steps, r = self.kernel.call("solve", z_start, kd, max_steps=4 * max_iter, rtol=1e-8, atol=1e-8,
+                                              ftol=1e-12)
             r = np.asarray(r)
             cost = 0.5 * float(r @ r)
             if math.isfinite(cost) and (best is None or cost < best[2]):
