@@ -44,6 +44,7 @@ import numpy as np
 from scipy import optimize
 
 from .errors import DataError
+from .fit.covariance import covariance
 from .models.decay import Decay1, Decay2
 
 __all__ = ["FirstOrderDecay", "SecondOrderDecay", "fit_first_order_decay", "fit_second_order_decay",
@@ -120,8 +121,7 @@ def fit_first_order_decay(t, y, mass: float = 1.0, *, method: str = "curve_fit",
         coef, res, *_ = np.linalg.lstsq(A, np.log(np.abs(y[keep])), rcond=None)
         lnx0, s = coef
         resid = np.log(np.abs(y[keep])) - A @ coef
-        s2 = float(resid @ resid) / max(keep.sum() - 2, 1)
-        cov = s2 * np.linalg.inv(A.T @ A)
+        cov = covariance(A, resid).matrix  # J = ∂(model)/∂(ln x0, s) up to sign
         x0 = math.copysign(math.exp(lnx0), y[0])
         s_se = math.sqrt(cov[1, 1])
     elif method == "curve_fit":

@@ -70,7 +70,6 @@ def test_equation_error_least_squares_with_known_thrust():
     assert ee.converged
 
 
-@pytest.mark.slow
 def test_output_error_refines_rov():
     """Output error from the equation-error estimate: every coefficient within 2 % of max(|value|, scale)."""
     truth = Fossen6()

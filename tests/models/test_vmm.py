@@ -91,7 +91,6 @@ def test_equation_error_is_per_dof_motion_regression():
         np.testing.assert_allclose(np.asarray(form.y) - np.asarray(form.A) @ coef, e[:, j], rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.slow
 def test_output_error_recovers_linear_vmm_from_noisy_zigzags():
     """Realistic sensor noise (0.05 m/s, 0.2°/s, 0.5°): equation error (Butterworth) is biased by
     10–30 % in the sway/yaw derivatives; output error from a start 30 % off recovers every derivative
@@ -143,7 +142,6 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     assert max(err.values()) < 0.03, err  # 1 s samples, 9 s window: derivative bias (measured ≤ 2.1 %, N'_v)
 
 
-@pytest.mark.slow
 def test_cli_both_methods_vmm_linear(tmp_path):
     truth = vmm_truth()  # 23–43 % off the defaults, one of output error's candidate starts
     runs = vmm_runs(truth, n_runs=3, duration=200.0, dt=0.5, noise="realistic")
