@@ -4,10 +4,11 @@ Data flow: ``data`` (runs) → ``models`` (JAX vector fields) → ``simulate`` �
 (output error, equation error) → ``diagnose`` → ``report``. See ``ARCHITECTURE.md``.
 
 Importing diffship switches JAX to float64 (``jax_enable_x64``, :mod:`diffship.precision`):
-identification needs it.
+identification needs it; and keeps compiled programs between processes in a persistent cache
+(:mod:`diffship.cache`; ``DIFFSHIP_CACHE_DIR`` moves it, ``DIFFSHIP_CACHE_DIR=off`` disables it).
 """
 
-from . import precision as precision
+from . import cache as cache, precision as precision
 
 __version__ = "0.1.0"
-__all__ = ["precision"]
+__all__ = ["cache", "precision"]

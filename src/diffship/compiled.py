@@ -6,7 +6,9 @@ time here, once per *structure*: the function's static owner (a hashable
 :class:`equinox.Module` whose fields are all static, e.g. the output-error kernel), the method
 name, the pytree structure of the arguments and their shapes and dtypes. New data of the same
 shape, new starts and new parameter values reuse the compiled program. Compile time is measured
-and returned separately so reports can tell compiling from fitting.
+and returned separately so reports can tell compiling from fitting; a program found in the
+persistent cache (:mod:`diffship.cache`) is loaded instead of compiled, and :func:`loaded`
+counts those.
 """
 
 from __future__ import annotations
@@ -18,9 +20,12 @@ from typing import Any
 import jax
 import numpy as np
 
-__all__ = ["compiled", "cache_size", "clear"]
+from . import cache
+
+__all__ = ["compiled", "cache_size", "clear", "loaded"]
 
 _CACHE: dict[Hashable, Callable] = {}
+_LOADED: list[int] = [0]
 
 
 def _signature(args: tuple) -> tuple:
@@ -39,10 +44,17 @@ def compiled(owner: Hashable, name: str, args: tuple, **static: Any) -> tuple[Ca
     if fn is not None:
         return fn, 0.0
     t0 = time.perf_counter()
+    hits = cache.hits()
     method = getattr(owner, name)
     fn = jax.jit(lambda *a: method(*a, **static)).lower(*args).compile()
+    _LOADED[0] += cache.hits() - hits
     _CACHE[key] = fn
     return fn, time.perf_counter() - t0
+
+
+def loaded() -> int:
+    """Programs that came from the persistent cache (:mod:`diffship.cache`) instead of the compiler."""
+    return _LOADED[0]
 
 
 def cache_size() -> int:

@@ -84,8 +84,8 @@ class Param:
 class ParamSpec:
     """An ordered, immutable set of :class:`Param`.
 
-    Hashable apart from the values: :meth:`structure` is the key used to share compiled fits
-    between problems that differ only in parameter values.
+    Hashable: :meth:`structural` (values zeroed) is the key used to share compiled fits between
+    problems that differ only in parameter values.
     """
 
     params: tuple[Param, ...]
@@ -119,10 +119,6 @@ class ParamSpec:
 
     def values(self) -> dict[str, float]:
         return {p.name: p.value for p in self.params}
-
-    def structure(self) -> tuple:
-        """Everything but the values: a hashable key for compiled-function caches."""
-        return tuple((p.name, p.free, p.lower, p.upper, p.scale) for p in self.params)
 
     def structural(self) -> ParamSpec:
         """The same spec with every value set to 0: equal for problems that differ only in values."""

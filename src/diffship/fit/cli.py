@@ -48,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
     p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
                    help="initial states of fitted channels: estimated per run (default) or taken from the data")
+    p.add_argument("--weights", default="noise", choices=("noise", "spread"),
+                   help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
     p.add_argument("--solver", default="rk4", choices=tuple(INTEGRATORS),
                    help="output-error integrator: rk4 (fixed step, one per sample) or tsit5 (diffrax, adaptive)")
     p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
@@ -129,7 +131,8 @@ def _fit(args, say) -> int:
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
                        estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
-                       options=OutputErrorOptions(integrator=get_integrator(args.solver)), progress=say)
+                       options=OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights),
+                       progress=say)
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = {}, {}
     for m, r in results.items():

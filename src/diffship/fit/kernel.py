@@ -146,9 +146,6 @@ class Kernel(eqx.Module):
     def n_theta(self) -> int:
         return len(self.spec.free_names)
 
-    def n_unknowns(self, n_runs: int) -> int:
-        return self.n_theta + self.n_extra + n_runs * len(self.x0_idx)
-
     # -- the map z -> model, initial states ------------------------------------------------
     def model_at(self, z: Float[Array, " n_z"], data: KernelData) -> AbstractModel:
         theta = data.model.theta()
