@@ -10,7 +10,11 @@ through one method, :meth:`AbstractIntegrator.interval`. An integrator is a smal
 :class:`equinox.Module` chosen once and carried with a fit (:class:`~diffship.fit.FitResult`
 records it), so that a fit is evaluated and diagnosed with the integrator it was made with.
 
-* :class:`RK4` — the classical fixed-step Runge–Kutta 4, ``substeps`` steps per interval.
+* :class:`Diffrax` — a diffrax solver (:class:`ClassicalRK4`, a Butcher tableau over diffrax's
+  ``AbstractERK``, by default; or ``diffrax.Tsit5()``, ...) stepped with its own ``step`` method
+  ``substeps`` times per sample interval: diffrax's tableau and stage machinery, our sample grid;
+* :class:`RK4` — the same classical Runge–Kutta 4 written out by hand (kept as an option: see
+  ``benchmarks/integrators_speed.py`` for the measured difference);
 * :class:`Tsit5` — diffrax's Tsitouras 5(4) with a PID step-size controller inside each interval
   and ``adjoint=diffrax.ForwardMode()``, so forward-mode Jacobians (what Levenberg–Marquardt
   needs) go through the solver.
@@ -26,13 +30,15 @@ References:
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import ClassVar
 
 import diffrax
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
-__all__ = ["AbstractIntegrator", "RK4", "Tsit5", "get_integrator", "INTEGRATORS"]
+__all__ = ["AbstractIntegrator", "ClassicalRK4", "Diffrax", "RK4", "Tsit5", "get_integrator", "INTEGRATORS"]
 
 VectorField = Callable[[Float[Array, ""], Float[Array, " n_x"], Float[Array, " n_u"]], Float[Array, " n_x"]]
 
@@ -97,6 +103,61 @@ class RK4(AbstractIntegrator):
         return f"fixed-step RK4, {self.substeps} step(s) per sample"
 
 
+class ClassicalRK4(diffrax.AbstractERK):
+    """The classical Runge–Kutta 4 as a diffrax solver (diffrax has none): a Butcher tableau.
+
+    No embedded error estimate (``b_error`` is zero): for fixed steps only.
+    """
+
+    tableau: ClassVar[diffrax.ButcherTableau] = diffrax.ButcherTableau(
+        c=np.array([0.5, 0.5, 1.0]),
+        b_sol=np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
+        b_error=np.zeros(4),
+        a_lower=(np.array([0.5]), np.array([0.0, 0.5]), np.array([0.0, 0.0, 1.0])),
+    )
+    interpolation_cls: ClassVar[Callable[..., diffrax.ThirdOrderHermitePolynomialInterpolation]] = (
+        diffrax.ThirdOrderHermitePolynomialInterpolation.from_k
+    )
+
+    def order(self, terms):
+        del terms
+        return 4
+
+
+class Diffrax(AbstractIntegrator):
+    """A diffrax solver driven with its own ``init``/``step`` on the sample grid.
+
+    Each sample interval is split into ``substeps`` equal steps; the input is held on a
+    first-order hold inside the interval (a closure over ``u0``, ``u1``, so there is no kink
+    inside a step). No step-size control and no ``diffeqsolve`` loop: the scan over samples in
+    :func:`diffship.simulate.integrate` is the only loop, which keeps the forward-mode Jacobian
+    cheap. Use an explicit solver (``ClassicalRK4()``, ``diffrax.Tsit5()``, ``diffrax.Heun()``, ...).
+    """
+
+    solver: diffrax.AbstractSolver = eqx.field(static=True, default=ClassicalRK4(scan_kind="lax"))
+    substeps: int = eqx.field(static=True, default=1)
+    name: str = eqx.field(static=True, default="diffrax")
+
+    def interval(self, f, t0, t1, x, u0, u1):
+        span = t1 - t0
+
+        def rhs(t, y, args):
+            return f(t, y, u0 + (t - t0) / span * (u1 - u0))
+
+        term = diffrax.ODETerm(rhs)
+        h = span / self.substeps
+        y = x
+        for k in range(self.substeps):
+            ta = t0 + k * h
+            tb = ta + h
+            state = self.solver.init(term, ta, tb, y, None)
+            y, _, _, _, _ = self.solver.step(term, ta, tb, y, None, state, made_jump=False)
+        return y
+
+    def describe(self) -> str:
+        return f"diffrax {type(self.solver).__name__} stepped on the sample grid, {self.substeps} step(s) per sample"
+
+
 class Tsit5(AbstractIntegrator):
     """diffrax Tsit5 with a PID controller (``rtol``, ``atol``) inside each sample interval.
 
@@ -138,11 +199,16 @@ class Tsit5(AbstractIntegrator):
 
 
 #: Integrators selectable by name (``--solver NAME``).
-INTEGRATORS: dict[str, type[AbstractIntegrator]] = {"rk4": RK4, "tsit5": Tsit5}
+INTEGRATORS: dict[str, Callable[..., AbstractIntegrator]] = {
+    "diffrax-rk4": Diffrax,
+    "diffrax-tsit5": lambda **kw: Diffrax(solver=diffrax.Tsit5(scan_kind="lax"), **kw),
+    "rk4": RK4,
+    "tsit5": Tsit5,
+}
 
 
 def get_integrator(spec: str | AbstractIntegrator, **options) -> AbstractIntegrator:
-    """An integrator from its name (``"rk4"``, ``"tsit5"``) and options, or the object itself."""
+    """An integrator from its name (see :data:`INTEGRATORS`) and options, or the object itself."""
     if isinstance(spec, AbstractIntegrator):
         return spec
     try:
