@@ -20,7 +20,7 @@ import numpy as np
 
 from .compiled import compiled
 from .data import Run
-from .integrators import RK4, AbstractIntegrator
+from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
 from .preprocess import Filter
 from .simulate import initial_state, model_inputs, simulate
@@ -75,7 +75,7 @@ class _Simulator(eqx.Module):
         return simulate(model, ts, us, x0, self.integrator)
 
 
-def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = RK4()):
+def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
     """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
     args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
     fn, _ = compiled(_Simulator(integrator), "run", args)
@@ -89,7 +89,7 @@ def evaluate(
     *,
     channels: Sequence[str] | None = None,
     flt: Filter = Filter(),
-    integrator: AbstractIntegrator = RK4(),
+    integrator: AbstractIntegrator = Diffrax(),
 ) -> Evaluation:
     """Simulate ``model`` on every run (whole horizon) and compare with the measurements.
 

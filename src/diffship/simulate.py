@@ -2,8 +2,9 @@ r"""Simulate one trajectory of a model over a sample grid.
 
 Inputs are given at the sample times and held linearly in between (first-order hold); the
 state is advanced from sample to sample by an integrator object
-(:mod:`diffship.integrators`: :class:`~diffship.integrators.RK4` by default,
-:class:`~diffship.integrators.Tsit5` adaptive), in one :func:`jax.lax.scan` over the sample
+(:mod:`diffship.integrators`: by default :class:`~diffship.integrators.Diffrax`, diffrax's
+classical RK4 tableau stepped once per sample; the hand-written :class:`~diffship.integrators.RK4`
+and the adaptive :class:`~diffship.integrators.Tsit5` as options), in one :func:`jax.lax.scan` over the sample
 intervals. Everything is forward-differentiable (Levenberg–Marquardt needs forward-mode
 Jacobians through the whole simulation).
 
@@ -27,7 +28,7 @@ from jaxtyping import Array, Bool, Float
 
 from .data import Run
 from .errors import DataError
-from .integrators import RK4, AbstractIntegrator
+from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
 from .preprocess import Filter, smooth_and_derivative
 
@@ -84,7 +85,7 @@ def simulate(
     ts: Float[Array, " N"],
     us: Float[Array, "N n_u"],
     x0: Float[Array, " n_x"],
-    integrator: AbstractIntegrator = RK4(),
+    integrator: AbstractIntegrator = Diffrax(),
     *,
     max_abs: float = MAX_ABS,
 ) -> Solution:
@@ -95,8 +96,8 @@ def simulate(
         ts: sample times [s].
         us: inputs at the sample times, columns in ``model.input_names`` order.
         x0: initial state, in ``model.state_names`` order.
-        integrator: :class:`~diffship.integrators.RK4` (default, one step per sample) or
-            :class:`~diffship.integrators.Tsit5`.
+        integrator: :class:`~diffship.integrators.Diffrax` (default: diffrax RK4 tableau, one
+            step per sample), :class:`~diffship.integrators.RK4` or :class:`~diffship.integrators.Tsit5`.
         max_abs: a state component beyond this magnitude counts as a blow-up.
     """
     ts = jnp.asarray(ts, dtype=jnp.float64)

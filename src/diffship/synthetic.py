@@ -43,6 +43,7 @@ def simulate_run(
     """Simulate ``model`` and return a :class:`Run` of its outputs (plus noise) and inputs."""
     noise = NOISE[noise] if isinstance(noise, str) else dict(noise)
     us = np.stack([np.asarray(inputs[n], dtype=np.float64) for n in model.input_names], axis=1)
+    # the hand-written RK4 with sub-steps: not the integrator the fits use (diffrax, one step per sample)
     sol = simulate(model, jnp.asarray(time), jnp.asarray(us), jnp.asarray(x0), RK4(substeps))
     if not bool(sol.ok):
         raise RuntimeError(f"synthetic run {name}: the reference simulation blew up")

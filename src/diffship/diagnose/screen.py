@@ -46,7 +46,7 @@ from ..errors import FitError
 from ..fit.covariance import covariance
 from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data
 from ..fit.problem import make_batch
-from ..integrators import RK4, AbstractIntegrator
+from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..models.effects import Augmented, Effect
 from ..params import ParamSpec
@@ -97,7 +97,7 @@ class Workspace:
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
                  scales: dict[str, float], x0_train: Sequence[np.ndarray] | None = None,
-                 integrator: AbstractIntegrator = RK4()):
+                 integrator: AbstractIntegrator = Diffrax()):
         self.base = base
         self.spec = spec
         self.integrator = integrator

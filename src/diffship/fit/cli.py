@@ -50,8 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="initial states of fitted channels: estimated per run (default) or taken from the data")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
                    help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
-    p.add_argument("--solver", default="rk4", choices=tuple(INTEGRATORS),
-                   help="output-error integrator: rk4 (fixed step, one per sample) or tsit5 (diffrax, adaptive)")
+    p.add_argument("--solver", default="diffrax-rk4", choices=tuple(INTEGRATORS),
+                   help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
+                        "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
+                        "(diffrax Tsit5, adaptive within each sample)")
     p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
     p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
     p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")

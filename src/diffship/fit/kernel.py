@@ -45,7 +45,7 @@ import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
 from ..compiled import compiled
-from ..integrators import RK4, AbstractIntegrator
+from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import Solution, simulate
@@ -140,7 +140,7 @@ class Kernel(eqx.Module):
     x0_idx: tuple[int, ...] = eqx.field(static=True, default=())
     extra_idx: tuple[int, ...] = eqx.field(static=True, default=())
     n_extra: int = eqx.field(static=True, default=0)
-    integrator: AbstractIntegrator = eqx.field(static=True, default=RK4())
+    integrator: AbstractIntegrator = eqx.field(static=True, default=Diffrax())
 
     @property
     def n_theta(self) -> int:

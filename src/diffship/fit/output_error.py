@@ -41,7 +41,7 @@ import optimistix as optx
 
 from ..data import Run
 from ..errors import FitError
-from ..integrators import RK4, AbstractIntegrator
+from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
@@ -75,7 +75,7 @@ class OutputErrorOptions:
     estimate_x0: tuple[str, ...] = ()
     weights: str = "noise"
     channel_scales: Mapping[str, float] | None = None
-    integrator: AbstractIntegrator = RK4()
+    integrator: AbstractIntegrator = Diffrax()
     max_steps: int = 200
     rtol: float = 1e-6
     atol: float = 1e-6

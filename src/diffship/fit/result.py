@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..integrators import RK4, AbstractIntegrator
+from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 
 __all__ = ["FitResult"]
@@ -58,7 +58,7 @@ class FitResult:
     initial_states: tuple[np.ndarray, ...] = ()
     run_names: tuple[str, ...] = ()
     covariance: np.ndarray | None = None
-    integrator: AbstractIntegrator = RK4()
+    integrator: AbstractIntegrator = Diffrax()
     messages: tuple[str, ...] = ()
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
 

@@ -9,7 +9,8 @@ the commanded angle at most ``rudder_rate`` per second and never beyond ``max_ru
     \delta_{k+1} = \operatorname{clip}\big(\delta_k + \operatorname{clip}(\delta^c_k - \delta_k,
     -\dot\delta_{\max} h, \dot\delta_{\max} h), -\delta_{\max}, \delta_{\max}\big),
 
-and the ship is integrated over each step with RK4 and δ interpolated linearly from
+and the ship is integrated over each step (by default diffrax's RK4 tableau, two steps per
+sample: :mod:`diffship.integrators`) with δ interpolated linearly from
 :math:`\delta_k` to :math:`\delta_{k+1}` (the same first-order hold as measured inputs get in
 :func:`diffship.simulate.simulate`). The command :math:`\delta^c` comes from a *steering law*:
 
@@ -44,7 +45,7 @@ from jaxtyping import Array, Float
 
 from ..data import Run
 from ..errors import ModelError
-from ..integrators import RK4, AbstractIntegrator
+from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..simulate import MAX_ABS
 
@@ -124,7 +125,7 @@ def _input_slots(model: AbstractModel, inputs: Mapping[str, float]) -> tuple[int
 def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Array, " n_x"],
                 u_const: Float[Array, " n_u"], delta_index: int, rudder_rate: Float[Array, ""],
                 max_rudder: Float[Array, ""], delta_start: Float[Array, ""],
-                integrator: AbstractIntegrator = RK4(substeps=2)):
+                integrator: AbstractIntegrator = Diffrax(substeps=2)):
     """Simulate ``model`` under a steering law with a rate-limited, saturated rudder.
 
     Pure JAX (jit-compiled, differentiable in the model parameters). Returns
@@ -209,7 +210,7 @@ def _side(first: str) -> float:
 def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_deg: float | None = None,
            first: str = "starboard", inputs: Mapping[str, float] | None = None, duration: float = 100.0,
            dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-           switch_delay_s: float = 0.0, integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
+           switch_delay_s: float = 0.0, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a ``rudder_deg``/``switch_deg`` zigzag (switch defaults to the rudder angle).
 
     Args:
@@ -243,7 +244,7 @@ def _schedule(times, levels_deg):
 def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, first: str = "starboard",
                    inputs: Mapping[str, float] | None = None, duration: float = 300.0, dt: float = 0.1,
                    t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-                   integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
+                   integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a turning circle: straight until ``t_execute``, then ``rudder_deg`` to ``first``."""
     s = _side(first)
     law = _schedule([t_execute], [s * rudder_deg])
@@ -257,7 +258,7 @@ def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, f
 def pull_out(model: AbstractModel, initial, *, rudder_deg: float = 20.0, first: str = "starboard",
              inputs: Mapping[str, float] | None = None, turn_s: float = 120.0, settle_s: float = 120.0,
              dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32,
-             max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = RK4(substeps=2), name: str | None = None) -> Run:
+             max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a pull-out: ``rudder_deg`` for ``turn_s`` seconds (steady turn), then rudder to 0."""
     s = _side(first)
     t_release = t_execute + turn_s
@@ -281,7 +282,7 @@ class SpiralResult:
 
 def spiral(model: AbstractModel, initial, *, rudder_deg: Sequence[float] = (15, 10, 5, 2, 0, -2, -5, -10, -15),
            hold_s: float = 120.0, average_fraction: float = 0.25, inputs: Mapping[str, float] | None = None,
-           dt: float = 0.2, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = RK4(substeps=2),
+           dt: float = 0.2, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = Diffrax(substeps=2),
            name: str | None = None) -> SpiralResult:
     """Simulate a (direct) spiral: rudder steps held ``hold_s`` each; steady r per step.
 

@@ -38,7 +38,7 @@ from ..errors import DataError
 from ..fit import FitResult, OutputErrorOptions, fit_output_error
 from ..metrics import simulate_run
 from ..simulate import initial_state
-from ..integrators import RK4
+from ..integrators import Diffrax
 from ..manoeuvres import first_execute, zigzag, zigzag_metrics
 from ..models.mmg import MMG, kvlcc2_mmg
 
@@ -123,7 +123,7 @@ def closed_loop_run(model: MMG, run: Run, *, dt: float = 0.1, duration: float = 
     return zigzag(model, x0, rudder_deg=float(meta["rudder_angle_deg"]), switch_deg=float(meta["switch_heading_deg"]),
                   first=str(meta["first_rudder"]), inputs={"n": float(np.mean(run["n"]))}, duration=duration, dt=dt,
                   t_execute=float(run.time[i0] - run.time[0]), rudder_rate_deg_s=helm_rate_deg_s,
-                  max_rudder_deg=35.0, switch_delay_s=delay_s, integrator=RK4(substeps=1), name=f"{_test(run)} predicted")
+                  max_rudder_deg=35.0, switch_delay_s=delay_s, integrator=Diffrax(), name=f"{_test(run)} predicted")
 
 
 def predict_zigzags(model: MMG, runs: Sequence[Run], roles: dict[str, str] | None = None, *, dt: float = 0.1,
