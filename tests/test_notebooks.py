@@ -1,6 +1,5 @@
 """Every notebook in notebooks/ executes (at reduced size: DIFFSHIP_QUICK=1)."""
 
-import os
 from pathlib import Path
 
 import pytest

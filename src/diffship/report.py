@@ -66,8 +66,10 @@ def text_report(
     lines.append("")
     for m in methods:
         r = results[m]
+        how = r.info.get("programs", "")
         lines.append(f"{_LABEL.get(m, m)}: {r.status}; {r.iterations} iterations; fit {r.fit_seconds:.2f} s, "
-                     f"compile {r.compile_seconds:.2f} s")
+                     f"compile {r.compile_seconds:.2f} s" + (f" ({how})" if how else "")
+                     + (f"; integrator: {r.info['integrator']}" if "integrator" in r.info else ""))
         for msg in r.messages:
             lines.append(f"  note: {msg}")
     lines += ["", HORIZON_NOTE]
@@ -181,6 +183,8 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "cost": r.cost,
             "fit_seconds": r.fit_seconds,
             "compile_seconds": r.compile_seconds,
+            "programs": r.info.get("programs", ""),
+            "integrator": r.info.get("integrator", ""),
             "train": _metrics(train.get(m)),
             "validation": _metrics(validation.get(m)),
             "messages": list(r.messages),

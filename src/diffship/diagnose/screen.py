@@ -232,7 +232,7 @@ class Workspace:
             cols[n] = np.where(np.abs(r1) >= PENALTY, 0.0, r1 - r0)
         u, sv, _ = np.linalg.svd(J_theta, full_matrices=False)
         Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
-        m = r0.size
+        m = self.train["batch"].n_residuals  # padded samples are not data
         s2 = float(r0 @ r0) / max(m - J_theta.shape[1], 1)
         kappa = _inflation(r0, self.train["batch"], len(self.channels))
         out = []
@@ -295,7 +295,7 @@ class Workspace:
             raise FitError(f"refit with {names}: every start blows up")
         z, r, cost, it, phi0 = best
         J = self.jacobian(z, S, phi0)[:, active]
-        cov = covariance(J, r).matrix
+        cov = covariance(J, r, dof=self.train["batch"].n_residuals - len(active)).matrix
         w = self.selection(pn) @ z[self.n_theta:nk]
         phi = np.clip(phi0 + self.phi_scale * w, self.lo, self.hi)
         values = {n: float(phi[self.phi_names.index(n)]) for n in pn}

@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .. import compiled as compiled_programs
 from ..data import Run
 from ..errors import FitError
 from ..integrators import AbstractIntegrator, Diffrax
@@ -146,6 +147,7 @@ def fit_output_error(
     """
     o = options
     say = progress or (lambda s: None)
+    programs = compiled_programs.cache_size(), compiled_programs.loaded()
     spec = spec or model.spec()
     model = model.with_params(spec.values())
     batch = make_batch(model, runs, channels, o.flt)
@@ -263,7 +265,7 @@ def fit_output_error(
     compile_s += c
     J = np.asarray(jac_fn(z, data))
     z = np.asarray(z)
-    cov_all = covariance(J, r)
+    cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1])  # padded samples are not data
     if not cov_all.full_rank:
         names = [*spec.free_names, *(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)]
         messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
@@ -283,7 +285,11 @@ def fit_output_error(
     status = "converged" if converged else result_message(passes[-1])
     if np.any(np.abs(r) >= PENALTY):
         converged, status = False, "the simulation blows up at the final parameters"
-    say(f"output error: {status} after {iterations} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
+    new = compiled_programs.cache_size() - programs[0]
+    loaded = compiled_programs.loaded() - programs[1]
+    how = (f"{new} program(s) compiled, {loaded} of them loaded from the persistent cache" if new
+           else "compiled programs reused from this process")
+    say(f"output error: {status} after {iterations} steps in {fit_s:.2f} s (compile {compile_s:.2f} s: {how})")
     return FitResult(
         method="output_error",
         model=model.with_params(values),
@@ -304,7 +310,7 @@ def fit_output_error(
         covariance=cov,
         integrator=o.integrator,
         messages=tuple(messages),
-        info={"weights": o.weights, "integrator": o.integrator.describe(),
+        info={"weights": o.weights, "integrator": o.integrator.describe(), "programs": how,
               "residual_variance": cov_all.residual_variance, "n_residuals": batch.n_residuals,
               "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
               "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1]},

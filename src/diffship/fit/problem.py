@@ -1,8 +1,10 @@
 """From runs to padded arrays that one compiled simulation can batch over.
 
 Runs may differ in length and sampling. They are stacked into arrays of shape ``(R, N, ...)``
-with ``N`` the longest run; shorter runs are continued with their last time step and last
-input, and a mask removes the padded samples from every residual and metric.
+with ``N`` the longest run rounded up to a *bucket* (:func:`bucket_length`: at most 1/8 more
+samples), so that new data of a similar size reuse the compiled programs (in this process and,
+through the persistent cache, in the next); shorter runs are continued with their last time step
+and last input, and a mask removes the padded samples from every residual and metric.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from ..models import AbstractModel
 from ..preprocess import Filter
 from ..simulate import initial_state, model_inputs
 
-__all__ = ["Batch", "make_batch", "default_channels"]
+__all__ = ["Batch", "make_batch", "default_channels", "bucket_length"]
 
 #: Channels not fitted by default: absolute positions drift over long runs and put LM in
 #: local minima from poor starts (fit velocities and heading; positions on request).
@@ -41,6 +43,14 @@ class Batch:
         return int(self.mask.sum()) * len(self.channels)
 
 
+def bucket_length(n: int) -> int:
+    """``n`` rounded up to the next multiple of ``2^(⌊log2 n⌋ − 3)`` (≤ 12.5 % padding; ≥ n)."""
+    if n <= 16:
+        return n
+    step = 1 << (int(n).bit_length() - 4)
+    return -(-n // step) * step
+
+
 def default_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, ...]:
     chans = tuple(
         c for c in model.output_names if c not in NOT_FITTED_BY_DEFAULT and all(r.has(c) for r in runs)
@@ -59,6 +69,8 @@ def make_batch(
     channels: Sequence[str] | None = None,
     flt: Filter = Filter(),
     x0: Sequence[np.ndarray] | None = None,
+    *,
+    bucket: bool = True,
 ) -> Batch:
     if not runs:
         raise DataError("no runs given")
@@ -71,7 +83,7 @@ def make_batch(
         )
     for r in runs:
         r.require(channels, f"fitting channels {', '.join(channels)}")
-    n = max(r.n for r in runs)
+    n = bucket_length(max(r.n for r in runs)) if bucket else max(r.n for r in runs)
     R = len(runs)
     ts = np.zeros((R, n))
     us = np.zeros((R, n, len(model.input_names)))
