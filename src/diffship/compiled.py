@@ -47,7 +47,7 @@ def compiled(owner: Hashable, name: str, args: tuple, **static: Any) -> tuple[Ca
     hits = cache.hits()
     method = getattr(owner, name)
     fn = jax.jit(lambda *a: method(*a, **static)).lower(*args).compile()
-    _LOADED[0] += cache.hits() - hits
+    _LOADED[0] += int(cache.hits() > hits)  # this program came from the persistent cache
     _CACHE[key] = fn
     return fn, time.perf_counter() - t0
 
