@@ -107,7 +107,7 @@ def test_fossen3_runs_from_water_jet_commands():
     assert straight["u"][-1] > straight["u"][590] > 2.0  # accelerates with rpm
     turning = simulate_run(model, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")
     assert turning["r"][100] < 0  # positive nozzle angle turns to port
-    truth = usv_standard(actuator=WaterJet(), Xudot=-400.0, Nrdot=-8000.0)
+    truth = usv_standard(actuator=WaterJet(), Xudot=-400.0, Nrdot=-8000.0, Xuu=-300.0, Yvv=-2500.0)  # not the defaults
     runs = [simulate_run(truth, t, {"delta_n": nozzle, "rpm": rpm}, np.array([0, 0, 0, 1.0, 0, 0]), noise="none")]
     ee = fit_equation_error(model, runs, flt=Filter("none"))
     # one square-wave run: the quadratic surge and sway damping are well determined through
