@@ -45,8 +45,6 @@ class _State(eqx.Module):
 class MaterialisedDampedNewton(optx.AbstractDescent):
     """Damped Gauss–Newton descent with a dense, once-per-step Jacobian."""
 
-    callback: Callable | None = eqx.field(static=True, default=None)
-
     def init(self, y, f_info_struct):
         n = y.size
         inf = jnp.array(jnp.inf, y.dtype)
@@ -57,8 +55,6 @@ class MaterialisedDampedNewton(optx.AbstractDescent):
         jac = jax.vmap(f_info.jac.mv, out_axes=1)(jnp.eye(n, dtype=y.dtype))
         r = f_info.residual
         cost = 0.5 * jnp.sum(r * r)
-        if self.callback is not None:
-            jax.debug.callback(self.callback, cost, ordered=False)
         return _State(jac.T @ jac, jac.T @ r, cost, state.cost, state.accepted + 1)
 
     def step(self, step_size, state):
@@ -78,8 +74,6 @@ class MaterialisedLM(optx.AbstractGaussNewton):
 
     Arguments:
         rtol, atol: optimistix's Cauchy termination tolerances on the parameters and residuals.
-        callback: optional host function ``callback(cost)`` called at every accepted step
-            (progress display).
         ftol: also stop when an accepted step lowers the cost by less than ``ftol·cost``
             (a parameter drifting towards a bound in the log-scaled space otherwise never
             meets the parameter tolerance).
@@ -103,7 +97,6 @@ class MaterialisedLM(optx.AbstractGaussNewton):
         self,
         rtol: float = 1e-8,
         atol: float = 1e-8,
-        callback: Callable | None = None,
         norm: Callable = optx.max_norm,
         ftol: float = 1e-10,
     ):
@@ -111,7 +104,7 @@ class MaterialisedLM(optx.AbstractGaussNewton):
         self.rtol = rtol
         self.atol = atol
         self.norm = norm
-        self.descent = MaterialisedDampedNewton(callback=callback)
+        self.descent = MaterialisedDampedNewton()
         self.search = optx.ClassicalTrustRegion()
         self.verbose = _quiet
 

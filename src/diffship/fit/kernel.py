@@ -25,17 +25,15 @@ heading errors wrapped to (−π, π], padded samples masked out and every sampl
 set to :data:`PENALTY`.
 
 **Solver.** Levenberg–Marquardt on optimistix with the forward-mode Jacobian materialised once
-per accepted step (:class:`~diffship.fit._lm.MaterialisedLM`). Progress is reported through a
-host callback that looks up the current listener at run time, so the compiled program does not
-depend on who is listening.
+per accepted step (:class:`~diffship.fit._lm.MaterialisedLM`). The compiled programs hold no
+host callback (no progress print inside the solve): JAX does not keep programs with host
+callbacks in its persistent cache, and a solve loaded from the cache saves a new process more
+time than per-step progress would show. Progress is reported between passes by the caller.
 
 All compiled programs come from the one cache, :func:`diffship.compiled.compiled`.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 
 import equinox as eqx
 import jax
@@ -51,31 +49,10 @@ from ..params import ParamSpec
 from ..simulate import Solution, simulate
 from ._lm import MaterialisedLM, rms_norm
 
-__all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "listening", "wrap_angle"]
+__all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "wrap_angle"]
 
 #: Normalised residual assigned to every sample after a simulation blew up.
 PENALTY = 1e3
-
-_LISTENERS: list[Callable[[float], None]] = []
-
-
-def _on_step(cost) -> None:
-    if _LISTENERS:
-        _LISTENERS[-1](float(cost))
-
-
-@contextmanager
-def listening(callback: Callable[[float], None] | None) -> Iterator[None]:
-    """Call ``callback(cost)`` at every accepted Levenberg–Marquardt step inside this block."""
-    if callback is None:
-        yield
-        return
-    _LISTENERS.append(callback)
-    try:
-        yield
-    finally:
-        _LISTENERS.pop()
-
 
 def wrap_angle(e):
     """Angle difference wrapped to (−π, π]."""
@@ -189,7 +166,7 @@ class Kernel(eqx.Module):
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
               ftol: float = 1e-9):
         """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``."""
-        solver = MaterialisedLM(rtol=rtol, atol=atol, callback=_on_step, norm=rms_norm, ftol=ftol)
+        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol)
         sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
                                  throw=False)
         return sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data)

@@ -48,7 +48,7 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from ._lm import result_message
 from .covariance import covariance, relabelled
-from .kernel import PENALTY, Kernel, kernel_data, listening
+from .kernel import PENALTY, Kernel, kernel_data
 from .problem import Batch, make_batch
 from .result import FitResult
 
@@ -214,17 +214,8 @@ def fit_output_error(
     compile_s += c
     passes, steps_per_pass = [], []
     noise_pass = o.weights == "noise" and not o.channel_scales
-    counter = [0, time.perf_counter()]
-
-    def on_step(cost):
-        counter[0] += 1
-        if time.perf_counter() - counter[1] > 2.0:
-            counter[1] = time.perf_counter()
-            say(f"  LM step {counter[0]}: cost {cost:.6g}")
-
     def run_solve(fn, z, d):
-        with listening(on_step if progress else None):
-            z, result, steps, r = fn(jnp.asarray(z), d)
+        z, result, steps, r = fn(jnp.asarray(z), d)
         passes.append(result)
         steps_per_pass.append(int(steps))
         return z, np.asarray(r)
