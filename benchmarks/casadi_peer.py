@@ -377,12 +377,14 @@ def main(argv=None) -> int:
     z0 = prob.to_z(dict(zip(PARAM_NAMES, prob.theta0)))  # the spec's values with --init
     sol = solve_lm(peer, z0)
     params = prob.params(sol["z"])
-    doc = dict(mode=peer.mode, loaded_from_cache=peer.loaded_from_cache, import_s=t_import, load_s=t_load, build_s=peer.build_seconds,
-               first_call_s=peer.first_call_seconds, setup_s=peer.setup_seconds, solve_s=sol["wall"],
+    doc = dict(mode=peer.mode, loaded_from_cache=peer.loaded_from_cache, import_s=t_import, load_s=t_load,
+               build_s=peer.build_seconds, first_call_s=peer.first_call_seconds, setup_s=peer.setup_seconds,
+               solve_s=sol["wall"],
                cost=sol["cost"], nfev=sol["nfev"], njev=sol["njev"], status=sol["status"], message=sol["message"],
                params={n: params[n] for n in FREE}, z=list(map(float, sol["z"])),
                in_process_s=time.perf_counter() - T_START)
-    print(f"casadi ({peer.mode}{', loaded' if peer.loaded_from_cache else ''}): setup {peer.setup_seconds:.2f} s, solve {sol['wall']:.2f} s, "
+    print(f"casadi ({peer.mode}{', loaded' if peer.loaded_from_cache else ''}): setup {peer.setup_seconds:.2f} s, "
+          f"solve {sol['wall']:.2f} s, "
           f"cost {sol['cost']:.10g}, {sol['nfev']} f-evals, {sol['njev']} Jacobians: {sol['message']}")
     if args.json:
         with open(args.json, "w") as fh:

@@ -1,10 +1,11 @@
 """Every call from the benchmarks into diffship's fitting API, in one place.
 
 The suite's case modules, its peers and the standalone scripts (``fossen3_speed.py``,
-``fossen3_coverage.py``, ``simulate_speed.py``) reach ``fit_output_error``,
+``fossen3_coverage.py``, ``simulate_speed.py``, ``cold_start.py``) reach ``fit_output_error``,
 ``fit_equation_error``, ``fit_both``, ``make_batch``, ``channel_spread``, the output-error
-kernel (``diffship.fit.kernel``, for the vmapped fixed-iteration LM), ``FitResult`` fields and the KVLCC2
-study only through the functions below. When the library's signatures change, edit here.
+kernel (``diffship.fit.kernel``, for the vmapped fixed-iteration LM and the vmapped ``Kernel.solve``),
+``FitResult`` fields and the KVLCC2 study only through the functions below. When the library's
+signatures change, edit here.
 
 The keyword arguments are forwarded exactly as the callers give them: an argument a caller
 leaves out is not passed, so the library's default applies (as in the calls these replace).
@@ -22,7 +23,8 @@ from diffship.fit.problem import make_batch
 from diffship.preprocess import Filter
 
 __all__ = ["FLT_NONE", "PENALTY", "fit_oe", "fit_ee", "fit_oe_and_ee", "batch_of", "spread_of", "lm_problem",
-           "oe_kernel", "kernel_residuals", "kernel_jacobian", "kernel_solver", "initial_states", "fitted_model", "fitted_params", "fit_numbers", "kvlcc2_study"]
+           "oe_kernel", "kernel_residuals", "kernel_jacobian", "kernel_solver", "initial_states", "fitted_model",
+           "fitted_params", "fit_numbers", "kvlcc2_study"]
 
 #: raw first samples as initial states, no smoothing of the fitted channels (the scipy peer's problem)
 FLT_NONE = Filter("none")
