@@ -167,6 +167,10 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=None, help="whole-process rounds and warm repeats (3; quick 1)")
     ap.add_argument("--batch", type=int, default=None, help="starts in the batch (64; quick 8)")
     ap.add_argument("--guard", type=float, default=None, help="scipy wall-clock guard [s] (300; quick 60)")
+    ap.add_argument("--src", default=str(ROOT / "src"),
+                    help="diffship source folder on the PYTHONPATH of the CLI subprocesses (default: this checkout's)")
+    ap.add_argument("--label", default=None,
+                    help="what diffship source is measured, for the report (default: this checkout's git commit)")
     args = ap.parse_args(argv)
     quick = args.quick
     duration = 60.0 if quick else 300.0
@@ -182,6 +186,17 @@ def main(argv=None):
         rows.append(dict(mode="quick" if quick else "full", section=section, method=method, metric=metric,
                          value=value, unit=unit, note=note))
 
+    label = args.label
+    if label is None:
+        try:
+            commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                    text=True, check=True).stdout.strip()
+            label = f"{args.src} (checkout at {commit})"
+        except (OSError, subprocess.CalledProcessError):
+            label = args.src
+    import diffship
+
+    label += f"; this process imports diffship from {Path(diffship.__file__).parent}"
     load_start = loadavg()
     t_all = time.perf_counter()
     work = Path(tempfile.mkdtemp(prefix="diffship_cold_start_"))
@@ -220,11 +235,21 @@ def main(argv=None):
     prob = cp.load_problem(csvs, start)
     checks = {}
     checks["csv_roundtrip_identical"] = roundtrip
+    # diffship may pad the runs to a bucketed length (masked samples): compare the real samples
+    N = prob.N
+    assert bool(np.all(batch.mask[:, :N])) and not bool(np.any(batch.mask[:, N:])), "runs of equal length"
     checks["problem_arrays_max_abs_diff"] = max(
-        float(np.max(np.abs(prob.ts - batch.ts))), float(np.max(np.abs(prob.us - batch.us))),
-        float(np.max(np.abs(prob.ys - batch.ys))), float(np.max(np.abs(prob.x0 - batch.x0))),
+        float(np.max(np.abs(prob.ts - batch.ts[:, :N]))), float(np.max(np.abs(prob.us - batch.us[:, :N]))),
+        float(np.max(np.abs(prob.ys - batch.ys[:, :N]))), float(np.max(np.abs(prob.x0 - batch.x0))),
         float(np.max(np.abs(prob.scales - np.asarray(data.scales)))),
         float(np.max(np.abs(prob.x0_scale - np.asarray(data.x0_scale)))))
+    checks["diffship_padded_samples_per_run"] = int(batch.ts.shape[1] - N)
+
+    def unpad(a):
+        """diffship's (run, sample, channel)-ordered rows without the padded samples."""
+        a = np.asarray(a)
+        return a.reshape(len(runs), -1, len(CHANNELS), *a.shape[1:])[:, :N].reshape(-1, *a.shape[1:])
+
     decl_ok = cp.PARAM_NAMES == tuple(Fossen3().param_names)
     for p in base.params:
         default, is_free, kind, bound, scale = cp.PARAMS[p.name]
@@ -240,7 +265,7 @@ def main(argv=None):
     print(f"checks: {checks}", flush=True)
 
     # -- 1. whole processes ------------------------------------------------------------------------------------
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    env = {**os.environ, "PYTHONPATH": str(Path(args.src).resolve())}
     env.pop("DIFFSHIP_CACHE_DIR", None)
     cli = [sys.executable, "-m", "diffship.fit", *csvs, "--model", "fossen3", "--method", "output-error",
            "--weights", "spread", "--filter", "none", "--channels", *CHANNELS, "--x0", "estimate",
@@ -314,10 +339,10 @@ def main(argv=None):
     x0_idx = list(kernel.x0_idx)
     z_ds = np.concatenate([spec.to_z({n: ds.params[n] for n in free}),
                            ((initial_states(ds) - batch.x0)[:, x0_idx] / np.asarray(data.x0_scale)).reshape(-1)])
-    r_ds = kernel_residuals(kernel, data, z_ds)
+    r_ds = unpad(kernel_residuals(kernel, data, z_ds))
     peer = peers_by_mode["jit"]
     r_ca, J_ca = peer.residuals_and_jacobian(z_ds)
-    J_ds = kernel_jacobian(kernel, data, z_ds)
+    J_ds = unpad(kernel_jacobian(kernel, data, z_ds))
     c_ds, c_ca = 0.5 * float(r_ds @ r_ds), 0.5 * float(r_ca @ r_ca)
     checks["residual_max_abs_diff_at_diffship_optimum"] = float(np.max(np.abs(r_ds - r_ca)))
     checks["cost_rel_diff_at_diffship_optimum"] = rel(c_ca, c_ds)
@@ -343,7 +368,7 @@ def main(argv=None):
     print(f"scipy + finite differences (guard {guard:.0f} s) ...", flush=True)
     npprob = Fossen3Problem(spec, Fossen3().with_params(spec.values()), batch, x0_idx, np.asarray(data.x0_scale),
                             np.asarray(data.scales))
-    assert float(np.max(np.abs(npprob.residuals(z_ds) - r_ds))) < 1e-9
+    assert float(np.max(np.abs(unpad(npprob.residuals(z_ds)) - r_ds))) < 1e-9
     t = time.perf_counter()
     npprob.residuals(z0)
     t_sim = time.perf_counter() - t
@@ -458,7 +483,7 @@ def main(argv=None):
     env_line = (f"{cpu_model or platform.machine()}, {os.cpu_count()} CPUs (shared with other jobs), "
                 f"{platform.platform()}; Python {platform.python_version()}, JAX {jax.__version__} "
                 f"({jax.default_backend()}), NumPy {np.__version__}, SciPy {scipy.__version__}, "
-                f"CasADi {casadi.__version__}")
+                f"CasADi {casadi.__version__}. diffship source: {label}")
     n_rep = f"median of {repeats} (min–max)" if repeats > 1 else "one run"
 
     def r3(x):
@@ -469,8 +494,9 @@ def main(argv=None):
         "",
         f"Problem: seed-002 USV truth, {len(runs)} runs × {duration:g} s at 10 Hz (realistic noise, seed 0), "
         f"channels {', '.join(CHANNELS)} ({n_res} residuals); {len(free)} free parameters from ±50 % of the truth "
-        f"+ {z0.size - len(free)} initial-state offsets = {z0.size} unknowns; weights = channel spread; RK4 one step "
-        f"per sample. Machine load (1/5/15 min) at the start **{load_start}**, at the end **{load_end}**; "
+        f"+ {z0.size - len(free)} initial-state offsets = {z0.size} unknowns; weights = channel spread; diffship's "
+        f"integrator: {kernel.integrator.describe()} (the peers: classical RK4, one step per sample, first-order-hold "
+        f"inputs). Machine load (1/5/15 min) at the start **{load_start}**, at the end **{load_end}**; "
         f"{env_line}. Total benchmark time {total / 60:.1f} min. Times in seconds, {n_rep}.",
         "",
         "### Ratios (diffship / CasADi: below 1 diffship is faster)",
