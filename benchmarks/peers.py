@@ -61,7 +61,30 @@ class ScaledParams:
         return vals
 
 
-class NomotoProblem(ScaledParams):
+class SimulationProblem(ScaledParams):
+    """diffship's normalised output-error residual over a NumPy simulation (``self.simulate``):
+    per-run initial-state offsets, wrapped angles, masked padding, ``PENALTY`` after a blow-up."""
+
+    def residuals(self, z):
+        self.nfev += 1
+        z = np.asarray(z, dtype=np.float64)
+        p = self.params(z)
+        x0 = self.x0.copy()
+        if self.x0_idx:
+            x0[:, self.x0_idx] += z[self.n_p:].reshape(self.R, len(self.x0_idx)) * self.x0_scale
+        out, valid = self.simulate(p, x0)
+        pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]
+        valid = valid.T
+        with np.errstate(all="ignore"):
+            err = pred - self.ys
+            err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)
+            good = (valid & self.mask)[..., None]
+            bad = ((~valid) & self.mask)[..., None]
+            e = np.where(good, err / self.scales, 0.0) + np.where(bad, PENALTY, 0.0)
+        return e.reshape(-1)
+
+
+class NomotoProblem(SimulationProblem):
     r"""Output-error residual of :class:`diffship.models.Nomoto1` in NumPy.
 
     :math:`\dot\psi = r,\ T_1\dot r + r = K(\delta + \delta_0)`, RK4 with one step per sample,
@@ -110,26 +133,8 @@ class NomotoProblem(ScaledParams):
             ok = np.all(np.isfinite(out) & (np.abs(out) < MAX_ABS), axis=1)
         return out, np.cumprod(ok, axis=0).astype(bool)
 
-    def residuals(self, z):
-        self.nfev += 1
-        z = np.asarray(z, dtype=np.float64)
-        p = self.params(z)
-        x0 = self.x0.copy()
-        if self.x0_idx:
-            x0[:, self.x0_idx] += z[self.n_p:].reshape(self.R, len(self.x0_idx)) * self.x0_scale
-        out, valid = self.simulate(p, x0)
-        pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]
-        valid = valid.T
-        with np.errstate(all="ignore"):
-            err = pred - self.ys
-            err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)
-            good = (valid & self.mask)[..., None]
-            bad = ((~valid) & self.mask)[..., None]
-            e = np.where(good, err / self.scales, 0.0) + np.where(bad, PENALTY, 0.0)
-        return e.reshape(-1)
 
-
-class Fossen3Problem(ScaledParams):
+class Fossen3Problem(SimulationProblem):
     """Output-error residual of :class:`diffship.models.Fossen3` in NumPy (``fossen3_speed.py``'s problem).
 
     Integrates only (psi, u, v, r): the positions x0, y0 feed nothing back and are not fitted, so
@@ -214,25 +219,6 @@ class Fossen3Problem(ScaledParams):
         # diffship freezes the state at the first blow-up and marks every later sample invalid
         valid = np.cumprod(ok, axis=0).astype(bool)
         return out, valid
-
-    def residuals(self, z):
-        self.nfev += 1
-        z = np.asarray(z, dtype=np.float64)
-        p = self.params(z)
-        x0 = self.x0.copy()
-        if self.x0_idx:
-            dz = z[self.n_p:].reshape(self.R, len(self.x0_idx))
-            x0[:, self.x0_idx] += dz * self.x0_scale
-        out, valid = self.simulate(p, x0)
-        pred = np.transpose(out, (2, 0, 1))[..., self.out_cols]  # (R, N, C)
-        valid = valid.T  # (R, N)
-        with np.errstate(all="ignore"):
-            err = pred - self.ys
-            err = np.where(self.angle, np.arctan2(np.sin(err), np.cos(err)), err)
-            good = (valid & self.mask)[..., None]
-            bad = ((~valid) & self.mask)[..., None]
-            e = np.where(good, err / self.scales, 0.0) + np.where(bad, PENALTY, 0.0)
-        return e.reshape(-1)
 
 
 class _TimeUp(Exception):
