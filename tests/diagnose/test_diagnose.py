@@ -109,3 +109,21 @@ def test_cli_contract_and_bad_input(tmp_path, capsys):
     assert main([str(tmp_path / "missing.csv"), "--validate", paths[3], "--model", "nomoto1"]) == 2
     with pytest.raises(SystemExit):
         main(paths[:1] + ["--model", "nomoto1"])  # --validate is required
+
+
+def test_force_residuals_say_when_smoothing_falls_back():
+    """A run the filter cannot smooth (non-uniform time stamps) is still used, and the notes say
+    how (the old code fell back silently on any exception)."""
+    from diffship.data import Run
+    from diffship.diagnose.where import force_residuals
+    from diffship.synthetic import usv_runs, usv_truth
+
+    run = usv_runs(1, 20.0, 0.1, noise="none", seed=0)[0]
+    t = run.time.copy()
+    t[50:] += 0.03  # one longer interval: Butterworth needs a uniform grid
+    bumpy = Run("bumpy", t, dict(run.channels), {}, check_units=False)
+    out = force_residuals(usv_truth(), [run, bumpy])
+    assert set(out) == {"X", "Y", "N", "notes"}
+    assert all("bumpy" in n for n in out["notes"]) and len(out["notes"]) == 3
+    assert "notes" not in force_residuals(usv_truth(), [run])
+    assert out["X"]["rms"] >= 0.0

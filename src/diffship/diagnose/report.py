@@ -37,8 +37,10 @@ def to_markdown(d) -> str:
     for c, v in d.where.residual_tests.items():
         L.append(f"| {c} | {'yes' if v['white'] else 'no'} | {'yes' if v['independent_of_input'] else 'no'} | {v['ccf_peak_lag_s']:.2f} |")
     if d.where.force_residuals:
-        L += ["", "Inverse-dynamics force residuals (RMS, mean): " + ", ".join(
-            f"{k}: {v['rms']:.3g}, {v['mean']:.3g}" for k, v in d.where.force_residuals.items())]
+        fr = {k: v for k, v in d.where.force_residuals.items() if k != "notes"}
+        L += ["", "Inverse-dynamics force residuals (RMS, mean) [N, N, N·m]: " + ", ".join(
+            f"{k}: {v['rms']:.3g}, {v['mean']:.3g}" for k, v in fr.items())]
+        L += [f"- note: {n}" for n in d.where.force_residuals.get("notes", [])]
     L += ["", "## Which (candidates, selected on validation)", "",
           "| effect | screen f_k | o_k | fitted parameters (95 %) | validation gain | shrink | verdict |",
           "|---|---|---|---|---|---|---|"]

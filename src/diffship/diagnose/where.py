@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
+from ..errors import DataError
 from ..fit import FitResult
 from ..metrics import Evaluation
 from ..models import AbstractModel
@@ -242,8 +243,16 @@ def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, fl
 
 
 def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:
-    r"""RMS of :math:`M\dot\nu + C\nu + D\nu - \tau` per DOF [N, N, N·m] from smoothed data."""
+    r"""RMS of :math:`M\dot\nu + C\nu + D\nu - \tau` per DOF [N, N, N·m] from smoothed data.
+
+    Where a channel cannot be smoothed with ``flt`` (non-uniform sampling, too few samples) the
+    raw signal and its finite-difference derivative are used, and ``"notes"`` says so per run and
+    channel: never a silent fallback.
+    """
+    if not hasattr(model, "coriolis_vector"):
+        return {}
     acc = {"X": [], "Y": [], "N": []}
+    notes: list[str] = []
     for run in runs:
         if not run.has("u", "v", "r") or not all(run.has(n) for n in model.input_names):
             continue
@@ -252,7 +261,8 @@ def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Fil
         for c in ("u", "v", "r"):
             try:
                 ys, yd = smooth_and_derivative(t, np.asarray(run[c]), flt, f"run {run.name}, column {c}")
-            except Exception:
+            except DataError as exc:
+                notes.append(f"{exc}: used the unsmoothed signal and central differences instead")
                 ys, yd = np.asarray(run[c]), np.gradient(np.asarray(run[c]), t)
             nu.append(ys)
             nud.append(yd)
@@ -261,18 +271,16 @@ def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Fil
 
         def one(nu_k, nud_k, u_k):
             m = model
-            M_nud = jnp.stack([(m.m - m.Xudot) * nud_k[0],
-                               (m.m - m.Yvdot) * nud_k[1] + (m.m * m.xg - m.Yrdot) * nud_k[2],
-                               (m.m * m.xg - m.Nvdot) * nud_k[1] + (m.Iz - m.Nrdot) * nud_k[2]])
-            return M_nud + m.coriolis_vector(nu_k) + m.damping_vector(nu_k) - m.forces(u_k, nu_k)
+            return m.mass_matrix() @ nud_k + m.coriolis_vector(nu_k) + m.damping_vector(nu_k) - m.forces(u_k, nu_k)
 
-        if not hasattr(model, "coriolis_vector"):
-            return {}
         f = np.asarray(jax.vmap(one)(jnp.asarray(nu), jnp.asarray(nud), jnp.asarray(us)))
         for j, k in enumerate(("X", "Y", "N")):
             acc[k].append(f[:, j])
-    return {k: {"rms": float(np.sqrt(np.mean(np.concatenate(v) ** 2))), "mean": float(np.mean(np.concatenate(v)))}
-            for k, v in acc.items() if v}
+    out: dict = {k: {"rms": float(np.sqrt(np.mean(np.concatenate(v) ** 2))), "mean": float(np.mean(np.concatenate(v)))}
+                 for k, v in acc.items() if v}
+    if notes:
+        out["notes"] = notes
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
