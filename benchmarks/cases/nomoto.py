@@ -33,8 +33,7 @@ from benchmarks.fitapi import (FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, 
 from benchmarks.record import (EE_KEYS, METHODS, convergence, log_uniform_starts, record_common, record_fit,
                                record_zig, say, seed_summary, timed, traced_peak)
 from diffship.models import Nomoto1
-from diffship.models import AbstractModel, scalar
-from diffship.params import Param
+from diffship.models import AbstractModel, param
 from diffship.synthetic import rudder_sequence, simulate_run
 
 DEG = np.pi / 180.0
@@ -56,16 +55,10 @@ class NomotoCubic(AbstractModel):
     name: ClassVar[str] = "nomoto_cubic"
     state_names: ClassVar[tuple[str, ...]] = ("psi", "r")
     output_names: ClassVar[tuple[str, ...]] = ("psi", "r")
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("K", 0.2, scale=0.5, unit="1/s", description="rudder gain"),
-        Param("T1", 8.0, lower=0.0, scale=5.0, unit="s", description="yaw time constant"),
-        Param("a", 50.0, scale=50.0, unit="s2", description="cubic yaw damping"),
-        Param("delta0", 0.0, scale=0.01, unit="rad", description="rudder offset"),
-    )
-    K: jnp.ndarray = scalar(0.2)
-    T1: jnp.ndarray = scalar(8.0)
-    a: jnp.ndarray = scalar(50.0)
-    delta0: jnp.ndarray = scalar(0.0)
+    K: jnp.ndarray = param(0.2, scale=0.5, unit="1/s", description="rudder gain")
+    T1: jnp.ndarray = param(8.0, lower=0.0, scale=5.0, unit="s", description="yaw time constant")
+    a: jnp.ndarray = param(50.0, scale=50.0, unit="s2", description="cubic yaw damping")
+    delta0: jnp.ndarray = param(0.0, scale=0.01, unit="rad", description="rudder offset")
 
     @property
     def input_names(self) -> tuple[str, ...]:

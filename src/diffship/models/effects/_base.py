@@ -25,11 +25,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._base import AbstractModel, scalar
+from .._base import AbstractModel, _DeclaredParams, param, scalar
 from .._rigid3 import AbstractShip3
 from ...params import Param
 
-__all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "scalar"]
+__all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "param", "scalar"]
 
 
 def is_ship3(model: AbstractModel) -> bool:
@@ -84,7 +84,8 @@ class DataFacts:
 class Effect(eqx.Module):
     """One candidate effect: parameters with null values, a hook, and what to say about it.
 
-    Subclasses set ``name``, ``family``, ``hook``, ``PARAMS`` (values = null values), ``PROBE``
+    Subclasses set ``name``, ``family``, ``hook``, declare each parameter once as a
+    :func:`~diffship.models.param` field whose default is its null value (``PARAMS`` is derived), ``PROBE``
     (a plausible magnitude per parameter, for the secant screen and refit starts),
     ``MIN_RELEVANT`` (smallest magnitude worth reporting), ``smooth_null`` (False where the
     effect switches off at the null, so it is not differentiable there), ``signature``,
@@ -96,7 +97,7 @@ class Effect(eqx.Module):
     hook: ClassVar[str] = "force"
     #: order among input effects (delay → rate limit → lag, then the others)
     input_order: ClassVar[int] = 9
-    PARAMS: ClassVar[tuple[Param, ...]] = ()
+    PARAMS: ClassVar[tuple[Param, ...]] = _DeclaredParams()  # type: ignore[assignment]  # from the param() fields
     PROBE: ClassVar[dict[str, float]] = {}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {}
     smooth_null: ClassVar[bool] = True
@@ -108,6 +109,11 @@ class Effect(eqx.Module):
     @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.PARAMS)
+
+    @classmethod
+    def _select_params(cls, names: tuple[str, ...]) -> tuple[str, ...]:
+        """Every :func:`~diffship.models.param` field is a parameter of the effect."""
+        return names
 
     def null(self) -> dict[str, float]:
         return {p.name: p.value for p in self.PARAMS}

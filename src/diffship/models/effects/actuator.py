@@ -32,8 +32,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ...params import Param
-from ._base import DataFacts, Effect, is_ship3, scalar
+from ._base import DataFacts, Effect, is_ship3, param, scalar
 
 __all__ = ["InputDelay", "ActuatorLag", "RateLimit", "RudderOffset"]
 
@@ -71,15 +70,12 @@ class InputDelay(_InputEffect):
 
     name: ClassVar[str] = "input_delay"
     input_order: ClassVar[int] = 0
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("tau_d", 0.0, lower=0.0, scale=0.5, unit="s", description="input time delay"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"tau_d": 1.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"tau_d": 0.2}
     signature: ClassVar[str] = "residual/input-rate cross-correlation peaking at lag τ, same for all step sizes"
     confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag", "rate_limit")
     separating: ClassVar[str] = "steps or zigzags at two different amplitudes, and fast small PRBS steps"
-    tau_d: jnp.ndarray = scalar(0.0)
+    tau_d: jnp.ndarray = param(0.0, lower=0.0, scale=0.5, unit="s", description="input time delay")
 
     def extra_states(self, base):
         # the first state per input is named after the input, so it starts at the measured input
@@ -104,15 +100,12 @@ class ActuatorLag(_InputEffect):
 
     name: ClassVar[str] = "actuator_lag"
     input_order: ClassVar[int] = 2
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("T_act", 0.0, lower=0.0, scale=0.5, unit="s", description="actuator time constant"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"T_act": 1.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_act": 0.2}
     signature: ClassVar[str] = "lagged response after steering steps; CCF with input rate at small positive lag"
     confusable_with: ClassVar[tuple[str, ...]] = ("input_delay", "rate_limit")
     separating: ClassVar[str] = "steps at two different amplitudes and fast small PRBS steps"
-    T_act: jnp.ndarray = scalar(0.0)
+    T_act: jnp.ndarray = param(0.0, lower=0.0, scale=0.5, unit="s", description="actuator time constant")
 
     def extra_states(self, base):
         return self._names(base)
@@ -131,15 +124,12 @@ class RateLimit(_InputEffect):
 
     name: ClassVar[str] = "rate_limit"
     input_order: ClassVar[int] = 1
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("T_slew", 0.0, lower=0.0, scale=2.0, unit="s", description="time to slew the largest input amplitude"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"T_slew": 4.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_slew": 0.3}
     signature: ClassVar[str] = "residual spikes right after steering changes, lasting |Δu|/rate"
     confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag", "input_delay")
     separating: ClassVar[str] = "steering steps of two very different amplitudes (a rate limit's delay scales with the step)"
-    T_slew: jnp.ndarray = scalar(0.0)
+    T_slew: jnp.ndarray = param(0.0, lower=0.0, scale=2.0, unit="s", description="time to slew the largest input amplitude")
     amplitude: jnp.ndarray = eqx.field(converter=lambda a: jnp.asarray(a, dtype=jnp.float64), default=(1.0,))
     eps: jnp.ndarray = scalar(0.1)
 
@@ -165,17 +155,13 @@ class RudderOffset(Effect):
 
     name: ClassVar[str] = "rudder_offset"
     family: ClassVar[str] = "bias"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("Y0", 0.0, scale=50.0, unit="N", description="constant sway force"),
-        Param("N0", 0.0, scale=200.0, unit="N m", description="constant yaw moment"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"Y0": 50.0, "N0": 200.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Y0": 5.0, "N0": 20.0}
     signature: ClassVar[str] = "non-zero mean yaw-rate residual on straight segments; port/starboard asymmetry"
     confusable_with: ClassVar[tuple[str, ...]] = ("current", "wind")
     separating: ClassVar[str] = "symmetric port and starboard manoeuvres at the same speed"
-    Y0: jnp.ndarray = scalar(0.0)
-    N0: jnp.ndarray = scalar(0.0)
+    Y0: jnp.ndarray = param(0.0, scale=50.0, unit="N", description="constant sway force")
+    N0: jnp.ndarray = param(0.0, scale=200.0, unit="N m", description="constant yaw moment")
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:

@@ -12,8 +12,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from ...params import Param
-from ._base import Effect, scalar
+from ._base import Effect, param
 
 __all__ = ["Current"]
 
@@ -24,14 +23,10 @@ class Current(Effect):
     name: ClassVar[str] = "current"
     family: ClassVar[str] = "environment"
     hook: ClassVar[str] = "kinematics"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("Vcx", 0.0, scale=0.2, unit="m/s", description="current towards north (x)"),
-        Param("Vcy", 0.0, scale=0.2, unit="m/s", description="current towards east (y)"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"Vcx": 0.2, "Vcy": 0.2}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Vcx": 0.03, "Vcy": 0.03}
     signature: ClassVar[str] = "over-ground velocity residual sinusoidal in heading; position drift fixed in NED"
     confusable_with: ClassVar[tuple[str, ...]] = ("heading_bias", "rudder_offset", "wind")
     separating: ClassVar[str] = "a turning circle of 360° or more (current drift stays fixed in NED)"
-    Vcx: jnp.ndarray = scalar(0.0)
-    Vcy: jnp.ndarray = scalar(0.0)
+    Vcx: jnp.ndarray = param(0.0, scale=0.2, unit="m/s", description="current towards north (x)")
+    Vcy: jnp.ndarray = param(0.0, scale=0.2, unit="m/s", description="current towards east (y)")

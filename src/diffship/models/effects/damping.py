@@ -23,8 +23,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from ...params import Param
-from ._base import DataFacts, Effect, body_velocity, is_ship3, scalar
+from ._base import DataFacts, Effect, body_velocity, is_ship3, param, scalar
 
 __all__ = ["DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR"]
 
@@ -40,10 +39,9 @@ class DampingVV(_Damping):
     r"""Yaw moment :math:`N_{|v|v}|v|v` (fossen3 already has :math:`Y_{|v|v}`)."""
 
     name: ClassVar[str] = "damping_vv"
-    PARAMS: ClassVar[tuple[Param, ...]] = (Param("Nvv", 0.0, scale=2000.0, unit="kg", description="N_|v|v"),)
     PROBE: ClassVar[dict[str, float]] = {"Nvv": 2000.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Nvv": 100.0}
-    Nvv: jnp.ndarray = scalar(0.0)
+    Nvv: jnp.ndarray = param(0.0, scale=2000.0, unit="kg", description="N_|v|v")
 
     def force(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
@@ -54,10 +52,9 @@ class DampingRR(_Damping):
     r"""Sway force :math:`Y_{|r|r}|r|r` (fossen3 already has :math:`N_{|r|r}`)."""
 
     name: ClassVar[str] = "damping_rr"
-    PARAMS: ClassVar[tuple[Param, ...]] = (Param("Yrr", 0.0, scale=2000.0, unit="kg m²", description="Y_|r|r"),)
     PROBE: ClassVar[dict[str, float]] = {"Yrr": 2000.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Yrr": 100.0}
-    Yrr: jnp.ndarray = scalar(0.0)
+    Yrr: jnp.ndarray = param(0.0, scale=2000.0, unit="kg m²", description="Y_|r|r")
 
     def force(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
@@ -68,14 +65,10 @@ class DampingVR(_Damping):
     r"""Cross terms :math:`Y_{|v|r}|v|r` and :math:`N_{|v|r}|v|r`."""
 
     name: ClassVar[str] = "damping_vr"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("Yvr", 0.0, scale=2000.0, unit="kg", description="Y_|v|r"),
-        Param("Nvr", 0.0, scale=5000.0, unit="kg m", description="N_|v|r"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"Yvr": 2000.0, "Nvr": 5000.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Yvr": 100.0, "Nvr": 300.0}
-    Yvr: jnp.ndarray = scalar(0.0)
-    Nvr: jnp.ndarray = scalar(0.0)
+    Yvr: jnp.ndarray = param(0.0, scale=2000.0, unit="kg", description="Y_|v|r")
+    Nvr: jnp.ndarray = param(0.0, scale=5000.0, unit="kg m", description="N_|v|r")
 
     def force(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
@@ -87,14 +80,10 @@ class DampingRV(_Damping):
     r"""Cross terms :math:`Y_{|r|v}|r|v` and :math:`N_{|r|v}|r|v`."""
 
     name: ClassVar[str] = "damping_rv"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("Yrv", 0.0, scale=2000.0, unit="kg m", description="Y_|r|v"),
-        Param("Nrv", 0.0, scale=5000.0, unit="kg m²", description="N_|r|v"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"Yrv": 2000.0, "Nrv": 5000.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Yrv": 100.0, "Nrv": 300.0}
-    Yrv: jnp.ndarray = scalar(0.0)
-    Nrv: jnp.ndarray = scalar(0.0)
+    Yrv: jnp.ndarray = param(0.0, scale=2000.0, unit="kg m", description="Y_|r|v")
+    Nrv: jnp.ndarray = param(0.0, scale=5000.0, unit="kg m²", description="N_|r|v")
 
     def force(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
@@ -107,14 +96,11 @@ class SpeedDependence(_Damping):
     :math:`U = \sqrt{u^2+v^2}` and :math:`U_0` the mean training speed."""
 
     name: ClassVar[str] = "speed_dependence"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("k_U", 0.0, scale=0.3, unit="-", description="relative change of linear damping per relative speed change"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"k_U": 0.3}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"k_U": 0.05}
     signature: ClassVar[str] = "error growing with |U − U0|; per-speed fits drift"
     separating: ClassVar[str] = "the same manoeuvre at two or more speeds"
-    k_U: jnp.ndarray = scalar(0.0)
+    k_U: jnp.ndarray = param(0.0, scale=0.3, unit="-", description="relative change of linear damping per relative speed change")
     U0: jnp.ndarray = scalar(1.0)
 
     @classmethod
@@ -142,15 +128,12 @@ class NorrbinRR(Effect):
     name: ClassVar[str] = "damping_rr"
     family: ClassVar[str] = "damping"
     hook: ClassVar[str] = "input"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("c_rr", 0.0, scale=10.0, unit="rad s²", description="Norrbin |r|r coefficient (rudder-angle units)"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"c_rr": 20.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"c_rr": 0.5}
     signature: ClassVar[str] = "amplitude-dependent error: large rudder angles over-predict the turn rate"
     confusable_with: ClassVar[tuple[str, ...]] = ("rate_limit",)
     separating: ClassVar[str] = "zigzags at small and large rudder angles"
-    c_rr: jnp.ndarray = scalar(0.0)
+    c_rr: jnp.ndarray = param(0.0, scale=10.0, unit="rad s²", description="Norrbin |r|r coefficient (rudder-angle units)")
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:

@@ -12,8 +12,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 import numpy as np
 
-from ...params import Param
-from ._base import Effect, scalar
+from ._base import Effect, param
 
 __all__ = ["HeadingBias"]
 
@@ -24,12 +23,9 @@ class HeadingBias(Effect):
     name: ClassVar[str] = "heading_bias"
     family: ClassVar[str] = "sensor"
     hook: ClassVar[str] = "kinematics"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("b_psi", 0.0, scale=0.02, unit="rad", description="heading sensor bias"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"b_psi": 0.02}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"b_psi": 0.2 * np.pi / 180}
     signature: ClassVar[str] = "position drift perpendicular to the course, rotating with the ship"
     confusable_with: ClassVar[tuple[str, ...]] = ("current",)
     separating: ClassVar[str] = "a turning circle of 360° or more with GNSS positions"
-    b_psi: jnp.ndarray = scalar(0.0)
+    b_psi: jnp.ndarray = param(0.0, scale=0.02, unit="rad", description="heading sensor bias")

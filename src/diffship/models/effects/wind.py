@@ -16,8 +16,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from ...params import Param
-from ._base import Effect, body_velocity, is_ship3, scalar
+from ._base import Effect, body_velocity, is_ship3, param
 
 __all__ = ["Wind"]
 
@@ -28,20 +27,15 @@ class Wind(Effect):
 
     name: ClassVar[str] = "wind"
     family: ClassVar[str] = "environment"
-    PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("Cwx", 0.0, scale=3.0, unit="N s²/m²", description="longitudinal wind coefficient"),
-        Param("Cwy", 0.0, scale=5.0, unit="N s²/m²", description="lateral wind coefficient"),
-        Param("Cwn", 0.0, scale=10.0, unit="N s²/m", description="wind yaw moment coefficient"),
-    )
     PROBE: ClassVar[dict[str, float]] = {"Cwx": 3.0, "Cwy": 5.0, "Cwn": 10.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Cwx": 0.2, "Cwy": 0.3, "Cwn": 0.5}
     extra_inputs: ClassVar[tuple[str, ...]] = ("wind_speed", "wind_dir")
     signature: ClassVar[str] = "sway/yaw residual periodic in the relative wind angle, ∝ wind speed²"
     confusable_with: ClassVar[tuple[str, ...]] = ("current", "rudder_offset")
     separating: ClassVar[str] = "runs on opposite headings or in different wind speeds"
-    Cwx: jnp.ndarray = scalar(0.0)
-    Cwy: jnp.ndarray = scalar(0.0)
-    Cwn: jnp.ndarray = scalar(0.0)
+    Cwx: jnp.ndarray = param(0.0, scale=3.0, unit="N s²/m²", description="longitudinal wind coefficient")
+    Cwy: jnp.ndarray = param(0.0, scale=5.0, unit="N s²/m²", description="lateral wind coefficient")
+    Cwn: jnp.ndarray = param(0.0, scale=10.0, unit="N s²/m", description="wind yaw moment coefficient")
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:
