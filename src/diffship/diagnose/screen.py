@@ -45,6 +45,7 @@ from scipy import stats
 from ..errors import FitError
 from ..fit.covariance import covariance
 from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data
+from ..fit.output_error import x0_scales
 from ..fit.problem import make_batch
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
@@ -131,18 +132,11 @@ class Workspace:
                              n_extra=P_MAX, **common)
         self.x0_kernel = Kernel(spec=spec.fix(spec.names).structural(), **common)
         batch = make_batch(self.model, runs, self.channels)
-        spread = [float(np.std(batch.ys[..., j][batch.mask])) or 1.0 for j in range(len(self.channels))]
-        state_channel = getattr(base, "STATE_CHANNEL", {})
+        self.x0_scale = x0_scales(base, batch, [base.state_names[i] for i in self.x0_idx])
+        self.train = self._data(runs, x0_train, batch)
 
-        def _scale(st):
-            c = st if st in self.channels else state_channel.get(st)
-            return spread[self.channels.index(c)] if c in self.channels else 1.0
-
-        self.x0_scale = np.asarray([_scale(base.state_names[i]) for i in self.x0_idx], dtype=np.float64)
-        self.train = self._data(runs, x0_train)
-
-    def _data(self, runs, x0_base=None) -> dict:
-        b = make_batch(self.model, runs, self.channels)
+    def _data(self, runs, x0_base=None, batch=None) -> dict:
+        b = batch if batch is not None else make_batch(self.model, runs, self.channels)
         x0 = np.asarray(b.x0).copy()
         if x0_base is not None:
             x0[:, :len(self.base.state_names)] = np.stack([np.asarray(v)[:len(self.base.state_names)] for v in x0_base])
