@@ -52,7 +52,7 @@ from .kernel import PENALTY, Kernel, kernel_data
 from .problem import Batch, make_batch
 from .result import FitResult
 
-__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms"]
+__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms", "x0_scales"]
 
 
 @dataclasses.dataclass(frozen=True)
