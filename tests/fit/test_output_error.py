@@ -35,7 +35,9 @@ def usv_noisy():
 
 
 def test_fossen3_noise_free_recovery_from_50_percent_start(usv_clean):
-    res = fit_output_error(Fossen3(), usv_clean, spec=_start_spec(), options=OutputErrorOptions(estimate_x0=("psi", "u", "v", "r")))
+    # a solver check: no priors (the reference-set priors pull a MAP estimate by ~0.1 % here)
+    res = fit_output_error(Fossen3(), usv_clean, spec=_start_spec(),
+                           options=OutputErrorOptions(estimate_x0=("psi", "u", "v", "r"), reference_priors=False))
     assert res.converged, res.status
     rel = _rel(res, TV)
     assert max(rel.values()) < 1e-4, rel

@@ -46,7 +46,7 @@ class Covariance:
 
 
 def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: float | None = None,
-               involvement: float = 0.3) -> Covariance:
+               involvement: float = 0.3, variance: float | None = None) -> Covariance:
     """``σ̂²(JᵀJ)⁻¹`` with rank-deficient directions flagged (see the module docstring).
 
     Args:
@@ -55,12 +55,14 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         rtol: relative singular-value cut-off (default ``1e3·ε·max(m, p)``).
         involvement: an unknown whose component in a dropped right-singular vector exceeds this
             (unit-norm vectors) is reported unidentifiable.
+        variance: use this σ̂² instead of estimating it from ``r`` (e.g. 1 for residuals already
+            normalised by their noise level, as with prior rows stacked under scaled data rows).
     """
     J = np.asarray(J, dtype=np.float64)
     r = np.asarray(r, dtype=np.float64)
     m, p = J.shape
     dof = max(m - p, 1) if dof is None else max(int(dof), 1)
-    s2 = float(r @ r) / dof
+    s2 = float(r @ r) / dof if variance is None else float(variance)
     if p == 0:
         return Covariance(np.zeros((0, 0)), s2, np.zeros(0), 0, ())
     _, sv, vt = np.linalg.svd(J, full_matrices=False)

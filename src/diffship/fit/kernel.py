@@ -22,7 +22,10 @@ this module; nothing else in diffship writes an output-error residual.
 
 from the whole-horizon simulation (:func:`diffship.simulate.simulate`, vmapped over runs),
 heading errors wrapped to (−π, π], padded samples masked out and every sample after a blow-up
-set to :data:`PENALTY`.
+set to :data:`PENALTY`. Where free parameters carry Gaussian priors (:mod:`diffship.fit.priors`)
+one row per free parameter follows the data rows,
+:math:`e^{\text{prior}}_j = w_j(\theta_j(z) - \mu_j)` with :math:`w_j = 1/\sigma_j` (0 for no prior),
+so the least-squares optimum is the MAP estimate (:meth:`Kernel.split` separates the two parts).
 
 **Solver.** Levenberg–Marquardt on optimistix with the forward-mode Jacobian materialised once
 per accepted step (:class:`~diffship.fit._lm.MaterialisedLM`). The compiled programs hold no
@@ -71,6 +74,8 @@ class KernelData(eqx.Module):
         scales: per-channel normalisation ``s_c`` ``(n_c,)``.
         S, phi0, phi_scale, lo, hi: the extra coordinates (see the module docstring); shapes
             ``(n_phi, n_extra)`` and ``(n_phi,)``.
+        prior_mean, prior_w: prior means and inverse standard deviations of the free
+            parameters ``(n_theta,)``, or empty ``(0,)`` for a fit without priors (no prior rows).
     """
 
     model: AbstractModel
@@ -86,6 +91,13 @@ class KernelData(eqx.Module):
     phi_scale: Float[Array, " n_phi"]
     lo: Float[Array, " n_phi"]
     hi: Float[Array, " n_phi"]
+    prior_mean: Float[Array, " n_prior"]
+    prior_w: Float[Array, " n_prior"]
+
+    @property
+    def n_prior(self) -> int:
+        """Number of prior rows at the end of the residual vector (0 or ``n_theta``)."""
+        return int(self.prior_w.shape[0])
 
     def replace(self, **changes) -> KernelData:
         """A copy with some fields replaced."""
@@ -157,7 +169,16 @@ class Kernel(eqx.Module):
         good = (sol.valid & data.mask)[..., None]
         bad = ((~sol.valid) & data.mask)[..., None]
         e = jnp.where(good, err / data.scales, 0.0) + jnp.where(bad, PENALTY, 0.0)
-        return e.reshape(-1)
+        if not data.n_prior:
+            return e.reshape(-1)
+        theta = self.spec.from_z(z[: self.n_theta])
+        return jnp.concatenate([e.reshape(-1), data.prior_w * (theta - data.prior_mean)])
+
+    @staticmethod
+    def split(r, data: KernelData):
+        """``(data rows, prior rows)`` of a residual vector (NumPy or JAX)."""
+        n = r.shape[0] - data.n_prior
+        return r[:n], r[n:]
 
     def jacobian(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, "m n_z"]:
         """Forward-mode Jacobian of :meth:`residuals`."""
@@ -183,8 +204,11 @@ class Kernel(eqx.Module):
 
 
 def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None,
-                phi_scale=None, lo=None, hi=None) -> KernelData:
-    """Build :class:`KernelData` from NumPy arrays (empty extra coordinates by default)."""
+                phi_scale=None, lo=None, hi=None, prior_mean=None, prior_w=None) -> KernelData:
+    """Build :class:`KernelData` from NumPy arrays (empty extra coordinates and no priors by
+    default; priors with all weights zero are dropped, so they cost nothing)."""
+    if prior_w is not None and not np.any(np.asarray(prior_w)):
+        prior_mean = prior_w = None
     f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
     empty = np.zeros((0,))
     return KernelData(
@@ -192,5 +216,6 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
         x0_scale=f(empty if x0_scale is None else x0_scale), scales=f(scales),
         S=f(np.zeros((0, 0)) if S is None else S), phi0=f(empty if phi0 is None else phi0),
         phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
-        hi=f(empty if hi is None else hi),
+        hi=f(empty if hi is None else hi), prior_mean=f(empty if prior_mean is None else prior_mean),
+        prior_w=f(empty if prior_w is None else prior_w),
     )

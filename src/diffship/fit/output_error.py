@@ -22,6 +22,11 @@ Weights (``OutputErrorOptions.weights``):
   covariance ``σ̂²(JᵀJ)⁻¹`` is an honest standard error.
 * ``"spread"``: only the first pass.
 
+Priors (``OutputErrorOptions.priors`` and ``reference_priors``, :mod:`diffship.fit.priors`)
+add one residual row per prior, so the optimum is the MAP estimate and the standard errors are
+posterior ones; by default a model with a reference set (MMG KVLCC2, USV, BlueROV2) carries
+its reference values as loose priors when the fixed particulars are the reference vessel's.
+
 A start whose simulation blows up is never used: all candidate starts are simulated first and
 the best finite one is taken; if every start blows up a :class:`~diffship.errors.FitError`
 says so.
@@ -48,7 +53,9 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from ._lm import result_message
 from .covariance import covariance, relabelled
+from .identifiability import identifiability, per_scale_columns
 from .kernel import PENALTY, Kernel, kernel_data
+from .priors import Priors, default_priors, prior_arrays, prior_table
 from .problem import Batch, make_batch
 from .result import FitResult
 
@@ -71,6 +78,11 @@ class OutputErrorOptions:
             start (the spec's values, then ``starts`` in order) whose simulation stays finite.
         warmup: fraction of every run fitted first (growing horizon) when that is at least
             200 samples; ``0`` fits the whole runs from the start.
+        priors: explicit priors (:class:`~diffship.fit.priors.Priors`), added to (and replacing)
+            the reference ones.
+        reference_priors: use the model's reference set as priors where it applies
+            (:func:`~diffship.fit.priors.default_priors`); ``False`` is ``--no-prior``.
+        prior_rel_sd: relative standard deviation of the reference priors.
     """
 
     estimate_x0: tuple[str, ...] = ()
@@ -83,6 +95,9 @@ class OutputErrorOptions:
     flt: Filter = Filter()
     choose: str = "best"
     warmup: float = 0.25
+    priors: Priors | None = None
+    reference_priors: bool = True
+    prior_rel_sd: float = 0.5
 
     def __post_init__(self):
         object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
@@ -168,9 +183,17 @@ def fit_output_error(
     spread = channel_spread(batch)
     scales = np.asarray([o.channel_scales[c] for c in batch.channels]) if o.channel_scales else spread
     x0_scale = x0_scales(model, batch, o.estimate_x0)
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale)
-    n_x0 = len(kernel.x0_idx) * len(runs)
     messages: list[str] = []
+    priors, prior_note = (default_priors(model, spec, o.prior_rel_sd) if o.reference_priors
+                          else (Priors({}, "none"), "priors from the reference set turned off (--no-prior)"))
+    priors = priors.merged(o.priors)
+    if o.priors is not None and len(o.priors):
+        prior_note += f"; {len(o.priors)} prior(s) from {o.priors.source}"
+    p_mean, p_w = prior_arrays(priors, spec)
+    messages.append(prior_note)
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale,
+                       prior_mean=p_mean, prior_w=p_w)
+    n_x0 = len(kernel.x0_idx) * len(runs)
 
     # -- choose a start that does not blow up ------------------------------------------
     named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
@@ -189,7 +212,7 @@ def fit_output_error(
             continue
         r = np.asarray(res_fn(jnp.asarray(z), data))
         cost = 0.5 * float(np.sum(r * r))
-        if np.any(np.abs(r) >= PENALTY) or not math.isfinite(cost):
+        if np.any(np.abs(kernel.split(r, data)[0]) >= PENALTY) or not math.isfinite(cost):
             messages.append(f"start '{label}' rejected: its simulation blows up")
             continue
         if best is None or cost < best[2]:
@@ -218,7 +241,7 @@ def fit_output_error(
         z, result, steps, r = fn(jnp.asarray(z), d)
         passes.append(result)
         steps_per_pass.append(int(steps))
-        return z, np.asarray(r)
+        return z, np.asarray(kernel.split(np.asarray(r), d)[0])
 
     t0 = time.perf_counter()
     if n_warm:
@@ -230,7 +253,7 @@ def fit_output_error(
         compile_s += c
         t0 += time.perf_counter() - t_c
         zw, rw = run_solve(solve_w, z, data_w)
-        r_full = np.asarray(res_fn(zw, data))
+        r_full = kernel.split(np.asarray(res_fn(zw, data)), data)[0]
         if not np.any(np.abs(r_full) >= PENALTY):
             z = zw
             if noise_pass:
@@ -254,15 +277,24 @@ def fit_output_error(
     # -- covariance from the final Jacobian ----------------------------------------------
     jac_fn, c = kernel.compiled("jacobian", z, data)
     compile_s += c
-    J = np.asarray(jac_fn(z, data))
     z = np.asarray(z)
-    cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1])  # padded samples are not data
+    # Jacobian with respect to θ/scale (not the bounded fit variable z: a parameter drifting
+    # towards a log-mapped bound would otherwise hide the directions the data cannot see)
+    col = per_scale_columns(spec, z, n_p + n_x0)
+    J, J_prior = kernel.split(np.asarray(jac_fn(z, data)) * col, data)
+    cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1], involvement=0.05)  # padded samples are not data
+    if data.n_prior:
+        # posterior: (J_dᵀJ_d/σ̂² + J_pᵀJ_p)⁻¹ — prior rows are unit-variance by construction
+        s2 = cov_all.residual_variance
+        cov_all = dataclasses.replace(
+            covariance(np.vstack([J / math.sqrt(s2), J_prior]), r, variance=1.0, involvement=0.05),
+            residual_variance=s2)
     if not cov_all.full_rank:
         names = [*spec.free_names, *(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)]
         messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
                         + ", ".join(names[i] for i in cov_all.unidentifiable))
-    dth = spec.dtheta_dz(z[:n_p])
-    cov = cov_all.matrix[:n_p, :n_p] * np.outer(dth, dth)
+    scale = np.asarray([spec[n].scale for n in spec.free_names])
+    cov = cov_all.matrix[:n_p, :n_p] * np.outer(scale, scale)
     theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
     values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
     swapped = model.canonical(values)
@@ -271,7 +303,14 @@ def fit_output_error(
         values = swapped
     stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
     x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
+    start_vals = {n: float(v) for n, v in zip(spec.free_names, spec.from_z(jnp.asarray(best[1][:n_p])))}
+    ident = identifiability(J[:, :n_p] / math.sqrt(cov_all.residual_variance), spec, values, cov,
+                            start=start_vals, start_label=label, priors=priors,
+                            reference={p.name: p.value for p in type(model).PARAMS})
+    messages.extend(ident.warnings)
+    prior_info = prior_table(priors, values, stderr, spec.free_names)
     noise = channel_rms(r, batch.mask, scales)
+    prior_rows = np.asarray(kernel.split(np.asarray(kernel.call("residuals", z, data)), data)[1])
     converged = passes[-1] == optx.RESULTS.successful
     status = "converged" if converged else result_message(passes[-1])
     if np.any(np.abs(r) >= PENALTY):
@@ -290,7 +329,7 @@ def fit_output_error(
         converged=bool(converged),
         status=status,
         iterations=iterations,
-        cost=0.5 * float(np.sum(r * r)),
+        cost=0.5 * float(np.sum(r * r)),  # data rows only (the prior part is info["prior_cost"])
         fit_seconds=fit_s,
         compile_seconds=compile_s,
         channels=batch.channels,
@@ -304,5 +343,7 @@ def fit_output_error(
         info={"weights": o.weights, "integrator": o.integrator.describe(), "programs": how,
               "residual_variance": cov_all.residual_variance, "n_residuals": batch.n_residuals,
               "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
-              "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1]},
+              "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1],
+              "priors": prior_info, "prior_source": priors.source, "prior_note": prior_note,
+              "prior_cost": 0.5 * float(np.sum(prior_rows ** 2)), "identifiability": ident.as_json()},
     )

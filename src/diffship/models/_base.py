@@ -138,6 +138,9 @@ class AbstractModel(eqx.Module):
     output_names: ClassVar[tuple[str, ...]] = ()
     angle_outputs: ClassVar[tuple[str, ...]] = ("psi",)
     PARAMS: ClassVar[tuple[Param, ...]] = _DeclaredParams()  # type: ignore[assignment]
+    #: Name of the published or standard parameter set the defaults are ("" for none); where
+    #: set, fits use the defaults as loose priors on the reference vessel (diffship.fit.priors).
+    REFERENCE: ClassVar[str] = ""
 
     # equation-error form (module docstring); empty EQUATIONS: none
     EQUATIONS: ClassVar[tuple[str, ...]] = ()

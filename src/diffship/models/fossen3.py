@@ -78,6 +78,8 @@ class Fossen3(AbstractShip3):
     """
 
     name: ClassVar[str] = "fossen3"
+    #: The published/standard parameter set the defaults are (priors: :mod:`diffship.fit.priors`).
+    REFERENCE: ClassVar[str] = "the seed-002 high-speed USV standard model (Odin, FFI)"
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "N")
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("u", "v", "r")
 

@@ -116,6 +116,8 @@ class Fossen6(AbstractModel):
     """Fossen 6-DOF underwater vehicle (module docstring); defaults: BlueROV2 Heavy."""
 
     name: ClassVar[str] = "fossen6"
+    #: The published/standard parameter set the defaults are (priors: :mod:`diffship.fit.priors`).
+    REFERENCE: ClassVar[str] = "BlueROV2 Heavy (Wu 2018; von Benzon et al. 2022)"
     state_names: ClassVar[tuple[str, ...]] = ("x0", "y0", "z0", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r")
     output_names: ClassVar[tuple[str, ...]] = state_names
     angle_outputs: ClassVar[tuple[str, ...]] = ("phi", "theta", "psi")

@@ -134,6 +134,8 @@ class MMG(AbstractShip3):
     """
 
     name: ClassVar[str] = "mmg"
+    #: The published/standard parameter set the defaults are (priors: :mod:`diffship.fit.priors`).
+    REFERENCE: ClassVar[str] = "KVLCC2 L7 model, Yasukawa & Yoshimura 2015"
     R0: jnp.ndarray = _p("R0", _ND, "straight-ahead resistance coefficient R'_0", lower=0.0)
     Xvv: jnp.ndarray = _p("Xvv", _ND, "surge force derivative X'_vv")
     Xvr: jnp.ndarray = _p("Xvr", _ND, "surge force derivative X'_vr")

@@ -1,0 +1,76 @@
+"""Priors (MAP output error) and the identifiability report on every fit."""
+
+import math
+
+import pytest
+
+from diffship.errors import ModelError
+from diffship.fit import OutputErrorOptions, fit_output_error
+from diffship.fit.identifiability import direction_text
+from diffship.fit.priors import Prior, Priors, default_priors, load_priors, parse_priors
+from diffship.models import Fossen3, Nomoto1
+from diffship.synthetic import usv_runs, usv_truth
+
+TV = usv_truth().param_values()
+X0 = ("psi", "u", "v", "r")
+
+
+@pytest.fixture(scope="module")
+def usv_clean():
+    return usv_runs(3, 60.0, 0.1, noise="none", seed=1)
+
+
+def test_parse_priors_forms_and_errors(tmp_path):
+    p = parse_priors(["Nrrr=-0.05±0.02", "Yv=-300+-10%", "K=1.5+/-0.5"])
+    assert p.by_name["Nrrr"] == Prior(-0.05, 0.02, "command line")
+    assert p.by_name["Yv"].sd == pytest.approx(30.0)
+    assert p.by_name["K"].mean == 1.5
+    with pytest.raises(ModelError, match="NAME=MEAN±SD"):
+        parse_priors(["Yv=-300"])
+    with pytest.raises(ModelError, match="positive"):
+        parse_priors(["Yv=-300±0"])
+    f = tmp_path / "p.json"
+    f.write_text('{"Yv": {"mean": -300, "sd": 20}, "Nr": [-1800, 100]}')
+    assert load_priors(f).by_name["Nr"] == Prior(-1800.0, 100.0, "file p.json")
+    with pytest.raises(ModelError, match="unknown parameter"):
+        p.check(Fossen3().spec())
+
+
+def test_reference_priors_only_on_the_reference_vessel():
+    m = Fossen3()
+    pri, why = default_priors(m, m.spec())
+    assert len(pri) == len(m.spec().free_names) and "on by default" in why
+    other = m.spec().fix({"m": 2 * m.m})  # another vessel: its coefficients are no prior
+    pri, why = default_priors(m, other)
+    assert len(pri) == 0 and "m" in why and "differ" in why
+    assert len(default_priors(Nomoto1(), Nomoto1().spec())[0]) == 0  # no reference set
+
+
+def test_unidentifiable_direction_is_named_and_a_prior_pins_it(usv_clean):
+    # m, Xu̇ and Yv̇ enter the 3-DOF equations only as m − Xu̇ and m − Yv̇: the direction
+    # (1, 1, 1) in (m, Xu̇, Yv̇) is invisible in any data.
+    spec = Fossen3().spec().free(["m"])
+    opts = OutputErrorOptions(estimate_x0=X0, reference_priors=False)
+    res = fit_output_error(Fossen3(), usv_clean, spec=spec, options=opts)
+    ident = res.info["identifiability"]
+    weak = ident["weak_directions"]
+    assert weak, ident
+    names = set(weak[0]["direction"])
+    assert names == {"m", "Xudot", "Yvdot"}, weak[0]["text"]
+    assert any("poorly identified direction" in m for m in res.messages)
+    assert not math.isfinite(res.stderr["m"])
+
+    # on noisy data, a 1 % prior on the mass settles it: finite errors, the added masses
+    # recovered within their (posterior) errors, and the data add nothing to the mass
+    pri = Priors({"m": Prior(TV["m"], 0.01 * TV["m"])}, "test")
+    noisy = usv_runs(3, 60.0, 0.1, noise="realistic", seed=2)
+    res2 = fit_output_error(Fossen3(), noisy, spec=spec,
+                            options=OutputErrorOptions(estimate_x0=X0, reference_priors=False, priors=pri))
+    assert all(math.isfinite(res2.stderr[n]) for n in res2.free), res2.stderr
+    assert res2.info["priors"]["m"]["data_share"] < 0.05
+    for n in ("Xudot", "Yvdot"):
+        assert abs(res2.params[n] - TV[n]) < 3 * res2.stderr[n], (n, res2.params[n], res2.stderr[n])
+
+
+def test_direction_text():
+    assert direction_text({"a": 0.7, "b": -0.71}) == "−0.71·b + 0.70·a"
