@@ -188,6 +188,10 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "train": _metrics(train.get(m)),
             "validation": _metrics(validation.get(m)),
             "messages": list(r.messages),
+            "prior_note": r.info.get("prior_note"),
+            "priors": r.info.get("priors"),
+            "identifiability": r.info.get("identifiability"),
+            "admissibility": r.info.get("admissibility"),
         }
     doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}
     if extra:

@@ -8,6 +8,7 @@ line ``error: ...`` on stderr with exit status 2 and no traceback.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -20,8 +21,10 @@ from ..models import MODELS, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
 from ..report import plot_fit, text_report, to_json_dict, write_json
+from ..admissibility import admissibility
 from .both import fit_both
 from .output_error import OutputErrorOptions
+from .priors import format_priors, load_priors, parse_priors
 
 __all__ = ["main", "build_parser"]
 
@@ -59,7 +62,55 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")
     p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    _add_prior_arguments(p)
     return p
+
+
+def _add_prior_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("priors and admissibility (predictive identification)")
+    g.add_argument("--prior", nargs="*", default=[], metavar="NAME=MEAN±SD",
+                   help="Gaussian prior on a parameter (MAP fit); also NAME=MEAN+-SD or SD in %% of MEAN")
+    g.add_argument("--prior-file", default=None, metavar="FILE",
+                   help='priors from JSON {"NAME": {"mean": M, "sd": S}} (or a saved fit file\'s priors)')
+    g.add_argument("--no-prior", action="store_true",
+                   help="no priors from the model's reference set (on by default for mmg/KVLCC2, fossen3/USV, "
+                        "fossen6/BlueROV2 when the fixed particulars are the reference vessel's)")
+    g.add_argument("--prior-sd", type=float, default=0.5, metavar="REL",
+                   help="relative standard deviation of the reference-set priors (default 0.5)")
+    g.add_argument("--admissibility", default="auto", choices=("auto", "off"),
+                   help="after the fit, simulate standard manoeuvres (35° turns, 10/10 and 20/20 zigzags, pull-out) "
+                        "and check damping over a wide envelope (auto: for models with a rudder input)")
+
+
+def _prior_options(args) -> dict:
+    priors = parse_priors(args.prior)
+    if args.prior_file:
+        priors = load_priors(args.prior_file).merged(priors)
+    return {"priors": priors if len(priors) else None, "reference_priors": not args.no_prior,
+            "prior_rel_sd": args.prior_sd}
+
+
+def _admissibility(args, result, train, say):
+    """Admissibility of an output-error fit of a ship model, from the training runs' approach
+    state, constant inputs and helm rate; ``None`` when it does not apply."""
+    model = result.model
+    if args.admissibility == "off" or "delta" not in model.input_names or "u" not in model.state_names:
+        return None
+    run = train[0]
+    if "u" not in run.channels:
+        return None
+    n0 = max(1, int(round(2.0 / run.dt)))
+    inputs = {n: float(run[n][:n0].mean()) for n in model.input_names if n != "delta" and n in run.channels}
+    if len(inputs) != len(model.input_names) - 1:
+        return None
+    rates = [float(abs((r["delta"][1:] - r["delta"][:-1]) / r.dt).max()) for r in train if "delta" in r.channels]
+    rate = max(rates) if rates else 0.0
+    helm = math.degrees(rate) if rate > 0 else 2.32
+    say(f"admissibility: simulating 35° turns, zigzags and a pull-out at u = {float(run['u'][:n0].mean()):.3g} m/s, "
+        f"helm {helm:.3g}°/s...")
+    ref = type(model)() if getattr(type(model), "REFERENCE", "") else None
+    return admissibility(model, initial={"u": float(run["u"][:n0].mean())}, inputs=inputs, training=train,
+                         reference=ref, free=result.free, helm_rate_deg_s=helm)
 
 
 def _progress(quiet: bool):
@@ -133,7 +184,8 @@ def _fit(args, say) -> int:
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
                        estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
-                       options=OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights),
+                       options=OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights,
+                                                  **_prior_options(args)),
                        progress=say)
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = {}, {}
@@ -143,6 +195,13 @@ def _fit(args, say) -> int:
         if val:
             ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
     report = text_report(model.name, results, ev_train, ev_val, train, val)
+    oe = results.get("output_error")
+    adm = _admissibility(args, oe, train, say) if oe is not None else None
+    if oe is not None:
+        report += "\n\n" + format_priors(oe)
+        if adm is not None:
+            report += "\n\n" + adm.summary()
+            oe.info["admissibility"] = adm.as_json()
     print(report)
     if args.out:
         out = Path(args.out)

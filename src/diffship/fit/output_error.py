@@ -59,7 +59,7 @@ from .priors import Priors, default_priors, prior_arrays, prior_table
 from .problem import Batch, make_batch
 from .result import FitResult
 
-__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms", "x0_scales"]
+__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms", "correlation_time", "x0_scales"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,6 +83,9 @@ class OutputErrorOptions:
         reference_priors: use the model's reference set as priors where it applies
             (:func:`~diffship.fit.priors.default_priors`); ``False`` is ``--no-prior``.
         prior_rel_sd: relative standard deviation of the reference priors.
+        effective_samples: with priors, weight each channel's data by its effective sample size
+            (:func:`correlation_time`): autocorrelated residuals carry less information than
+            their count says, and must not outvote a prior. No effect without priors.
     """
 
     estimate_x0: tuple[str, ...] = ()
@@ -98,6 +101,7 @@ class OutputErrorOptions:
     priors: Priors | None = None
     reference_priors: bool = True
     prior_rel_sd: float = 0.5
+    effective_samples: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
@@ -121,6 +125,34 @@ def channel_rms(r: np.ndarray, mask: np.ndarray, scales: np.ndarray) -> np.ndarr
     e = np.asarray(r).reshape(mask.shape + (len(scales),))
     return np.asarray([max(float(np.sqrt(np.mean((e[..., j][mask] * s) ** 2))), 1e-12)
                        for j, s in enumerate(scales)])
+
+
+def correlation_time(r: np.ndarray, mask: np.ndarray, n_channels: int, max_lag: int = 400) -> np.ndarray:
+    r"""Integrated autocorrelation time (in samples) of each channel's residuals, pooled over runs.
+
+    :math:`\tau_c = 1 + 2\sum_{k\ge1}\rho_c(k)`, summed up to the first lag where the pooled
+    autocorrelation falls below zero (the initial positive sequence), at most ``max_lag`` or a
+    quarter of the shortest run. ``N/τ`` is the effective number of independent samples: white
+    residuals give τ ≈ 1; residuals dominated by a slowly varying model error give τ ≫ 1.
+    """
+    e = np.asarray(r).reshape(mask.shape + (n_channels,))
+    n_min = int(np.min(np.sum(mask, axis=1)))
+    K = max(1, min(max_lag, n_min // 4))
+    out = []
+    for c in range(n_channels):
+        num = np.zeros(K + 1)
+        den = 0.0
+        for i in range(e.shape[0]):
+            x = e[i, mask[i], c]
+            x = x - x.mean()
+            den += float(x @ x)
+            for k in range(1, K + 1):
+                num[k] += float(x[:-k] @ x[k:])
+        rho = num[1:] / den if den > 0 else np.zeros(K)
+        neg = np.flatnonzero(rho < 0)
+        rho = rho[: neg[0]] if neg.size else rho
+        out.append(max(1.0, 1.0 + 2.0 * float(np.sum(rho))))
+    return np.asarray(out)
 
 
 def x0_scales(model: AbstractModel, batch: Batch, states: Sequence[str]) -> np.ndarray:
@@ -243,6 +275,7 @@ def fit_output_error(
         steps_per_pass.append(int(steps))
         return z, np.asarray(kernel.split(np.asarray(r), d)[0])
 
+    taus: list[np.ndarray] = []
     t0 = time.perf_counter()
     if n_warm:
         # Growing horizon: converge on the first part of every run (cheap steps, and a short
@@ -270,6 +303,12 @@ def fit_output_error(
         scales = np.maximum(channel_rms(r, batch.mask, scales), 1e-6 * spread)
         data = data.replace(scales=jnp.asarray(scales))
         z, r = run_solve(solve_fn, z, data)
+    if data.n_prior and o.effective_samples and o.weights == "noise" and not o.channel_scales:
+        # data weight of an effective sample size N/τ_c (τ from the noise-weighted residuals)
+        taus.append(correlation_time(r, batch.mask, len(batch.channels)))
+        scales = scales * np.sqrt(taus[-1])
+        data = data.replace(scales=jnp.asarray(scales))
+        z, r = run_solve(solve_fn, z, data)
     jax.block_until_ready(z)
     fit_s = time.perf_counter() - t0
     iterations = sum(steps_per_pass)
@@ -285,7 +324,8 @@ def fit_output_error(
     cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1], involvement=0.05)  # padded samples are not data
     if data.n_prior:
         # posterior: (J_dᵀJ_d/σ̂² + J_pᵀJ_p)⁻¹ — prior rows are unit-variance by construction
-        s2 = cov_all.residual_variance
+        # (with effective-sample weighting the scales already are σ_c·√τ_c: σ̂² = 1)
+        s2 = 1.0 if taus else cov_all.residual_variance
         cov_all = dataclasses.replace(
             covariance(np.vstack([J / math.sqrt(s2), J_prior]), r, variance=1.0, involvement=0.05),
             residual_variance=s2)
@@ -304,7 +344,8 @@ def fit_output_error(
     stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
     x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
     start_vals = {n: float(v) for n, v in zip(spec.free_names, spec.from_z(jnp.asarray(best[1][:n_p])))}
-    ident = identifiability(J[:, :n_p] / math.sqrt(cov_all.residual_variance), spec, values, cov,
+    s2_data = 1.0 if taus else cov_all.residual_variance
+    ident = identifiability(J[:, :n_p] / math.sqrt(s2_data), spec, values, cov,
                             start=start_vals, start_label=label, priors=priors,
                             reference={p.name: p.value for p in type(model).PARAMS})
     messages.extend(ident.warnings)
@@ -345,5 +386,6 @@ def fit_output_error(
               "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
               "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1],
               "priors": prior_info, "prior_source": priors.source, "prior_note": prior_note,
-              "prior_cost": 0.5 * float(np.sum(prior_rows ** 2)), "identifiability": ident.as_json()},
+              "prior_cost": 0.5 * float(np.sum(prior_rows ** 2)),
+              "correlation_time": ({c: float(t) for c, t in zip(batch.channels, taus[-1])} if taus else None), "identifiability": ident.as_json()},
     )

@@ -44,7 +44,7 @@ from ..models import AbstractModel
 from ..params import ParamSpec
 
 __all__ = ["Prior", "Priors", "parse_priors", "load_priors", "reference_priors", "default_priors",
-           "prior_arrays", "prior_table"]
+           "prior_arrays", "prior_table", "format_priors"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -202,3 +202,26 @@ def prior_table(priors: Priors, params: Mapping[str, float], stderr: Mapping[str
                   "data_share": 1.0 - ratio if math.isfinite(ratio) else math.nan,
                   "z_from_prior": (float(params[n]) - p.mean) / p.sd}
     return out
+
+
+def format_priors(result) -> str:
+    """Text block for a fit's report: where the priors came from, and per parameter prior,
+    posterior and the share of its information that came from the data; then the
+    identifiability findings."""
+    info = result.info
+    lines = [f"priors: {info.get('prior_note', 'none')}"]
+    table = info.get("priors") or {}
+    if table:
+        lines.append(f"  {'parameter':>10s} {'prior':>22s} {'posterior':>22s} {'from data':>9s}")
+        for n, t in table.items():
+            share = t["data_share"]
+            sh = f"{100 * share:7.1f} %" if math.isfinite(share) else "      n/a"
+            lines.append(f"  {n:>10s} {t['mean']:>11.4g} ± {t['sd']:<8.3g} {t['posterior']:>11.4g} ± "
+                         f"{t['posterior_sd']:<8.3g} {sh}")
+    ident = info.get("identifiability") or {}
+    warn = ident.get("warnings") or []
+    cond = ident.get("condition")
+    lines.append(f"identifiability: condition number {cond if isinstance(cond, str) else f'{cond:.3g}'}"
+                 + (", no warnings" if not warn else f", {len(warn)} warning(s):"))
+    lines.extend(f"  ! {w}" for w in warn)
+    return "\n".join(lines)
