@@ -177,6 +177,11 @@ class VMM(AbstractShip3):
     X_TERMS: ClassVar[tuple[str, ...]] = ()
     Y_TERMS: ClassVar[tuple[str, ...]] = ()
     N_TERMS: ClassVar[tuple[str, ...]] = ()
+    PARTICULARS: ClassVar[dict[str, str]] = {
+        "m": "mass", "Iz": "Izz_origin", "xG": "xG", "L": "length", "rho": "rho", "U0": "approach_speed",
+        "XT": "one_minus_t", "Xudot": "Xudot_prime", "Yvdot": "Yvdot_prime", "Yrdot": "Yrdot_prime",
+        "Nvdot": "Nvdot_prime", "Nrdot": "Nrdot_prime"}
+    REFERENCE_VESSEL: ClassVar[str | None] = "mariner"
 
     m: jnp.ndarray = param(M_REF, free=False, lower=0.0, scale=M_REF, unit="kg", description="mass")
     Iz: jnp.ndarray = param(IZ_REF, free=False, lower=0.0, scale=IZ_REF, unit="kg m2", description="yaw inertia about CO")
