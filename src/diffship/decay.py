@@ -48,7 +48,7 @@ from .fit.covariance import covariance
 from .models.decay import Decay1, Decay2
 
 __all__ = ["FirstOrderDecay", "SecondOrderDecay", "fit_first_order_decay", "fit_second_order_decay",
-           "Decay1", "Decay2", "decay_run"]
+           "Decay1", "Decay2", "decay_run", "curve_fit_runs", "curve_fit_text", "plot_curve_fits"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,6 +82,9 @@ class SecondOrderDecay:
     omega_n_stderr: float
     method: str
     rmse: float
+    damping_from_inertia_stderr: float = float("nan")  # delta method, I taken as exact
+    damping_from_stiffness_stderr: float = float("nan")  # delta method, k taken as exact
+    implied_inertia_stderr: float = float("nan")  # delta method, k taken as exact
 
     @property
     def period(self) -> float:
@@ -179,6 +182,19 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
     gw = np.array([a / wn, wd / wn])
     pred = _osc(t, *popt)
     nan = float("nan")
+    # physical parameters by the delta method on (a, ω_d): b = 2aI; b = 2ak/ω_n²; I = k/ω_n² (ω_n² = a² + ω_d²)
+    wn4 = wn**4
+
+    def se(g):
+        return float(math.sqrt(max(g @ cov2 @ g, 0.0)))
+
+    phys = {}
+    if inertia is not None:
+        phys["damping_from_inertia_stderr"] = se(np.array([2 * inertia, 0.0]))
+    if stiffness is not None:
+        phys["damping_from_stiffness_stderr"] = se(np.array([2 * stiffness * (wd * wd - a * a) / wn4,
+                                                             -4 * a * stiffness * wd / wn4]))
+        phys["implied_inertia_stderr"] = se(np.array([-2 * stiffness * a / wn4, -2 * stiffness * wd / wn4]))
     return SecondOrderDecay(
         amplitude=A, zeta=zeta, omega_n=wn, omega_d=wd, phase=ph, offset=c,
         damping_from_inertia=2 * zeta * wn * inertia if inertia is not None else nan,
@@ -186,8 +202,65 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
         implied_inertia=stiffness / wn**2 if stiffness is not None else nan,
         zeta_stderr=float(math.sqrt(max(gz @ cov2 @ gz, 0.0))),
         omega_n_stderr=float(math.sqrt(max(gw @ cov2 @ gw, 0.0))),
-        method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))),
+        method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))), **phys,
     )
+
+
+def curve_fit_runs(model: Decay1 | Decay2, runs) -> list[FirstOrderDecay | SecondOrderDecay]:
+    """The direct curve fit of every run (channel ``velocity`` for ``decay1``, ``angle`` for ``decay2``),
+    with the model's fixed ``m`` (or ``I`` and ``k``) turning rates into damping."""
+    out = []
+    for r in runs:
+        if isinstance(model, Decay1):
+            r.require("velocity", "a first-order decay curve fit")
+            out.append(fit_first_order_decay(r.time, r["velocity"], float(model.m)))
+        else:
+            r.require("angle", "a second-order decay curve fit")
+            out.append(fit_second_order_decay(r.time, r["angle"], inertia=float(model.I), stiffness=float(model.k)))
+    return out
+
+
+def curve_fit_text(model: Decay1 | Decay2, runs, fits) -> str:
+    """A short report of :func:`curve_fit_runs`: physical parameters ± standard errors per run."""
+    lines = [(f"direct decay curve fits (model {model.name}; standard errors by the delta method, the fixed "
+              "inertia/stiffness taken as exact):")]
+    for r, f in zip(runs, fits):
+        if isinstance(f, FirstOrderDecay):
+            lines.append(f"  {r.name}: rate {f.rate:.5g} ± {f.rate_stderr:.2g} 1/s, time constant {f.time_constant:.4g} s, "
+                         f"D = rate·m = {f.damping:.5g} ± {f.damping_stderr:.2g} (m = {float(model.m):.5g}), "
+                         f"rmse {f.rmse:.3g}")
+        else:
+            lines.append(f"  {r.name}: zeta {f.zeta:.4g} ± {f.zeta_stderr:.2g}, omega_n {f.omega_n:.5g} ± "
+                         f"{f.omega_n_stderr:.2g} rad/s, period {f.period:.4g} s, rmse {f.rmse:.3g} rad")
+            lines.append(f"      b = 2ζω_n·I = {f.damping_from_inertia:.5g} ± {f.damping_from_inertia_stderr:.2g} "
+                         f"(I = {float(model.I):.5g}); b = 2ζk/ω_n = {f.damping_from_stiffness:.5g} ± "
+                         f"{f.damping_from_stiffness_stderr:.2g}, inertia implied by k and the period k/ω_n² = "
+                         f"{f.implied_inertia:.5g} ± {f.implied_inertia_stderr:.2g} (k = {float(model.k):.5g})")
+    return "\n".join(lines)
+
+
+def plot_curve_fits(model: Decay1 | Decay2, runs, fits, path) -> None:
+    """Measured decay and fitted curve, one panel per run (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(runs), 1, figsize=(7, 2.4 * len(runs)), squeeze=False)
+    for ax, r, f in zip(axes[:, 0], runs, fits):
+        t = np.asarray(r.time) - r.t0
+        if isinstance(f, FirstOrderDecay):
+            y, fit, lab = r["velocity"], f.x0 * np.exp(-f.rate * t), "velocity [SI]"
+        else:
+            y, fit, lab = r["angle"], _osc(t, f.amplitude, f.zeta * f.omega_n, f.omega_d, f.phase, f.offset), "angle [rad]"
+        ax.plot(t, y, ".", ms=2, label=f"{r.name} measured")
+        ax.plot(t, fit, lw=1.2, label="curve fit")
+        ax.set_ylabel(lab, fontsize=8)
+        ax.legend(fontsize=7)
+    axes[-1, 0].set_xlabel("time from the first sample [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def decay_run(model: Decay1 | Decay2, duration: float, dt: float, x0, *, noise: float = 0.0, seed: int = 0,

@@ -55,8 +55,8 @@ from .errors import ModelError
 from .models import AbstractModel
 from .params import ParamSpec
 
-__all__ = ["Vessel", "Propeller", "Rudder", "QUANTITIES", "load_vessel", "bundled_vessels", "Particulars",
-           "particulars", "require_particulars", "plausibility", "data_speed", "fixed_values_text"]
+__all__ = ["QUANTITIES", "Particulars", "Propeller", "Rudder", "Vessel", "bundled_vessels", "data_speed",
+           "fixed_values_text", "load_vessel", "particulars", "plausibility", "require_particulars"]
 
 _DIR = Path(__file__).parent / "vessels"
 G = 9.81
@@ -286,7 +286,7 @@ class Vessel:
         return izg + m * (self.cg[0] ** 2 + yg * yg), how + " + m(xG² + yG²)"
 
     def _q_kzz_L(self):
-        izg, how = self._inertia_cg(2)
+        izg, _ = self._inertia_cg(2)
         m, _ = self._q_mass()
         if izg is None or m is None or self.length is None:
             return None, "needs the yaw inertia, mass and length"

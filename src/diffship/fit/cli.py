@@ -8,6 +8,7 @@ line ``error: ...`` on stderr with exit status 2 and no traceback.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -20,6 +21,7 @@ from ..models import MODELS, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
 from ..report import plot_fit, text_report, to_json_dict, write_json
+from ..vessel import bundled_vessels, fixed_values_text, load_vessel, plausibility, require_particulars
 from .both import fit_both
 from .output_error import OutputErrorOptions
 
@@ -36,7 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
     p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
                    help=f"one of: {', '.join(MODELS)} (default nomoto2)")
-    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"))
+    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both", "curve-fit"),
+                   help="curve-fit: the direct free-decay curve fits (decay1, decay2 only)")
     p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
     p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
     p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
@@ -59,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")
     p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    _add_vessel_arguments(p)
     return p
 
 
@@ -117,6 +121,7 @@ def _fit(args, say) -> int:
     model = get_model(args.model)
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
+    model, vessel, sources = _with_vessel(args, model, fix, say)
     flt = Filter.parse(args.filter)
     spec = model.spec()
     for n in list(fix) + list(init):
@@ -129,6 +134,9 @@ def _fit(args, say) -> int:
         train, val = _example(args.model, say)
         if args.validate:
             val = _load(args, args.validate)
+    _vessel_checks(args, model, vessel, train + val, say)
+    if args.method == "curve-fit":
+        return _decay_curve_fits(args, model.with_params(spec.values()), train, say)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
@@ -142,7 +150,7 @@ def _fit(args, say) -> int:
         ev_train[m] = evaluate(r.model, train, x0, flt=flt, integrator=r.integrator)
         if val:
             ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
-    report = text_report(model.name, results, ev_train, ev_val, train, val)
+    report = text_report(model.name, results, ev_train, ev_val, train, val) + "\n\n" + fixed_values_text(spec, sources)
     print(report)
     if args.out:
         out = Path(args.out)
@@ -157,4 +165,67 @@ def _fit(args, say) -> int:
     if not any(r.converged for r in results.values()):
         print("error: no fit converged (see the statuses above)", file=sys.stderr)
         return 1
+    return 0
+
+
+# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, plausibility, fixed values, decay curve fits --
+def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vessel", default=None, metavar="FILE|NAME",
+                   help="vessel particulars: a JSON file or a bundled vessel (" + ", ".join(bundled_vessels()) + "); "
+                        "models that need particulars (mass, inertia, dimensions, ...) stop without one")
+    p.add_argument("--rigid-body-cg", action="store_true",
+                   help="fossen6: use the CG offset in the rigid-body inertia and Coriolis terms (full M_RB(r_g))")
+
+
+def _with_vessel(args, model, fix, say):
+    """The model with its particulars from ``--vessel`` (or stop naming the missing ones)."""
+    if args.rigid_body_cg:
+        if not hasattr(model, "rigid_body_cg"):
+            raise DiffshipError(f"--rigid-body-cg: model {model.name} has no rigid-body reference option (fossen6 has)")
+        model = dataclasses.replace(model, rigid_body_cg=True)
+    name = args.vessel
+    if name is None and not args.runs and model.REFERENCE_VESSEL and model.name == "fossen3":
+        name = model.REFERENCE_VESSEL  # the bundled fossen3 example is the seed-002 USV
+        say(f"bundled example: vessel {name} (the vessel that generated the example runs)")
+    vessel = load_vessel(name) if name else None
+    model, parts = require_particulars(model, vessel, fixed=fix, freed=args.free)
+    sources = dict(parts.sources)
+    if args.rigid_body_cg:
+        sources["rigid_body_cg"] = "--rigid-body-cg"
+    if vessel is not None:
+        say(f"vessel {vessel.name}: {vessel.description or vessel.source}")
+    return model, vessel, sources
+
+
+def _vessel_checks(args, model, vessel, runs, say) -> None:
+    """Plausibility warnings before any compute (always printed), and inputs taken as constants."""
+    for n, v in model.INPUT_DEFAULTS.items():
+        lacking = [r.name for r in runs if not r.has(n)]
+        if lacking:
+            say(f"input {n} absent from {', '.join(lacking)}: taken as {v:g} (model {model.name}: free decay)")
+    warnings = plausibility(vessel, runs, model) if vessel is not None else []
+    if vessel is None and hasattr(model, "convention_warnings"):
+        from ..vessel import data_speed
+
+        speeds = [s for s in (data_speed(r) for r in runs) if s is not None]
+        warnings = [f"warning: {w}" for w in model.convention_warnings(min(speeds), max(speeds))] if speeds else []
+    for w in warnings:
+        if w.startswith("warning") or not args.quiet:
+            print(w, file=sys.stderr, flush=True)
+
+
+def _decay_curve_fits(args, model, runs, say) -> int:
+    from ..decay import Decay1, Decay2, curve_fit_runs, curve_fit_text, plot_curve_fits
+
+    if not isinstance(model, (Decay1, Decay2)):
+        raise DiffshipError(f"--method curve-fit is the direct free-decay fit: use --model decay1 or decay2, not {model.name}")
+    fits = curve_fit_runs(model, runs)
+    text = curve_fit_text(model, runs, fits)
+    print(text)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.txt").write_text(text + "\n")
+        plot_curve_fits(model, runs, fits, out / "decay.png")
+        say(f"wrote {out / 'report.txt'} and {out / 'decay.png'}")
     return 0
