@@ -52,11 +52,12 @@ from typing import Any
 import numpy as np
 
 from .errors import ModelError
-from .models import AbstractModel
+from .models import AbstractModel, OpenWaterPropeller
 from .params import ParamSpec
 
 __all__ = ["QUANTITIES", "Particulars", "Propeller", "Rudder", "Vessel", "bundled_vessels", "data_speed",
-           "fixed_values_text", "load_vessel", "particulars", "plausibility", "require_particulars"]
+           "fixed_values_text", "load_vessel", "particulars", "plausibility", "propeller_map", "require_particulars",
+           "speed_range"]
 
 _DIR = Path(__file__).parent / "vessels"
 G = 9.81
@@ -462,15 +463,39 @@ def load_vessel(name_or_path: str | os.PathLike) -> Vessel:
 
 
 # -- plausibility --------------------------------------------------------------------------------
-def data_speed(run) -> float | None:
-    """Median speed over ground of a run [m/s]: from ``u``, ``v`` when measured, else from ``x0``, ``y0``."""
+def _speeds(run) -> np.ndarray | None:
     if run.has("u"):
-        v = np.asarray(run["v"]) if run.has("v") else 0.0
-        return float(np.median(np.hypot(np.asarray(run["u"]), v)))
+        return np.hypot(np.asarray(run["u"]), np.asarray(run["v"]) if run.has("v") else 0.0)
     if run.has("x0", "y0"):
         t = np.asarray(run.time)
-        return float(np.median(np.hypot(np.gradient(np.asarray(run["x0"]), t), np.gradient(np.asarray(run["y0"]), t))))
+        return np.hypot(np.gradient(np.asarray(run["x0"]), t), np.gradient(np.asarray(run["y0"]), t))
     return None
+
+
+def data_speed(run) -> float | None:
+    """Median speed of a run [m/s]: from ``u``, ``v`` when measured, else over ground from ``x0``, ``y0``."""
+    s = _speeds(run)
+    return float(np.median(s)) if s is not None else None
+
+
+def speed_range(runs) -> tuple[float, float] | None:
+    """5th and 95th percentiles of the speed over all samples of ``runs`` [m/s] (``None`` without speeds)."""
+    s = [a for a in (_speeds(r) for r in runs) if a is not None]
+    if not s:
+        return None
+    lo, hi = np.percentile(np.concatenate(s), [5.0, 95.0])
+    return float(lo), float(hi)
+
+
+def propeller_map(vessel: Vessel) -> OpenWaterPropeller:
+    """The open-water propeller map (thrust from propeller speed ``n``) of a vessel's propeller data."""
+    p = vessel.propeller
+    need = {"propeller.diameter": p and p.diameter, "propeller.kt": p and p.kt, "rho": vessel.rho}
+    missing = [k for k, v in need.items() if v is None]
+    if missing:
+        raise ModelError(f"vessel {vessel.name}: thrust from propeller speed needs {', '.join(missing)}")
+    return OpenWaterPropeller(diameter=p.diameter, kt=tuple(p.kt), wake_fraction=p.wake_fraction or 0.0,
+                              thrust_deduction=p.thrust_deduction or 0.0, rho=vessel.rho, count=p.count)
 
 
 def plausibility(vessel: Vessel, runs: Sequence = (), model: AbstractModel | None = None) -> list[str]:
@@ -501,9 +526,9 @@ def plausibility(vessel: Vessel, runs: Sequence = (), model: AbstractModel | Non
             out.append(f"warning: scale 1:{vessel.scale:.4g} but full-scale length / length = {implied:.4g}")
         else:
             out.append(f"note: model at scale 1:{vessel.scale:.4g} (full-scale L {vessel.full_scale_length:.4g} m)")
-    if model is not None and U is not None and hasattr(model, "convention_warnings"):
-        lo, hi = (float(min(speeds)), float(max(speeds)))
-        out += [f"warning: {w}" for w in model.convention_warnings(lo, hi)]
+    rng = speed_range(runs)
+    if model is not None and rng is not None and hasattr(model, "convention_warnings"):
+        out += [f"warning: {w}" for w in model.convention_warnings(*rng)]
     return out
 
 

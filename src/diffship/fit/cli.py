@@ -17,11 +17,19 @@ from ..data import example_runs, load_runs
 from ..errors import DiffshipError
 from ..integrators import INTEGRATORS, get_integrator
 from ..metrics import evaluate
-from ..models import MODELS, get_model
+from ..models import MODELS, ConstantThrust, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
 from ..report import plot_fit, text_report, to_json_dict, write_json
-from ..vessel import bundled_vessels, fixed_values_text, load_vessel, plausibility, require_particulars
+from ..vessel import (
+    bundled_vessels,
+    fixed_values_text,
+    load_vessel,
+    plausibility,
+    propeller_map,
+    require_particulars,
+    speed_range,
+)
 from .both import fit_both
 from .output_error import OutputErrorOptions
 
@@ -175,6 +183,9 @@ def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
                         "models that need particulars (mass, inertia, dimensions, ...) stop without one")
     p.add_argument("--rigid-body-cg", action="store_true",
                    help="fossen6: use the CG offset in the rigid-body inertia and Coriolis terms (full M_RB(r_g))")
+    p.add_argument("--propulsion", default="thrust", metavar="thrust|propeller|constant:N",
+                   help="vmm_*: thrust from the measured 'thrust' column [N] (default), from the propeller speed column "
+                        "'n' [1/s] through the vessel's open-water curve (propeller), or a constant [N]")
 
 
 def _with_vessel(args, model, fix, say):
@@ -190,6 +201,23 @@ def _with_vessel(args, model, fix, say):
     vessel = load_vessel(name) if name else None
     model, parts = require_particulars(model, vessel, fixed=fix, freed=args.free)
     sources = dict(parts.sources)
+    if args.propulsion != "thrust":
+        if not hasattr(model, "propulsion"):
+            raise DiffshipError(f"--propulsion: model {model.name} takes no thrust input (the vmm_* models do)")
+        kind, _, value = args.propulsion.partition(":")
+        if kind == "propeller":
+            if vessel is None:
+                raise DiffshipError("--propulsion propeller needs --vessel with propeller data (diameter, kt, wake_fraction)")
+            prop = propeller_map(vessel)
+        elif kind == "constant":
+            try:
+                prop = ConstantThrust(float(value))
+            except ValueError:
+                raise DiffshipError(f"--propulsion {args.propulsion}: expected constant:NEWTONS, e.g. constant:1.5e5") from None
+        else:
+            raise DiffshipError(f"--propulsion {args.propulsion}: use thrust, propeller or constant:NEWTONS")
+        model = dataclasses.replace(model, propulsion=prop)
+        sources["propulsion"] = f"{args.propulsion}: {prop}"
     if args.rigid_body_cg:
         sources["rigid_body_cg"] = "--rigid-body-cg"
     if vessel is not None:
@@ -204,11 +232,8 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
         if lacking:
             say(f"input {n} absent from {', '.join(lacking)}: taken as {v:g} (model {model.name}: free decay)")
     warnings = plausibility(vessel, runs, model) if vessel is not None else []
-    if vessel is None and hasattr(model, "convention_warnings"):
-        from ..vessel import data_speed
-
-        speeds = [s for s in (data_speed(r) for r in runs) if s is not None]
-        warnings = [f"warning: {w}" for w in model.convention_warnings(min(speeds), max(speeds))] if speeds else []
+    if vessel is None and hasattr(model, "convention_warnings") and speed_range(runs) is not None:
+        warnings = [f"warning: {w}" for w in model.convention_warnings(*speed_range(runs))]
     for w in warnings:
         if w.startswith("warning") or not args.quiet:
             print(w, file=sys.stderr, flush=True)
