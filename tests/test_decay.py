@@ -110,21 +110,28 @@ def test_cli_decay_without_input_column_and_without_m(surge_decay, tmp_path, cap
     assert "m          = 1200" in out.out and "--fix" in out.out  # the fixed inertia is listed beside the fit
 
 
-def test_cli_curve_fit_reports_physical_parameters_with_standard_errors(roll_decay, tmp_path, capsys):
-    from diffship.fit.cli import main
-
-    path = _csv(tmp_path, roll_decay, "roll", ["angle"])
-    code = main([path, "--model", "decay2", "--method", "curve-fit", "--fix", f"I={I_ROLL}", f"k={K_ROLL}",
-                 "--out", str(tmp_path / "out")])
-    out = capsys.readouterr().out
-    assert code == 0
+def test_cli_curve_fit_reports_physical_parameters_with_standard_errors(roll_decay, surge_decay, tmp_path, capsys):
+    """``python -m diffship.decay``: the direct curve fits from files, damping (and the inertia implied by k and
+    the period) with standard errors that contain the truth; without the inertia it stops with one line."""
     import re
 
+    from diffship.decay import main
+
+    path = _csv(tmp_path, roll_decay, "roll", ["angle"])
+    code = main([path, "--model", "decay2", "--fix", f"I={I_ROLL}", f"k={K_ROLL}", "--out", str(tmp_path / "out")])
+    out = capsys.readouterr().out
+    assert code == 0
     b, se = (float(x) for x in re.search(r"b = 2ζω_n·I = (\S+) ± (\S+)", out).groups())
     assert b == pytest.approx(B_ROLL, rel=0.03) and abs(b - B_ROLL) < 3 * se
     ii, ise = (float(x) for x in re.search(r"k/ω_n² = (\S+) ± (\S+)", out).groups())
     assert ii == pytest.approx(I_ROLL, rel=0.01) and abs(ii - I_ROLL) < 3 * ise
     assert (tmp_path / "out" / "decay.png").stat().st_size > 5_000
+    surge = _csv(tmp_path, surge_decay, "surge", ["velocity"])
+    assert main([surge, "--model", "decay1"]) == 2
+    assert capsys.readouterr().err.startswith("error: model decay1 needs --fix m=VALUE")
+    assert main([surge, "--model", "decay1", "--fix", f"m={M_SURGE}"]) == 0
+    D, Dse = (float(x) for x in re.search(r"D = rate·m = (\S+) ± ([^\s,]+)", capsys.readouterr().out).groups())
+    assert D == pytest.approx(D_SURGE, rel=0.02) and abs(D - D_SURGE) < 3 * Dse
 
 
 def test_second_order_standard_errors_are_honest():

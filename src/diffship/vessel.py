@@ -237,6 +237,18 @@ class Vessel:
         fn = getattr(self, f"_q_{key}", None)
         if fn is not None:
             return fn()
+        derived = {
+            "Ixx_cg": lambda: self._inertia_cg(0), "Iyy_cg": lambda: self._inertia_cg(1), "Izz_cg": lambda: self._inertia_cg(2),
+            "thrust_deduction": lambda: self._prop("thrust_deduction"), "wake_fraction": lambda: self._prop("wake_fraction"),
+            "propeller_diameter": lambda: self._prop("diameter"), "kt0": lambda: self._prop("kt", 0),
+            "kt1": lambda: self._prop("kt", 1), "kt2": lambda: self._prop("kt", 2),
+            "propeller_x_L": lambda: self._over_L(*self._prop("x")),
+            "rudder_area": lambda: (self.rudder.area if self.rudder else None, "rudder.area"),
+            "rudder_span": lambda: (self.rudder.span if self.rudder else None, "rudder.span"),
+            "rudder_x_L": lambda: self._over_L(self.rudder.x if self.rudder else None, "rudder.x"),
+            **{f"{n}_prime": (lambda n=n: self._clarke(n)) for n in ("Xudot", "Yvdot", "Yrdot", "Nvdot", "Nrdot")}}
+        if key in derived:
+            return derived[key]()
         simple = {"length": self.length, "beam": self.beam, "draught": self.draught, "rho": self.rho,
                   "approach_speed": self.approach_speed}
         if key in simple:
@@ -268,15 +280,6 @@ class Vessel:
                 return None, f"inertia about the origin needs mass and the CG offsets to move I{axis}{axis} to the CG"
             val, how = val - m * sum(c * c for c in others), how + " moved from the origin to the CG"
         return val, how
-
-    def _q_Ixx_cg(self):
-        return self._inertia_cg(0)
-
-    def _q_Iyy_cg(self):
-        return self._inertia_cg(1)
-
-    def _q_Izz_cg(self):
-        return self._inertia_cg(2)
 
     def _q_Izz_origin(self):
         izg, how = self._inertia_cg(2)
@@ -315,40 +318,10 @@ class Vessel:
         t, how = self._prop("thrust_deduction")
         return (1.0 - t, "1 − " + how) if t is not None else (None, "needs propeller.thrust_deduction")
 
-    def _q_thrust_deduction(self):
-        return self._prop("thrust_deduction")
-
-    def _q_wake_fraction(self):
-        return self._prop("wake_fraction")
-
-    def _q_propeller_diameter(self):
-        return self._prop("diameter")
-
-    def _q_kt0(self):
-        return self._prop("kt", 0)
-
-    def _q_kt1(self):
-        return self._prop("kt", 1)
-
-    def _q_kt2(self):
-        return self._prop("kt", 2)
-
     def _over_L(self, v, how):
         if v is None or self.length is None:
             return None, f"needs {how} and length"
         return v / self.length, f"{how} / length"
-
-    def _q_propeller_x_L(self):
-        return self._over_L(*self._prop("x"))
-
-    def _q_rudder_area(self):
-        return (self.rudder.area if self.rudder else None), "rudder.area"
-
-    def _q_rudder_span(self):
-        return (self.rudder.span if self.rudder else None), "rudder.span"
-
-    def _q_rudder_x_L(self):
-        return self._over_L(self.rudder.x if self.rudder else None, "rudder.x")
 
     def _clarke(self, key):
         if key in self.added_mass_prime:
@@ -368,21 +341,6 @@ class Vessel:
                "Nvdot": k * (1.1 * B / L - 0.041 * B / T),
                "Nrdot": k * (1 / 12 + 0.017 * CB * B / T - 0.33 * B / L)}[key]
         return val, "Clarke et al. (1983) from L, B, T, C_B"
-
-    def _q_Xudot_prime(self):
-        return self._clarke("Xudot")
-
-    def _q_Yvdot_prime(self):
-        return self._clarke("Yvdot")
-
-    def _q_Yrdot_prime(self):
-        return self._clarke("Yrdot")
-
-    def _q_Nvdot_prime(self):
-        return self._clarke("Nvdot")
-
-    def _q_Nrdot_prime(self):
-        return self._clarke("Nrdot")
 
     # -- models ---------------------------------------------------------------------------------
     def apply(self, model: AbstractModel) -> AbstractModel:

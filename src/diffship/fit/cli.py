@@ -46,8 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
     p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
                    help=f"one of: {', '.join(MODELS)} (default nomoto2)")
-    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both", "curve-fit"),
-                   help="curve-fit: the direct free-decay curve fits (decay1, decay2 only)")
+    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"),
+                   help="(decay1/decay2: the direct free-decay curve fits are python -m diffship.decay)")
     p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
     p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
     p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
@@ -143,8 +143,6 @@ def _fit(args, say) -> int:
         if args.validate:
             val = _load(args, args.validate)
     _vessel_checks(args, model, vessel, train + val, say)
-    if args.method == "curve-fit":
-        return _decay_curve_fits(args, model.with_params(spec.values()), train, say)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
@@ -176,7 +174,7 @@ def _fit(args, say) -> int:
     return 0
 
 
-# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, plausibility, fixed values, decay curve fits --
+# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
 def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vessel", default=None, metavar="FILE|NAME",
                    help="vessel particulars: a JSON file or a bundled vessel (" + ", ".join(bundled_vessels()) + "); "
@@ -237,20 +235,3 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
     for w in warnings:
         if w.startswith("warning") or not args.quiet:
             print(w, file=sys.stderr, flush=True)
-
-
-def _decay_curve_fits(args, model, runs, say) -> int:
-    from ..decay import Decay1, Decay2, curve_fit_runs, curve_fit_text, plot_curve_fits
-
-    if not isinstance(model, (Decay1, Decay2)):
-        raise DiffshipError(f"--method curve-fit is the direct free-decay fit: use --model decay1 or decay2, not {model.name}")
-    fits = curve_fit_runs(model, runs)
-    text = curve_fit_text(model, runs, fits)
-    print(text)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "report.txt").write_text(text + "\n")
-        plot_curve_fits(model, runs, fits, out / "decay.png")
-        say(f"wrote {out / 'report.txt'} and {out / 'decay.png'}")
-    return 0
