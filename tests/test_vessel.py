@@ -160,3 +160,36 @@ def test_cli_vessel_warns_before_fitting_and_reports_fixed_values(tmp_path, caps
     assert warn < first_fit, lines
     assert "fixed values (not estimated):" in out.out
     assert re.search(r"U0\s+= 7.7175\s+m/s\s+vessel mariner: approach_speed", out.out), out.out
+
+
+def test_cli_constant_thrust_and_rigid_body_option(tmp_path, capsys):
+    """Runs without a thrust column (constant propeller setting): ``--propulsion constant:N`` fits them; the
+    equation-error estimate of the linear derivatives is within 2 % of the truth. ``--rigid-body-cg`` on a model
+    without that option stops with one line."""
+    from diffship.models import ConstantThrust, VMMLinear
+    from diffship.models.vmm import approach_thrust
+    from diffship.synthetic import rudder_sequence, simulate_run
+
+    T0 = approach_thrust()
+    truth = VMMLinear(propulsion=ConstantThrust(T0))
+    tv = truth.param_values()
+    truth = truth.with_params({n: 1.2 * tv[n] for n in ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd")})
+    t = np.arange(0.0, 300.0, 0.5)
+    paths = []
+    for i, amp in enumerate((10.0, -20.0)):
+        run = simulate_run(truth, t, {"delta": rudder_sequence(t, np.radians(amp), 60.0 + 20 * i, rate=np.radians(2.3))},
+                           np.array([0.0, 0.0, 0.0, float(truth.U0), 0.0, 0.0]), name=f"c{i}")
+        assert "thrust" not in run.channels
+        paths.append(str(tmp_path / f"c{i}.csv"))
+        run.to_dataframe().to_csv(paths[-1], index=False)
+    js = tmp_path / "c.json"
+    code = fit_main([*paths, "--model", "vmm_linear", "--vessel", "mariner", "--propulsion", f"constant:{T0!r}",
+                     "--method", "equation-error", "--filter", "savgol:5", "--json", str(js), "--quiet"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    got = json.loads(js.read_text())["methods"]["equation_error"]["params"]
+    for n in ("Yv", "Yr", "Yd", "Nv", "Nr", "Nd"):
+        assert got[n] == pytest.approx(truth.param_values()[n], rel=0.02), n
+    assert "propulsion: constant:" in out.out
+    assert fit_main(paths[:1] + ["--model", "nomoto1", "--rigid-body-cg", "--quiet"]) == 2
+    assert "--rigid-body-cg: model nomoto1 has no rigid-body reference option" in capsys.readouterr().err

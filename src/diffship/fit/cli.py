@@ -193,7 +193,7 @@ def _with_vessel(args, model, fix, say):
             raise DiffshipError(f"--rigid-body-cg: model {model.name} has no rigid-body reference option (fossen6 has)")
         model = dataclasses.replace(model, rigid_body_cg=True)
     name = args.vessel
-    if name is None and not args.runs and model.REFERENCE_VESSEL and model.name == "fossen3":
+    if name is None and not args.runs and args.model == "fossen3":
         name = model.REFERENCE_VESSEL  # the bundled fossen3 example is the seed-002 USV
         say(f"bundled example: vessel {name} (the vessel that generated the example runs)")
     vessel = load_vessel(name) if name else None
@@ -215,9 +215,13 @@ def _with_vessel(args, model, fix, say):
         else:
             raise DiffshipError(f"--propulsion {args.propulsion}: use thrust, propeller or constant:NEWTONS")
         model = dataclasses.replace(model, propulsion=prop)
-        sources["propulsion"] = f"{args.propulsion}: {prop}"
+        sources["propulsion"] = f"{args.propulsion}: " + ", ".join(
+            f"{f.name}={getattr(prop, f.name)}" for f in dataclasses.fields(prop))
     if args.rigid_body_cg:
         sources["rigid_body_cg"] = "--rigid-body-cg"
+    elif hasattr(model, "rigid_body_cg") and not model.rigid_body_cg and any(fix.get(n) for n in ("xg", "yg", "zg")):
+        print("warning: a CG offset is fixed but the rigid-body terms take r_g = 0 (it enters the restoring "
+              "forces only); add --rigid-body-cg for the full M_RB(r_g), C_RB(ν, r_g)", file=sys.stderr)
     if vessel is not None:
         say(f"vessel {vessel.name}: {vessel.description or vessel.source}")
     return model, vessel, sources
