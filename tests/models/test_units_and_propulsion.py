@@ -93,7 +93,8 @@ def test_propeller_map_of_the_kvlcc2_model_predicts_the_measured_thrust():
     open-water map built from the bundled vessel file (Yasukawa's L7 propeller: D, w_P0, K_T(J)) predicts it from
     n and u within 4 % (median per run; measured 0.98–1.03) and 8 % rms (measured ≤ 7.5 %), and, like the
     measurement, higher in the slowest fifth of each run than in the fastest. (The straight-motion wake
-    overstates that rise up to 2.5×: the manoeuvring wake correction of MMG's β_P is not in this map.)"""
+    overstates that rise, up to 4× in the 10/10 port zigzag: MMG's manoeuvring wake correction (β_P) is not in
+    this map.)"""
     root = shared_data_dir()
     files = sorted((root / "kvlcc2_hsva").glob("HSVA_CPMC_KVLCC2_*.csv")) if root else []
     if not files:
