@@ -267,7 +267,7 @@ def main(argv=None):
     # -- 1. whole processes ------------------------------------------------------------------------------------
     env = {**os.environ, "PYTHONPATH": str(Path(args.src).resolve())}
     env.pop("DIFFSHIP_CACHE_DIR", None)
-    cli = [sys.executable, "-m", "diffship.fit", *csvs, "--model", "fossen3", "--method", "output-error",
+    cli = [sys.executable, "-m", "diffship.fit", *csvs, "--model", "fossen3", "--vessel", "usv", "--method", "output-error",
            "--weights", "spread", "--filter", "none", "--channels", *CHANNELS, "--x0", "estimate",
            "--init", *init_args, "--quiet"]
     peer_cmd = [sys.executable, str(PEER), *csvs, "--init", *init_args]

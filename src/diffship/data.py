@@ -33,13 +33,20 @@ import pandas as pd
 from diffship.errors import DataError
 
 __all__ = [
-    "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run",
+    "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "CHANNEL_UNITS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run",
     "example_path", "example_runs", "kvlcc2_runs", "load_runs", "shared_data_dir",
 ]
 
 CANONICAL_COLUMNS = ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "tau_x", "tau_y", "tau_z")
 #: Angles or angular rates (rad or rad/s inside diffship).
 ANGLE_CHANNELS = {"psi", "delta", "r", "phi", "theta", "p", "q", "nozzle", "delta_n"}
+#: Display unit of every channel of every model (outputs and inputs): name -> (label, factor from SI/rad).
+CHANNEL_UNITS: dict[str, tuple[str, float]] = {
+    **dict.fromkeys(("x0", "y0", "z0"), ("m", 1.0)), **dict.fromkeys(("u", "v", "w"), ("m/s", 1.0)),
+    **dict.fromkeys(("psi", "phi", "theta", "delta", "delta_n", "nozzle", "angle"), ("deg", 180.0 / np.pi)),
+    **dict.fromkeys(("r", "p", "q", "rate"), ("deg/s", 180.0 / np.pi)), "velocity": ("m/s or rad/s", 1.0),
+    **dict.fromkeys(("tau_x", "tau_y", "tau_z", "thrust"), ("N", 1.0)), **dict.fromkeys(("tau_k", "tau_m", "tau_n"),
+    ("N m", 1.0)), "tau": ("N or N m", 1.0), "n": ("1/s", 1.0), "rpm": ("rev/min", 1.0)}
 #: Channels negated when the source declares ``rudder_sign="port"``.
 RUDDER_CHANNELS = ("delta",)
 MIN_SAMPLES = 10

@@ -48,7 +48,7 @@ from .fit.covariance import covariance
 from .models.decay import Decay1, Decay2
 
 __all__ = ["FirstOrderDecay", "SecondOrderDecay", "fit_first_order_decay", "fit_second_order_decay",
-           "Decay1", "Decay2", "decay_run"]
+           "Decay1", "Decay2", "decay_run", "curve_fit_runs", "curve_fit_text", "main", "plot_curve_fits"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,6 +82,9 @@ class SecondOrderDecay:
     omega_n_stderr: float
     method: str
     rmse: float
+    damping_from_inertia_stderr: float = float("nan")  # delta method, I taken as exact
+    damping_from_stiffness_stderr: float = float("nan")  # delta method, k taken as exact
+    implied_inertia_stderr: float = float("nan")  # delta method, k taken as exact
 
     @property
     def period(self) -> float:
@@ -179,6 +182,19 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
     gw = np.array([a / wn, wd / wn])
     pred = _osc(t, *popt)
     nan = float("nan")
+    # physical parameters by the delta method on (a, ω_d): b = 2aI; b = 2ak/ω_n²; I = k/ω_n² (ω_n² = a² + ω_d²)
+    wn4 = wn**4
+
+    def se(g):
+        return float(math.sqrt(max(g @ cov2 @ g, 0.0)))
+
+    phys = {}
+    if inertia is not None:
+        phys["damping_from_inertia_stderr"] = se(np.array([2 * inertia, 0.0]))
+    if stiffness is not None:
+        phys["damping_from_stiffness_stderr"] = se(np.array([2 * stiffness * (wd * wd - a * a) / wn4,
+                                                             -4 * a * stiffness * wd / wn4]))
+        phys["implied_inertia_stderr"] = se(np.array([-2 * stiffness * a / wn4, -2 * stiffness * wd / wn4]))
     return SecondOrderDecay(
         amplitude=A, zeta=zeta, omega_n=wn, omega_d=wd, phase=ph, offset=c,
         damping_from_inertia=2 * zeta * wn * inertia if inertia is not None else nan,
@@ -186,8 +202,111 @@ def fit_second_order_decay(t, y, *, inertia: float | None = None, stiffness: flo
         implied_inertia=stiffness / wn**2 if stiffness is not None else nan,
         zeta_stderr=float(math.sqrt(max(gz @ cov2 @ gz, 0.0))),
         omega_n_stderr=float(math.sqrt(max(gw @ cov2 @ gw, 0.0))),
-        method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))),
+        method="curve_fit", rmse=float(np.sqrt(np.mean((y - pred) ** 2))), **phys,
     )
+
+
+def curve_fit_runs(runs, order: int, given: dict[str, float]) -> list[FirstOrderDecay | SecondOrderDecay]:
+    """The direct curve fit of every run: ``order`` 1 on channel ``velocity`` (``given["m"]`` turns the rate
+    into damping), 2 on channel ``angle`` (``given`` holds ``I`` and/or ``k``)."""
+    out = []
+    for r in runs:
+        if order == 1:
+            r.require("velocity", "a first-order decay curve fit")
+            out.append(fit_first_order_decay(r.time, r["velocity"], given["m"]))
+        else:
+            r.require("angle", "a second-order decay curve fit")
+            out.append(fit_second_order_decay(r.time, r["angle"], inertia=given.get("I"), stiffness=given.get("k")))
+    return out
+
+
+def curve_fit_text(runs, fits, given: dict[str, float]) -> str:
+    """A short report of :func:`curve_fit_runs`: physical parameters ± standard errors per run."""
+    lines = [("direct decay curve fits; standard errors by the delta method, the given inertia/stiffness "
+              f"({', '.join(f'{k} = {v:g}' for k, v in given.items())}) taken as exact:")]
+    for r, f in zip(runs, fits):
+        if isinstance(f, FirstOrderDecay):
+            lines.append(f"  {r.name}: rate {f.rate:.5g} ± {f.rate_stderr:.2g} 1/s, time constant {f.time_constant:.4g} s, "
+                         f"D = rate·m = {f.damping:.5g} ± {f.damping_stderr:.2g}, rmse {f.rmse:.3g}")
+            continue
+        lines.append(f"  {r.name}: zeta {f.zeta:.4g} ± {f.zeta_stderr:.2g}, omega_n {f.omega_n:.5g} ± "
+                     f"{f.omega_n_stderr:.2g} rad/s, period {f.period:.4g} s, rmse {f.rmse:.3g} rad")
+        if "I" in given:
+            lines.append(f"      b = 2ζω_n·I = {f.damping_from_inertia:.5g} ± {f.damping_from_inertia_stderr:.2g}")
+        if "k" in given:
+            lines.append(f"      b = 2ζk/ω_n = {f.damping_from_stiffness:.5g} ± {f.damping_from_stiffness_stderr:.2g}; "
+                         f"inertia implied by k and the period k/ω_n² = {f.implied_inertia:.5g} ± "
+                         f"{f.implied_inertia_stderr:.2g}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m diffship.decay RUN.csv ... --model decay1 --fix m=VALUE`` (or ``decay2 --fix I=.. k=..``):
+    the direct curve fits with standard errors of the damping (and inertia); exit 2 with one ``error:`` line."""
+    import argparse
+    import sys
+    from pathlib import Path
+
+    from .data import load_runs
+    from .errors import DiffshipError
+    from .params import parse_assignments
+
+    p = argparse.ArgumentParser(prog="python -m diffship.decay", description="Direct free-decay curve fits: "
+                                "decay1 x0·exp(−(D/m)t) on 'velocity', decay2 damped oscillation on 'angle'.")
+    p.add_argument("runs", nargs="+", metavar="RUN.csv")
+    p.add_argument("--model", default="decay2", choices=("decay1", "decay2"))
+    p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE",
+                   help="decay1: m (total inertia, rigid + added); decay2: I and/or k (restoring stiffness)")
+    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN")
+    p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN")
+    p.add_argument("--out", default=None, metavar="DIR", help="write report.txt and decay.png here")
+    args = p.parse_args(argv)
+    try:
+        given = parse_assignments(args.fix, "--fix")
+        allowed = ("m",) if args.model == "decay1" else ("I", "k")
+        bad = [n for n in given if n not in allowed]
+        if bad or not given:
+            raise DiffshipError(f"model {args.model} needs --fix {' and/or '.join(f'{n}=VALUE' for n in allowed)} "
+                                f"({'the total inertia, rigid + added' if args.model == 'decay1' else 'inertia, stiffness'})"
+                                + (f"; unknown: {', '.join(bad)}" if bad else ""))
+        columns = dict(c.split("=", 1) for c in args.columns if "=" in c)
+        runs = load_runs(args.runs, columns=columns or None, degrees=args.degrees)
+        fits = curve_fit_runs(runs, 1 if args.model == "decay1" else 2, given)
+    except (DiffshipError, RuntimeError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    text = curve_fit_text(runs, fits, given)
+    print(text)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.txt").write_text(text + "\n")
+        plot_curve_fits(runs, fits, out / "decay.png")
+    return 0
+
+
+def plot_curve_fits(runs, fits, path) -> None:
+    """Measured decay and fitted curve, one panel per run (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(runs), 1, figsize=(7, 2.4 * len(runs)), squeeze=False)
+    for ax, r, f in zip(axes[:, 0], runs, fits):
+        t = np.asarray(r.time) - r.t0
+        if isinstance(f, FirstOrderDecay):
+            y, fit, lab = r["velocity"], f.x0 * np.exp(-f.rate * t), "velocity [SI]"
+        else:
+            y, fit, lab = r["angle"], _osc(t, f.amplitude, f.zeta * f.omega_n, f.omega_d, f.phase, f.offset), "angle [rad]"
+        ax.plot(t, y, ".", ms=2, label=f"{r.name} measured")
+        ax.plot(t, fit, lw=1.2, label="curve fit")
+        ax.set_ylabel(lab, fontsize=8)
+        ax.legend(fontsize=7)
+    axes[-1, 0].set_xlabel("time from the first sample [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def decay_run(model: Decay1 | Decay2, duration: float, dt: float, x0, *, noise: float = 0.0, seed: int = 0,
@@ -199,3 +318,9 @@ def decay_run(model: Decay1 | Decay2, duration: float, dt: float, x0, *, noise: 
     nz = {c: noise for c in model.output_names} if noise else "none"
     return simulate_run(model, t, {"tau": np.zeros_like(t)}, np.asarray(x0, dtype=np.float64), name=name, noise=nz,
                         seed=seed)
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

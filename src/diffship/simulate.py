@@ -109,8 +109,12 @@ def simulate(
 
 
 def model_inputs(model: AbstractModel, run: Run) -> np.ndarray:
-    run.require(model.input_names, f"the inputs of model {model.name}")
-    return np.stack([np.asarray(run[n], dtype=np.float64) for n in model.input_names], axis=1)
+    """Inputs at the sample times, ``(n, n_u)``; an input the run lacks is the model's ``INPUT_DEFAULTS``
+    constant where it declares one (zero force in a free decay), else a :class:`DataError`."""
+    defaults = getattr(model, "INPUT_DEFAULTS", {})
+    run.require([n for n in model.input_names if n not in defaults], f"the inputs of model {model.name}")
+    return np.stack([np.asarray(run[n], dtype=np.float64) if run.has(n) else np.full(run.n, float(defaults[n]))
+                     for n in model.input_names], axis=1)
 
 
 def initial_state(model: AbstractModel, run: Run, flt: Filter = Filter()) -> np.ndarray:

@@ -33,7 +33,7 @@ def test_mmg_output_error_recovers_its_hull_derivatives(zigzag_csvs, tmp_path, c
     tv = truth.param_values()
     init = [f"{n}={tv[n] * (1.4 if i % 2 else 0.6)}" for i, n in enumerate(("Yv", "Yr", "Nv", "Nr"))]  # ±40 %
     js = tmp_path / "mmg.json"
-    code = fit_main(paths[:2] + ["--model", "mmg", "--validate", paths[2], "--method", "output-error",
+    code = fit_main(paths[:2] + ["--model", "mmg", "--vessel", "kvlcc2_model", "--validate", paths[2], "--method", "output-error",
                                  "--fix", "Nvvr=%r" % tv["Nvvr"], "Nrrr=%r" % tv["Nrrr"], "Jz=%r" % tv["Jz"],
                                  "f_alpha=%r" % tv["f_alpha"], "R0=%r" % tv["R0"], "delta0=0",
                                  "--init", *init, "--json", str(js), "--quiet"])

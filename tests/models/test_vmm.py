@@ -132,7 +132,7 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     runs = vmm_runs(truth, n_runs=2, duration=200.0, dt=1.0, noise="none")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
-    code = fit_main([*paths, "--model", "vmm_linear", "--method", "equation-error", "--filter", "savgol:9",
+    code = fit_main([*paths, "--model", "vmm_linear", "--vessel", "mariner", "--method", "equation-error", "--filter", "savgol:9",
                      "--json", str(js), "--quiet"])
     assert code == 0, capsys.readouterr()
     doc = json.loads(js.read_text())
@@ -147,7 +147,7 @@ def test_cli_both_methods_vmm_linear(tmp_path):
     runs = vmm_runs(truth, n_runs=3, duration=200.0, dt=0.5, noise="realistic")
     paths = [_write_csv(tmp_path, r) for r in runs]
     js = tmp_path / "fit.json"
-    proc = _cli([*paths[:2], "--model", "vmm_linear", "--validate", paths[2], "--json", str(js), "--quiet"], tmp_path)
+    proc = _cli([*paths[:2], "--model", "vmm_linear", "--vessel", "mariner", "--validate", paths[2], "--json", str(js), "--quiet"], tmp_path)
     assert proc.returncode == 0, proc.stderr + proc.stdout
     doc = json.loads(js.read_text())
     oe = doc["methods"]["output_error"]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -17,11 +18,20 @@ from ..data import example_runs, load_runs
 from ..errors import DiffshipError
 from ..integrators import INTEGRATORS, get_integrator
 from ..metrics import evaluate
-from ..models import MODELS, get_model
+from ..models import MODELS, ConstantThrust, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
 from ..report import plot_fit, text_report, to_json_dict, write_json
 from ..admissibility import admissibility
+from ..vessel import (
+    bundled_vessels,
+    fixed_values_text,
+    load_vessel,
+    plausibility,
+    propeller_map,
+    require_particulars,
+    speed_range,
+)
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
@@ -39,7 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
     p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
                    help=f"one of: {', '.join(MODELS)} (default nomoto2)")
-    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"))
+    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"),
+                   help="(decay1/decay2: the direct free-decay curve fits are python -m diffship.decay)")
     p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
     p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
     p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
@@ -63,6 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     _add_prior_arguments(p)
+    _add_vessel_arguments(p)
     return p
 
 
@@ -168,6 +180,7 @@ def _fit(args, say) -> int:
     model = get_model(args.model)
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
+    model, vessel, sources = _with_vessel(args, model, fix, say)
     flt = Filter.parse(args.filter)
     spec = model.spec()
     for n in list(fix) + list(init):
@@ -180,6 +193,7 @@ def _fit(args, say) -> int:
         train, val = _example(args.model, say)
         if args.validate:
             val = _load(args, args.validate)
+    _vessel_checks(args, model, vessel, train + val, say)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",)}[args.method]
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
@@ -194,7 +208,7 @@ def _fit(args, say) -> int:
         ev_train[m] = evaluate(r.model, train, x0, flt=flt, integrator=r.integrator)
         if val:
             ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
-    report = text_report(model.name, results, ev_train, ev_val, train, val)
+    report = text_report(model.name, results, ev_train, ev_val, train, val) + "\n\n" + fixed_values_text(spec, sources)
     oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None else None
     if oe is not None:
@@ -217,3 +231,70 @@ def _fit(args, say) -> int:
         print("error: no fit converged (see the statuses above)", file=sys.stderr)
         return 1
     return 0
+
+
+# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
+def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vessel", default=None, metavar="FILE|NAME",
+                   help="vessel particulars: a JSON file or a bundled vessel (" + ", ".join(bundled_vessels()) + "); "
+                        "models that need particulars (mass, inertia, dimensions, ...) stop without one")
+    p.add_argument("--rigid-body-cg", action="store_true",
+                   help="fossen6: use the CG offset in the rigid-body inertia and Coriolis terms (full M_RB(r_g))")
+    p.add_argument("--propulsion", default="thrust", metavar="thrust|propeller|constant:N",
+                   help="vmm_*: thrust from the measured 'thrust' column [N] (default), from the propeller speed column "
+                        "'n' [1/s] through the vessel's open-water curve (propeller), or a constant [N]")
+
+
+def _with_vessel(args, model, fix, say):
+    """The model with its particulars from ``--vessel`` (or stop naming the missing ones)."""
+    if args.rigid_body_cg:
+        if not hasattr(model, "rigid_body_cg"):
+            raise DiffshipError(f"--rigid-body-cg: model {model.name} has no rigid-body reference option (fossen6 has)")
+        model = dataclasses.replace(model, rigid_body_cg=True)
+    name = args.vessel
+    if name is None and not args.runs and args.model == "fossen3":
+        name = model.REFERENCE_VESSEL  # the bundled fossen3 example is the seed-002 USV
+        say(f"bundled example: vessel {name} (the vessel that generated the example runs)")
+    vessel = load_vessel(name) if name else None
+    model, parts = require_particulars(model, vessel, fixed=fix, freed=args.free)
+    sources = dict(parts.sources)
+    if args.propulsion != "thrust":
+        if not hasattr(model, "propulsion"):
+            raise DiffshipError(f"--propulsion: model {model.name} takes no thrust input (the vmm_* models do)")
+        kind, _, value = args.propulsion.partition(":")
+        if kind == "propeller":
+            if vessel is None:
+                raise DiffshipError("--propulsion propeller needs --vessel with propeller data (diameter, kt, wake_fraction)")
+            prop = propeller_map(vessel)
+        elif kind == "constant":
+            try:
+                prop = ConstantThrust(float(value))
+            except ValueError:
+                raise DiffshipError(f"--propulsion {args.propulsion}: expected constant:NEWTONS, e.g. constant:1.5e5") from None
+        else:
+            raise DiffshipError(f"--propulsion {args.propulsion}: use thrust, propeller or constant:NEWTONS")
+        model = dataclasses.replace(model, propulsion=prop)
+        sources["propulsion"] = f"{args.propulsion}: " + ", ".join(
+            f"{f.name}={getattr(prop, f.name)}" for f in dataclasses.fields(prop))
+    if args.rigid_body_cg:
+        sources["rigid_body_cg"] = "--rigid-body-cg"
+    elif hasattr(model, "rigid_body_cg") and not model.rigid_body_cg and any(fix.get(n) for n in ("xg", "yg", "zg")):
+        print("warning: a CG offset is fixed but the rigid-body terms take r_g = 0 (it enters the restoring "
+              "forces only); add --rigid-body-cg for the full M_RB(r_g), C_RB(ν, r_g)", file=sys.stderr)
+    if vessel is not None:
+        say(f"vessel {vessel.name}: {vessel.description or vessel.source}")
+    return model, vessel, sources
+
+
+def _vessel_checks(args, model, vessel, runs, say) -> None:
+    """Plausibility warnings before any compute (always printed), and inputs taken as constants."""
+    for n, v in model.INPUT_DEFAULTS.items():
+        lacking = [r.name for r in runs if not r.has(n)]
+        if lacking:
+            say(f"input {n} absent from {', '.join(lacking)}: taken as {v:g} (model {model.name}: free decay)")
+    warnings = plausibility(vessel, runs, model) if vessel is not None else []
+    if vessel is None and hasattr(model, "convention_warnings") and speed_range(runs) is not None:
+        warnings = [f"warning: {w}" for w in model.convention_warnings(*speed_range(runs))]
+    for w in warnings:
+        if w.startswith("warning") or not args.quiet:
+            print(w, file=sys.stderr, flush=True)

@@ -149,6 +149,16 @@ class AbstractModel(eqx.Module):
     EQUATION_RATE_OF: ClassVar[dict[str, str]] = {}
     EQUATION_INPUT_RATES: ClassVar[tuple[str, ...]] = ()
 
+    # vessel particulars (see :mod:`diffship.vessel`); empty: the model needs none
+    #: ``{parameter: vessel quantity}``: the parameters that are the vessel's particulars (mass,
+    #: inertia, dimensions, density, approach speed, propeller and rudder data), each with the key of
+    #: the quantity of a :class:`diffship.vessel.Vessel` that sets it (``diffship.vessel.QUANTITIES``).
+    PARTICULARS: ClassVar[dict[str, str]] = {}
+    #: The bundled vessel whose particulars are this model's default values (``--vessel NAME``).
+    REFERENCE_VESSEL: ClassVar[str | None] = None
+    #: Inputs that are a known constant when a run has no such column (e.g. zero force in a free decay).
+    INPUT_DEFAULTS: ClassVar[dict[str, float]] = {}
+
     @classmethod
     def _select_params(cls, declared: tuple[str, ...]) -> tuple[str, ...]:
         """Which of the declared :func:`param` fields are this class's parameters (default: all)."""
@@ -187,6 +197,14 @@ class AbstractModel(eqx.Module):
         else:
             new = {n: _as_f64(theta[i]) for i, n in enumerate(names)}
         return eqx.tree_at(lambda m: tuple(getattr(m, n) for n in names), self, tuple(new[n] for n in names))
+
+    def with_vessel(self, vessel: Any) -> AbstractModel:
+        """A copy with the particulars (:attr:`PARTICULARS`) set from a :class:`diffship.vessel.Vessel`.
+
+        The vessel computes each value (e.g. the yaw inertia about this model's origin from a radius of
+        gyration about the CG); a particular the vessel does not give raises :class:`ModelError`.
+        """
+        return vessel.apply(self)
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
         """Relabel interchangeable parameters into a canonical order (identity unless overridden)."""

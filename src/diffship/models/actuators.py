@@ -2,6 +2,11 @@
 
 An actuator map turns the model's input vector into body-frame generalised forces
 ``τ = (τ_x, τ_y, τ_z)`` [N, N, N·m] and may depend on the velocity state.
+
+Propulsion maps (:class:`ThrustInput`, :class:`OpenWaterPropeller`, :class:`ConstantThrust`) give the
+propeller thrust ``T`` [N] from their inputs and the surge speed, ``thrust(inp, u)``; the polynomial
+models (``VMM(propulsion=...)``) apply their own thrust factor :math:`X'_T = 1 - t` to it, and
+``__call__`` gives the surge force :math:`(1 - t)T` for the force-input models.
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-__all__ = ["ForceInput", "WaterJet"]
+__all__ = ["ConstantThrust", "ForceInput", "OpenWaterPropeller", "ThrustInput", "WaterJet"]
 
 
 class ForceInput(eqx.Module):
@@ -62,3 +67,65 @@ class WaterJet(eqx.Module):
         total = self.n_jets * self.thrust(rpm, nu[0])
         tau_y = total * jnp.sin(delta_n)
         return jnp.stack([total * jnp.cos(delta_n), tau_y, -self.lever_arm * tau_y])
+
+
+class ThrustInput(eqx.Module):
+    """Thrust measured (or commanded) directly: input ``thrust`` [N]."""
+
+    input_names: ClassVar[tuple[str, ...]] = ("thrust",)
+
+    def thrust(self, inp, u):
+        return inp[0]
+
+
+class ConstantThrust(eqx.Module):
+    """A constant thrust ``value`` [N] (no input column): e.g. a run at fixed propeller speed without a
+    thrust measurement."""
+
+    input_names: ClassVar[tuple[str, ...]] = ()
+    value: float = eqx.field(static=True, default=0.0)
+
+    def thrust(self, inp, u):
+        return self.value + 0.0 * u
+
+
+class OpenWaterPropeller(eqx.Module):
+    r"""Propeller thrust from its speed through the open-water curve (input ``n`` [1/s], ahead n > 0):
+
+    .. math::
+        T = N_P\,\rho\, n|n|\, D^4 K_T(J),\qquad J = \frac{u(1 - w)}{nD},\qquad K_T(J) = \sum_i k_i J^i
+
+    with ``count`` :math:`N_P` propellers of diameter ``diameter`` :math:`D` [m], wake fraction ``wake_fraction``
+    :math:`w` (straight motion), open-water coefficients ``kt`` :math:`(k_0, k_1, \dots)` and water density
+    ``rho`` [kg/m³]; ``thrust_deduction`` :math:`t` is used by :meth:`__call__` only (the VMMs have X'_T = 1 − t).
+    Valid for ahead operation (0 ≤ J below the K_T zero); the advance ratio's denominator is floored at 1e-9 m/s.
+    Build it from a vessel file with :func:`diffship.vessel.propeller_map`.
+
+    Reference: J. Carlton, *Marine Propellers and Propulsion*, 4th ed., 2019, ch. 6 (open-water characteristics).
+    """
+
+    input_names: ClassVar[tuple[str, ...]] = ("n",)
+    diameter: float = eqx.field(static=True, default=1.0)
+    kt: tuple[float, ...] = eqx.field(static=True, default=(0.3, -0.3))
+    wake_fraction: float = eqx.field(static=True, default=0.0)
+    thrust_deduction: float = eqx.field(static=True, default=0.0)
+    rho: float = eqx.field(static=True, default=1025.0)
+    count: int = eqx.field(static=True, default=1)
+
+    def kt_of(self, J):
+        """K_T(J) (Horner form)."""
+        out = 0.0 * J
+        for c in reversed(self.kt):
+            out = out * J + c
+        return out
+
+    def thrust(self, inp, u):
+        n = inp[0]
+        nd = n * self.diameter
+        J = u * (1.0 - self.wake_fraction) / jnp.where(jnp.abs(nd) > 1e-9, nd, 1e-9)
+        return self.count * self.rho * n * jnp.abs(n) * self.diameter**4 * self.kt_of(J)
+
+    def __call__(self, inp, nu):
+        X = (1.0 - self.thrust_deduction) * self.thrust(inp, nu[0])
+        z = 0.0 * X
+        return jnp.stack([X, z, z])

@@ -4,7 +4,8 @@ r"""One-degree-of-freedom free-decay models for the output-error path (see :mod:
 * :class:`Decay2` (``"decay2"``): :math:`I\ddot\phi + b\dot\phi + k\phi = \tau`, channels
   ``angle`` (and optionally ``rate``).
 
-Input ``tau`` (force or moment; zero in a free decay). Each also declares its equation-error
+Input ``tau`` (force or moment; zero in a free decay, and taken as zero when a run has no ``tau``
+column: ``INPUT_DEFAULTS``). Each also declares its equation-error
 form (affine in the damping) so that :func:`diffship.fit.fit_equation_error` works:
 :math:`e = m\dot x + Dx - \tau` on the filtered ``velocity`` and its derivative, and
 :math:`e = I\ddot\phi + b\dot\phi + k\phi - \tau` on the filtered ``angle`` and its first
@@ -33,6 +34,9 @@ class Decay1(AbstractModel):
     angle_outputs: ClassVar[tuple[str, ...]] = ()
     EQUATIONS: ClassVar[tuple[str, ...]] = ("force",)
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("velocity",)
+    #: the DOF's total inertia is not a vessel-file quantity (which DOF decays is the test's): ``--fix m=VALUE``
+    PARTICULARS: ClassVar[dict[str, str]] = {"m": "dof_inertia"}
+    INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
 
     m: jnp.ndarray = param(1.0, free=False, lower=0.0, scale=1.0, unit="kg", description="total inertia (rigid + added)")
     D: jnp.ndarray = param(1.0, lower=0.0, scale=1.0, unit="kg/s", description="linear damping")
@@ -62,6 +66,9 @@ class Decay2(AbstractModel):
     EQUATIONS: ClassVar[tuple[str, ...]] = ("moment",)
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("angle",)
     EQUATION_ORDER: ClassVar[int] = 2
+    #: ``--fix`` both, or fix one and ``--free`` the other (the decay gives only k/I and b/I)
+    PARTICULARS: ClassVar[dict[str, str]] = {"I": "dof_inertia", "k": "dof_stiffness"}
+    INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
 
     I: jnp.ndarray = param(  # noqa: E741
         1.0, free=False, lower=0.0, scale=1.0, unit="kg m2", description="total inertia (rigid + added)")

@@ -82,6 +82,8 @@ class Fossen3(AbstractShip3):
     REFERENCE: ClassVar[str] = "the seed-002 high-speed USV standard model (Odin, FFI)"
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "N")
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("u", "v", "r")
+    PARTICULARS: ClassVar[dict[str, str]] = {"m": "mass", "Iz": "Izz_origin", "xg": "xG"}
+    REFERENCE_VESSEL: ClassVar[str | None] = "usv"
 
     m: jnp.ndarray = param(_S["m"], free=False, lower=0.0, scale=5e3, unit="kg", description="mass")
     Iz: jnp.ndarray = param(_S["Iz"], free=False, lower=0.0, scale=2e4, unit="kg m2", description="yaw inertia about CO")

@@ -123,6 +123,10 @@ class Fossen6(AbstractModel):
     angle_outputs: ClassVar[tuple[str, ...]] = ("phi", "theta", "psi")
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "Z", "K", "M", "N")
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("phi", "theta", "u", "v", "w", "p", "q", "r")
+    PARTICULARS: ClassVar[dict[str, str]] = {
+        "m": "mass", "Ix": "Ixx_cg", "Iy": "Iyy_cg", "Iz": "Izz_cg", "xg": "xG", "yg": "yG", "zg": "zG",
+        "xb": "xB", "yb": "yB", "zb": "zB", "W": "weight", "B": "buoyancy"}
+    REFERENCE_VESSEL: ClassVar[str | None] = "bluerov2"
 
     m: jnp.ndarray = _p("m", False, 10.0, "kg", "mass", lower=0.0)
     Ix: jnp.ndarray = _p("Ix", False, 0.3, "kg m2", "roll inertia about CG", lower=0.0)

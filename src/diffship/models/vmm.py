@@ -73,6 +73,22 @@ derivatives of its own polynomial (``X_TERMS + Y_TERMS + N_TERMS``), in declarat
 mass matrix is the shared 3-DOF one (:mod:`diffship.models._rigid3`), with the prime added
 masses made dimensional.
 
+**Speed conventions** (``prime_speed``). With primes on the instantaneous speed (``"instantaneous"``,
+the default of ``vmm_linear`` and ``vmm_simple``) every force scales with U² by construction, and a
+speed–rudder term :math:`Y'_{u\delta}\Delta u'\delta` changes that scaling: Abkowitz's relations
+:math:`Y'_{u\delta} = 2Y'_\delta,\ Y'_{uu\delta} = Y'_\delta` would make the rudder force
+:math:`\propto U^2(1 + \Delta u')^2`, zero at u = U0/2. Those relations belong to Abkowitz's expansion
+about the approach speed (``"approach"``, the default of ``vmm_abkowitz``): primes on U0,
+:math:`\Delta u' = (u - U_0)/U_0`, forces :math:`\tfrac12\rho L^2U_0^2X'`, so that
+:math:`\tfrac12\rho L^2U_0^2 Y'_\delta(1 + \Delta u')^2\delta = \tfrac12\rho L^2u^2Y'_\delta\delta` and
+:math:`Y'_{vu} = Y'_v` gives :math:`\tfrac12\rho L^2 u Y'_v v` at every speed. :meth:`VMM.convention_warnings`
+says when the data's speeds leave the range a coefficient set is valid in.
+
+**Propulsion** (``propulsion``): the thrust T is the measured input ``thrust`` [N]
+(:class:`~diffship.models.actuators.ThrustInput`, default), the propeller speed ``n`` [1/s] through an
+open-water curve (:class:`~diffship.models.actuators.OpenWaterPropeller`, wake fraction w; the thrust
+deduction is :math:`X'_T = 1 - t`), or a constant (:class:`~diffship.models.actuators.ConstantThrust`).
+
 Reference values: an illustrative single-screw cargo ship, derivative magnitudes after the
 Mariner-class derivatives of Chislett & Strøm-Tejsen (1965) as tabulated in Fossen's MSS
 toolbox (``mariner.m``), with the rudder sign flipped to starboard-positive, the rigid-body
@@ -94,10 +110,12 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import equinox as eqx
 import jax.numpy as jnp
 
 from ._base import LinearForm, param
 from ._rigid3 import AbstractShip3, Mass3
+from .actuators import ConstantThrust, OpenWaterPropeller, ThrustInput
 
 __all__ = ["VMM", "VMMLinear", "VMMSimple", "VMMAbkowitz", "VMM_REFERENCE", "approach_thrust"]
 
@@ -177,6 +195,11 @@ class VMM(AbstractShip3):
     X_TERMS: ClassVar[tuple[str, ...]] = ()
     Y_TERMS: ClassVar[tuple[str, ...]] = ()
     N_TERMS: ClassVar[tuple[str, ...]] = ()
+    PARTICULARS: ClassVar[dict[str, str]] = {
+        "m": "mass", "Iz": "Izz_origin", "xG": "xG", "L": "length", "rho": "rho", "U0": "approach_speed",
+        "XT": "one_minus_t", "Xudot": "Xudot_prime", "Yvdot": "Yvdot_prime", "Yrdot": "Yrdot_prime",
+        "Nvdot": "Nvdot_prime", "Nrdot": "Nrdot_prime"}
+    REFERENCE_VESSEL: ClassVar[str | None] = "mariner"
 
     m: jnp.ndarray = param(M_REF, free=False, lower=0.0, scale=M_REF, unit="kg", description="mass")
     Iz: jnp.ndarray = param(IZ_REF, free=False, lower=0.0, scale=IZ_REF, unit="kg m2", description="yaw inertia about CO")
@@ -230,6 +253,14 @@ class VMM(AbstractShip3):
     Nvdd: jnp.ndarray = _ref("Nvdd")
     Nvvd: jnp.ndarray = _ref("Nvvd")
     N0: jnp.ndarray = _ref("N0")
+    #: Reference speed of the prime system: ``"instantaneous"`` (U = √(u² + v²); forces scale with U², the
+    #: right system for coefficient sets without speed cross terms) or ``"approach"`` (U0: Abkowitz's
+    #: expansion about the approach speed, where Y'_uδ = 2Y'_δ, Y'_uuδ = Y'_δ make the rudder force scale with
+    #: u² at every speed; ``vmm_abkowitz``'s default). See "Speed conventions" in the module docstring.
+    prime_speed: str = eqx.field(static=True, default="instantaneous")
+    #: Where the thrust comes from: the measured ``thrust`` input [N] (default), propeller speed ``n`` through
+    #: an open-water curve (:class:`~diffship.models.actuators.OpenWaterPropeller`), or a constant.
+    propulsion: ThrustInput | OpenWaterPropeller | ConstantThrust = eqx.field(default_factory=ThrustInput)
 
     @classmethod
     def _select_params(cls, declared):
@@ -238,11 +269,14 @@ class VMM(AbstractShip3):
 
     @property
     def input_names(self) -> tuple[str, ...]:
-        return ("delta", "thrust")
+        return ("delta",) + self.propulsion.input_names
 
     # -- prime system ---------------------------------------------------------------------
     def speed(self, u, v):
-        """Instantaneous speed U = sqrt(u² + v²) [m/s] (floored at 1 mm/s)."""
+        """Reference speed of the prime system [m/s]: the instantaneous U = sqrt(u² + v²) (floored at
+        1 mm/s), or U0 when ``prime_speed == "approach"``."""
+        if self.prime_speed == "approach":
+            return self.U0 + 0.0 * u
         return jnp.sqrt(u * u + v * v + 1e-6)
 
     def primes(self, nu, inp):
@@ -250,7 +284,7 @@ class VMM(AbstractShip3):
         u, v, r = nu[0], nu[1], nu[2]
         U = self.speed(u, v)
         q = 0.5 * self.rho * self.L**2 * U * U
-        return (u - self.U0) / U, v / U, r * self.L / U, inp[0], inp[1] / q, U
+        return (u - self.U0) / U, v / U, r * self.L / U, inp[0], self.propulsion.thrust(inp[1:], u) / q, U
 
     @staticmethod
     def _poly(model, terms, du, v, r, d):
@@ -296,6 +330,37 @@ class VMM(AbstractShip3):
         N = q * self.L * Np - self.m * self.xG * u * r
         xd, yd = self.position_rates(psi, u, v)
         return jnp.concatenate([jnp.stack([xd, yd, r]), self.solve_mass(jnp.stack([X, Y, N]))])
+
+    def convention_warnings(self, u_low: float, u_high: float) -> list[str]:
+        r"""Where the data's speeds ``u_low..u_high`` [m/s] leave the range the coefficients are valid in.
+
+        Instantaneous primes: the rudder force per δ relative to its U²-scaled value is
+        :math:`f = 1 + (Y'_{u\delta}/Y'_\delta)\Delta u' + (Y'_{uu\delta}/Y'_\delta)\Delta u'^2`; with
+        Abkowitz's Y'_uδ = 2Y'_δ it is (1 + Δu')², zero at u = U0/2. Approach-speed primes: a Taylor
+        expansion about U0, trusted for |u − U0| ≤ U0/2.
+        """
+        U0, out = float(self.U0), []
+        if self.prime_speed == "approach":
+            if u_low < 0.5 * U0 or u_high > 1.5 * U0:
+                out.append(f"model {self.name}: data speeds {u_low:.3g}–{u_high:.3g} m/s leave 0.5–1.5 × U0 = "
+                           f"{U0:.3g} m/s, the range of its expansion about the approach speed")
+            return out
+        for dof in ("Y", "N"):
+            d, ud, uud = (f"{dof}d", f"{dof}ud", f"{dof}uud")
+            terms = self.Y_TERMS + self.N_TERMS
+            if d not in terms or (ud not in terms and uud not in terms) or float(getattr(self, d)) == 0.0:
+                continue
+            a = float(getattr(self, ud)) / float(getattr(self, d)) if ud in terms else 0.0
+            b = float(getattr(self, uud)) / float(getattr(self, d)) if uud in terms else 0.0
+            for u in (u_low, u_high):
+                du = (u - U0) / max(u, 1e-3)
+                f = 1.0 + a * du + b * du * du
+                if not 0.5 <= f <= 2.0:
+                    out.append(f"model {self.name}: at u = {u:.3g} m/s the rudder {dof} force is {f:.2g} × its "
+                               f"U²-scaled value ({dof}'_uδ/{dof}'_δ = {a:.3g} on primes of the instantaneous speed; "
+                               f"Abkowitz's {dof}'_uδ = 2{dof}'_δ holds for primes on U0: prime_speed='approach')")
+                    break
+        return out
 
     # -- equation error (inverse dynamics + motion regression) ----------------------------
     def inverse_dynamics_prime(self, nu, nu_dot):
@@ -369,6 +434,7 @@ class VMMAbkowitz(VMM):
     even for X, plus constant terms ``Y0``, ``N0`` for asymmetry)."""
 
     name: ClassVar[str] = "vmm_abkowitz"
+    prime_speed: str = eqx.field(static=True, default="approach")
     X_TERMS: ClassVar[tuple[str, ...]] = ("X0", "Xu", "Xuu", "Xuuu", "Xvv", "Xrr", "Xvr", "Xdd", "Xudd", "Xrd", "Xvd",
                                           "Xuvd")
     Y_TERMS: ClassVar[tuple[str, ...]] = ("Yv", "Yr", "Yd", "Yvvv", "Yvvr", "Yvu", "Yru", "Yddd", "Yud", "Yuud", "Yvdd",
