@@ -54,31 +54,32 @@ def test_study_predicts_validation_first_overshoots_within_2deg(runs):
     100 s at 5 Hz), reduced to four validation zigzags (10/10 both sides, 20/10 port-first, 15/5),
     flown by the fitted model with the autopilot.
 
-    With the reference-set priors (KVLCC2 L7, ±50 %) and the data weighted by their effective
-    sample size (the default), measured on these four: first-overshoot errors −2.19° (10/10-S),
-    −0.99°, −0.81°, −1.05°; the 35° turning circle predicted from zigzags alone has a tactical
-    diameter of 3.62 L (starboard) / 3.69 L (port), against 3.1–3.3 L measured in free running
-    and 5.6 / 5.7 L for the same fit without the effective-sample weighting (whose zigzag
-    overshoots are within 1.02°): the zigzags pull N_vvr and N_rrr towards values that a hard turn
-    contradicts, a structural gap of the MMG model on these data. The published coefficients miss
-    the 10/10-S first overshoot by 4.5°; straight-run speed at 10.23 rps: fitted 1.18 m/s,
-    published 1.02 m/s.
+    Default study: 30 hydrodynamic coefficients free, each with its published value as a ±50 %
+    prior, data weighted by their effective sample size. Measured: first-overshoot errors
+    −1.31° (10/10-S), −0.12° (10/10-P), −0.56° (20/10-P), −0.79° (15/5); second overshoots
+    −2.9°, −3.0°, +0.2°, −1.1°. The 35° turning circle, a manoeuvre type not in the training
+    data, has a tactical diameter of 3.08 L (starboard) and 3.25 L (port); free-running
+    measurements give 3.1–3.3 L. Without the priors, ten parameters free, it was 5.6–6.5 L: the
+    zigzags bend N_vvr and flip N_rrr. The published coefficients miss the 10/10-S first
+    overshoot by 4.5°; straight-run speed at 10.23 rps: fitted 1.18 m/s, published 1.02 m/s.
     """
     validate = ("Z_10_10_S", "Z_10_10_P", "Z_20_10_P", "Z_15_05")
     st = kvlcc2_study(validate=validate)
     assert st.fit.converged, st.fit.status
     v = st.table[st.table.role == "validate"].set_index("test")
     assert list(v.index) == list(validate)
-    assert st.max_first_overshoot_error("cl") < 2.5
+    assert st.max_first_overshoot_error("cl") < 1.5
     # predictive: a 35° turn, a manoeuvre type not in the training data
     for side in ("starboard", "port"):
         tc = turning_circle(st.fit.model, {"u": 1.179}, inputs={"n": 10.23}, duration=120.0,
                             rudder_rate_deg_s=HELM_RATE_DEG_S, first=side)
         td = turning_metrics(tc, length=7.0).in_lengths()["tactical_diameter"]
-        assert 2.9 < td < 4.0, (side, td)  # without priors: 5.6–6.5 L
+        assert td == pytest.approx(3.2, rel=0.05), (side, td)  # measured 3.1–3.3 L; no priors: 5.6–6.5 L
     assert v.loc["Z_10_10_S", "first_meas"] == pytest.approx(9.7, abs=0.2)  # data README
     # the fit is what makes the prediction good: the published coefficients miss by far more
     pub, _, _ = predict_zigzags(kvlcc2_mmg(), [runs[k] for k in validate])
     assert np.max(np.abs(pub.err_first_cl)) > 3.0
     assert _straight_speed(st.fit.model) == pytest.approx(1.179, rel=0.03)
-    assert 0.0 < st.fit.params["delta0"] < 0.02  # a small starboard neutral rudder angle [rad]
+    assert abs(st.fit.params["delta0"]) < 0.02  # a small neutral rudder angle [rad]
+    # the report names the directions zigzags cannot see instead of pretending to know them
+    assert st.fit.info["identifiability"]["weak_directions"]

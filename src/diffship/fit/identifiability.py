@@ -38,6 +38,8 @@ __all__ = ["Identifiability", "identifiability", "direction_text", "per_scale_co
 
 #: A direction whose data-only standard deviation in the scaled space exceeds this is "poor".
 POOR = 1.0
+#: Poorly identified directions named one by one in the warnings (the rest are counted).
+MAX_NAMED = 3
 #: Correlation magnitude above which a pair is reported.
 CORRELATED = 0.95
 
@@ -156,9 +158,15 @@ def identifiability(
         v = vt[k] * (1.0 if vt[k][np.argmax(np.abs(vt[k]))] > 0 else -1.0)
         d = {names[i]: float(round(v[i], 3)) for i in range(p) if abs(v[i]) >= component}
         weak.append((float(sd), d))
+    for sd, d in weak[:MAX_NAMED]:
         how = "not at all" if not math.isfinite(sd) else f"only to ±{sd:.3g} scale units"
-        warnings.append(f"poorly identified direction: {direction_text(d)} — the data determine it {how}; "
+        top = dict(sorted(d.items(), key=lambda kv: -abs(kv[1]))[:6])
+        more = " …" if len(d) > len(top) else ""
+        warnings.append(f"poorly identified direction: {direction_text(top)}{more} — the data determine it {how}; "
                         "fix one of these, give it a prior, or add a manoeuvre that excites it")
+    if len(weak) > MAX_NAMED:
+        warnings.append(f"{len(weak) - MAX_NAMED} further poorly identified direction(s) (all in the JSON): "
+                        f"{len(weak)} of {p} directions rest on the priors or on nothing")
     corr = _correlation(np.asarray(cov, dtype=np.float64)) if np.size(cov) else np.zeros((0, 0))
     correlated = []
     for i in range(p):
