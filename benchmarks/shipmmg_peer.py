@@ -147,7 +147,7 @@ def peer_self_propulsion(u0: float = U0) -> float:
 
 def _record(t, delta, u, v, r, x, y, psi, n, **meta) -> dict:
     arr = {k: np.asarray(a, dtype=np.float64) for k, a in
-           dict(time=t, x0=x, y0=y, psi=psi, u=u, v=v, r=r, delta=delta, n=n).items()}
+           {"time": t, "x0": x, "y0": y, "psi": psi, "u": u, "v": v, "r": r, "delta": delta, "n": n}.items()}
     return {"channels": arr, "meta": {"source": "shipmmg 0.0.11 (peer)", **meta}}
 
 
@@ -235,7 +235,7 @@ def fly(model, rec: dict, n: float):
     from diffship.manoeuvres import turning_circle, zigzag
 
     m = rec["meta"]
-    kw = dict(inputs={"n": n}, rudder_rate_deg_s=HELM_RATE_DEG_S, dt=PEER_DT, first=m["first_rudder"])
+    kw = {"inputs": {"n": n}, "rudder_rate_deg_s": HELM_RATE_DEG_S, "dt": PEER_DT, "first": m["first_rudder"]}
     x0 = model.initial_state({"u": U0})
     try:
         if m["manoeuvre"] == "zigzag":
@@ -259,12 +259,258 @@ def metrics(run, rec: dict) -> dict:
     return {"os1": zm.first_overshoot, "os2": zm.second_overshoot}
 
 
-def fit_one(train: list, free: str, priors: bool):
-    from diffship.fit import OutputErrorOptions, fit_output_error
+def judge(model, fit, train: list, peer: dict, n: float) -> dict:
+    """Turning circles, held-out zigzags and admissibility of a (fitted) diffship model."""
+    from diffship.admissibility import admissibility
     from diffship.models.mmg import kvlcc2_mmg
 
+    row: dict = {}
+    for key, rec in peer.items():
+        run = fly(model, rec, n)
+        m, p = metrics(run, rec), peer_metrics(rec)
+        row[f"{key}_run"] = run
+        if rec["meta"]["manoeuvre"] == "turning_circle":
+            row[f"{key}_blowup"] = run is None
+            for k in ("TD", "advance"):
+                row[f"{key}_{k}"] = m[k]
+                row[f"{key}_{k}_err_pct"] = 100.0 * (m[k] - p[k]) / p[k]
+        else:
+            for k in ("os1", "os2"):
+                row[f"{key}_{k}"] = m[k]
+                row[f"{key}_{k}_err"] = m[k] - p[k]
+    adm = admissibility(model, initial={"u": U0}, inputs={"n": n}, training=train, reference=kvlcc2_mmg(),
+                        free=fit.free if fit is not None else (), helm_rate_deg_s=HELM_RATE_DEG_S, turn_s=TURN_S,
+                        zigzag_s=ZIGZAG_S)
+    row["admissible"] = adm.ok
+    row["admissibility"] = adm.summary()
+    row["offending"] = adm.offending
+    row["blowup"] = any(v for k, v in row.items() if k.endswith("_blowup"))
+    return row
+
+
+_PEER_METRICS: dict = {}
+
+
+def peer_metrics(rec: dict) -> dict:
+    key = id(rec)
+    if key not in _PEER_METRICS:
+        _PEER_METRICS[key] = metrics(to_run(rec, "peer " + _tag(rec)), rec)
+    return _PEER_METRICS[key]
+
+
+def fit_variant(train: list, free: str, priors: bool, *, prior_rel_sd: float = 0.5, extra_free: tuple = (),
+                nrrr_upper: float | None = None):
+    """Output-error fit of diffship's KVLCC2 MMG (the study's settings) to the training Runs."""
+    import dataclasses
+
+    from diffship.fit import OutputErrorOptions, fit_output_error
+    from diffship.models.mmg import kvlcc2_mmg
+    from diffship.params import ParamSpec
+
     model = kvlcc2_mmg()
-    spec = model.spec() if FREE_SETS[free] is None else model.spec().only_free(list(FREE_SETS[free]))
+    spec = model.spec()
+    if FREE_SETS[free] is not None:
+        spec = spec.only_free(list(FREE_SETS[free]))
+    spec = spec.free(extra_free)
+    if nrrr_upper is not None:  # a sign constraint: N'_rrr < bound (yaw damping never turns destabilising)
+        spec = ParamSpec(tuple(dataclasses.replace(p, upper=nrrr_upper) if p.name == "Nrrr" else p
+                               for p in spec.params))
     runs = [r.resample(FIT_DT) for r in train]
-    opts = OutputErrorOptions(max_steps=MAX_STEPS, reference_priors=priors)
+    opts = OutputErrorOptions(max_steps=MAX_STEPS, reference_priors=priors, prior_rel_sd=prior_rel_sd)
     return fit_output_error(model, runs, spec=spec, channels=CHANNELS, options=opts)
+
+
+def yaw_damping_limit(p: dict) -> float:
+    """r' above which ∂N'_H/∂r' = N'_r + 3 N'_rrr r'² (at v' = 0) turns positive (inf if never)."""
+    return math.sqrt(-p["Nr"] / (3.0 * p["Nrrr"])) if p["Nrrr"] > 0 and p["Nr"] < 0 else math.inf
+
+
+def fit_summary(fit) -> dict:
+    ident = fit.info["identifiability"]
+    pri = fit.info.get("priors", {})
+    far = sorted(((n, v["z_from_prior"]) for n, v in pri.items()), key=lambda kv: -abs(kv[1]))[:3]
+    return {"status": fit.status, "converged": fit.converged, "iterations": fit.iterations,
+            "fit_s": fit.fit_seconds, "compile_s": fit.compile_seconds, "prior_note": fit.info["prior_note"],
+            "params": {n: fit.params[n] for n in fit.free}, "stderr": dict(fit.stderr),
+            "far_from_prior": far, "weak": [w["text"] for w in ident["weak_directions"]],
+            "sign_flips": [f["name"] for f in ident["sign_flips"]], "warnings": ident["warnings"],
+            "rp_crit": yaw_damping_limit({**fit.params}),
+            "condition": ident["condition"]}
+
+
+def variants(quick: bool) -> list[dict]:
+    train = ("20/20 S",) if quick else ("10/10 S", "20/20 S")
+    out = []
+    for free in (("default",) if quick else ("default", "hull")):
+        for noise in ("none", "model-test"):
+            for priors in (True, False):
+                out.append({"train": train, "free": free, "priors": priors, "noise": noise, "group": "main"})
+    if not quick:  # what would fix the default-prior fit (diagnosis, same clean data)
+        base = {"train": train, "free": "default", "priors": True, "noise": "none", "group": "remedy"}
+        out += [{**base, "remedy": "N'_rrr < 0 (sign constraint)", "nrrr_upper": 0.0},
+                {**base, "remedy": "priors ±20 %", "prior_rel_sd": 0.2},
+                {**base, "remedy": "wake C1, C2± free", "extra_free": ("C1", "C2_plus", "C2_minus")},
+                {**base, "remedy": "+ 35/5 zigzag in training", "train": (*train, "35/5 S")}]
+    return out
+
+
+ZIGZAGS = {"10/10 S": (10, 10, "starboard"), "20/20 S": (20, 20, "starboard"), "35/5 S": (35, 5, "starboard")}
+
+
+def _fmt(v, spec=".1f"):
+    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+
+
+def _figure(path: Path, peer: dict, rows: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5))
+    for ax, key in zip(axes[:2], ("turnS", "turnP")):
+        c = peer[key]["channels"]
+        ax.plot(c["y0"] / 7.0, c["x0"] / 7.0, "k", lw=2.5, label="shipmmg (peer)")
+        for row in rows:
+            run = row.get(f"{key}_run")
+            if run is not None:
+                ax.plot(run["y0"] / 7.0, run["x0"] / 7.0, lw=1, label=row["label"])
+            elif row["label"] != "reference":
+                ax.plot([], [], lw=1, ls=":", label=row["label"] + " (blows up)")
+        ax.set(xlabel="y0 / L (starboard)", ylabel="x0 / L (approach course)", title=f"35° turning circle, {key[-1]}",
+               aspect="equal")
+    axes[1].legend(fontsize=6, loc="best")
+    c = peer["zz20P"]["channels"]
+    axes[2].plot(c["time"], np.degrees(c["psi"]), "k", lw=2.5, label="shipmmg (peer)")
+    for row in rows:
+        run = row.get("zz20P_run")
+        if run is not None:
+            axes[2].plot(run.time, np.degrees(run["psi"]), lw=1, label=row["label"])
+    axes[2].set(xlabel="t [s]", ylabel="ψ [°]", title="held-out 20/20 zigzag, port first")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="20/20 training zigzag, default free set only (4 fits)")
+    p.add_argument("--out", type=Path, default=OUT)
+    a = p.parse_args(argv)
+    t_start = time.perf_counter()
+    import shipmmg
+
+    import diffship  # noqa: F401  (float64)
+
+    n = peer_self_propulsion()
+    peer = {"turnS": peer_turn("starboard", duration=TURN_S), "turnP": peer_turn("port", duration=TURN_S),
+            "zz10P": peer_zigzag(10, 10, "port", duration=ZIGZAG_S, n=n),
+            "zz20P": peer_zigzag(20, 20, "port", duration=ZIGZAG_S, n=n)}
+    zz = {k: peer_zigzag(r, s, side, duration=ZIGZAG_S, n=n) for k, (r, s, side) in ZIGZAGS.items()}
+    train_runs = {}
+    for i, (k, rec) in enumerate(zz.items()):
+        train_runs[(k, "none")] = to_run(rec, f"shipmmg {k}")
+        train_runs[(k, "model-test")] = to_run(add_noise(rec, MODEL_TEST_NOISE, seed=1200 + i), f"shipmmg {k} noisy")
+    from diffship.models.mmg import kvlcc2_mmg
+
+    print(f"peer self-propulsion: n = {n:.4f} rev/s at U0 = {U0} m/s", flush=True)
+    rows = [{"label": "reference", "group": "reference", "fit": None,
+             **judge(kvlcc2_mmg(), None, [train_runs[("20/20 S", "none")]], peer, n)}]
+    for v in variants(a.quick):
+        label = (f"{v['free']}, priors {'on' if v['priors'] else 'off'}, noise {v['noise']}"
+                 + (f", {v['remedy']}" if v.get("remedy") else ""))
+        train = [train_runs[(k, v["noise"])] for k in v["train"]]
+        t0 = time.perf_counter()
+        fit = fit_variant(train, v["free"], v["priors"], prior_rel_sd=v.get("prior_rel_sd", 0.5),
+                          extra_free=v.get("extra_free", ()), nrrr_upper=v.get("nrrr_upper"))
+        row = {"label": label, **v, "fit": fit_summary(fit), **judge(fit.model, fit, train, peer, n)}
+        row["wall_s"] = time.perf_counter() - t0
+        rows.append(row)
+        print(f"{label}: TD err S {row['turnS_TD_err_pct']:+.1f} % P {row['turnP_TD_err_pct']:+.1f} %, "
+              f"blow-up {row['blowup']}, admissible {row['admissible']} ({row['wall_s']:.0f} s)", flush=True)
+    pm = {k: peer_metrics(rec) for k, rec in peer.items()}
+    suffix = "_quick" if a.quick else ""
+    a.out.mkdir(parents=True, exist_ok=True)
+    _figure(a.out / f"shipmmg_peer{suffix}.png", peer, rows)
+    keep = lambda r: {k: v for k, v in r.items() if not k.endswith("_run")}
+    (a.out / f"shipmmg_peer{suffix}.json").write_text(json.dumps(
+        {"n_rps": n, "U0": U0, "peer_metrics": pm, "rows": [keep(r) for r in rows]}, indent=1, default=str))
+    text = report(rows, pm, n, quick=a.quick, wall=time.perf_counter() - t_start, version=shipmmg.__version__
+                  if hasattr(shipmmg, "__version__") else "0.0.11")
+    (a.out / f"shipmmg_peer{suffix}.md").write_text(text)
+    print(text)
+    return 0
+
+
+def _row_cells(r: dict) -> list[str]:
+    f = r.get("fit") or {}
+    par = f.get("params", {})
+    adm = "ADMISSIBLE" if r["admissible"] else "NOT admissible" + (f" ({', '.join(r['offending'])})"
+                                                                  if r["offending"] else "")
+    return [_fmt(r["turnS_TD_err_pct"], "+.1f"), _fmt(r["turnP_TD_err_pct"], "+.1f"),
+            _fmt(r["turnS_advance_err_pct"], "+.1f"), _fmt(r["turnP_advance_err_pct"], "+.1f"),
+            "**yes**" if r["blowup"] else "no", adm,
+            f"{_fmt(r['zz10P_os1_err'], '+.2f')} / {_fmt(r['zz10P_os2_err'], '+.2f')}",
+            f"{_fmt(r['zz20P_os1_err'], '+.2f')} / {_fmt(r['zz20P_os2_err'], '+.2f')}",
+            _fmt(par.get("Nrrr", -0.013), "+.4f"), _fmt(par.get("Nvvr", -0.294), "+.3f"),
+            _fmt(f.get("rp_crit", math.inf), ".2f") if f else "∞"]
+
+
+_HEAD = ("| TD err S % | TD err P % | adv. err S % | adv. err P % | blow-up in 35° turn | admissibility | "
+         "held-out 10/10 P: Δ1st / Δ2nd overshoot [°] | held-out 20/20 P: Δ1st / Δ2nd [°] | N'_rrr | N'_vvr | "
+         "r'_crit |")
+
+
+def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, version: str) -> str:
+    main_rows = [r for r in rows if r["group"] in ("reference", "main")]
+    rem = [r for r in rows if r["group"] == "remedy"]
+    train = next((r["train"] for r in rows if r["group"] == "main"), ())
+    L = [f"# shipmmg peer: fit diffship's MMG on another implementation's zigzags{' (quick)' if quick else ''}", "",
+         (f"Command: `PYTHONPATH=src python benchmarks/shipmmg_peer.py{' --quick' if quick else ''}`; wall time "
+         f"{wall / 60:.1f} min on a shared 2-core machine (timings disturbed by other sessions). Peer: shipmmg "
+         f"{version} with its own KVLCC2 L7 parameters and simulators (module docstring of "
+         "`benchmarks/shipmmg_peer.py`: conventions, conversions, structural differences)."), "",
+         (f"Model scale L = 7 m, U0 = {U0} m/s, propeller {n:.3f} rev/s (the peer's self-propulsion point at U0), "
+         f"helm {HELM_RATE_DEG_S} °/s. Training zigzags (first rudder to starboard): {', '.join(train)}. "
+         f"Fit: output error on {', '.join(CHANNELS)} resampled to {FIT_DT} s, {MAX_STEPS} LM steps per pass. "
+         f"Model-test noise: {', '.join(f'{k} {v:.3g}' for k, v in MODEL_TEST_NOISE.items())} (SI, rad)."), "",
+         "## Peer's own manoeuvres (the truth)", "",
+         "| manoeuvre | tactical diameter | advance | 1st overshoot | 2nd overshoot |", "|---|---|---|---|---|"]
+    for k, m in pm.items():
+        L.append(f"| {k} | {_fmt(m.get('TD'), '.2f')} m ({_fmt(m.get('TD', math.nan) / 7.0, '.2f')} L) | "
+                 f"{_fmt(m.get('advance'), '.2f')} m | {_fmt(m.get('os1'), '.2f')}° | {_fmt(m.get('os2'), '.2f')}° |")
+    L += ["", "## Fits on the zigzags, judged on the 35° turns and held-out zigzags", "",
+          ("Errors are diffship − peer (TD, advance in % of the peer's; overshoots in degrees). `reference` is "
+          "diffship's KVLCC2 L7 model with the published coefficients, not fitted. r'_crit: the "
+          "non-dimensional yaw rate above which the fitted hull's yaw damping ∂N'_H/∂r' = N'_r + 3N'_rrr r'² "
+          "(v' = 0) turns positive (the peer's steady 35° turn reaches r' ≈ 0.9)."), "",
+          "| free set | priors | noise " + _HEAD, "|---" * 14 + "|"]
+    for r in main_rows:
+        pri = "–" if r["group"] == "reference" else ("reference ±50 %" if r["priors"] else "off")
+        L.append(f"| {r.get('free', 'none (published)')} | {pri} | {r.get('noise', '–')} | "
+                 + " | ".join(_row_cells(r)) + " |")
+    if rem:
+        L += ["", "## What would fix the default-prior fit (same clean training data, default free set, priors on)", "",
+              "| change " + _HEAD, "|---" * 12 + "|"]
+        for r in rem:
+            L.append(f"| {r['remedy']} | " + " | ".join(_row_cells(r)) + " |")
+    L += ["", "## Fits in detail", ""]
+    for r in rows:
+        f = r.get("fit")
+        if not f:
+            continue
+        par = ", ".join(f"{k} {v:+.4g}" for k, v in f["params"].items())
+        far = ", ".join(f"{k} {z:+.1f} σ" for k, z in f["far_from_prior"]) or "–"
+        L += [f"### {r['label']}", "",
+              (f"- fit: {f['status']} after {f['iterations']} steps, {f['fit_s']:.0f} s (+ compile {f['compile_s']:.0f} s); "
+              f"{f['prior_note']}"),
+              f"- parameters: {par}",
+              (f"- furthest from the prior mean (in prior SDs): {far}; sign flips against the reference: "
+              f"{', '.join(f['sign_flips']) or 'none'}; condition number {_fmt(f['condition'], '.3g') if isinstance(f['condition'], float) else f['condition']}"),
+              f"- poorly identified directions (identifiability report): {'; '.join(f['weak']) or 'none'}",
+              "", "```", r["admissibility"], "```", ""]
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
