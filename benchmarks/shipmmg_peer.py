@@ -298,25 +298,39 @@ def peer_metrics(rec: dict) -> dict:
     return _PEER_METRICS[key]
 
 
+def peer_particulars() -> dict[str, float]:
+    """The peer's fixed particulars in diffship's MMG names (x_G, k_zz, x'_P, m, ρ)."""
+    basic, _, rho = peer_params()
+    return {"xG": basic.x_G, "kzz": math.sqrt(basic.I_zG / basic.m) / basic.L_pp, "xP": basic.x_P, "m": basic.m,
+            "rho": rho}
+
+
 def fit_variant(train: list, free: str, priors: bool, *, prior_rel_sd: float = 0.5, extra_free: tuple = (),
-                nrrr_upper: float | None = None):
-    """Output-error fit of diffship's KVLCC2 MMG (the study's settings) to the training Runs."""
+                fix: tuple = (), nrrr_upper: float | None = None, particulars: dict | None = None):
+    """Output-error fit of diffship's KVLCC2 MMG (the study's settings) to the training Runs.
+
+    ``particulars``: fixed values replacing the reference vessel's; the reference priors are
+    then passed explicitly (``default_priors`` turns them off for another vessel).
+    """
     import dataclasses
 
     from diffship.fit import OutputErrorOptions, fit_output_error
+    from diffship.fit.priors import reference_priors
     from diffship.models.mmg import kvlcc2_mmg
     from diffship.params import ParamSpec
 
-    model = kvlcc2_mmg()
+    model = kvlcc2_mmg(**(particulars or {}))
     spec = model.spec()
     if FREE_SETS[free] is not None:
         spec = spec.only_free(list(FREE_SETS[free]))
-    spec = spec.free(extra_free)
+    spec = spec.free(extra_free).fix(fix)
     if nrrr_upper is not None:  # a sign constraint: N'_rrr < bound (yaw damping never turns destabilising)
         spec = ParamSpec(tuple(dataclasses.replace(p, upper=nrrr_upper) if p.name == "Nrrr" else p
                                for p in spec.params))
     runs = [r.resample(FIT_DT) for r in train]
-    opts = OutputErrorOptions(max_steps=MAX_STEPS, reference_priors=priors, prior_rel_sd=prior_rel_sd)
+    explicit = reference_priors(kvlcc2_mmg(), spec, prior_rel_sd) if particulars and priors else None
+    opts = OutputErrorOptions(max_steps=MAX_STEPS, reference_priors=priors, prior_rel_sd=prior_rel_sd,
+                              priors=explicit)
     return fit_output_error(model, runs, spec=spec, channels=CHANNELS, options=opts)
 
 
@@ -350,6 +364,8 @@ def variants(quick: bool) -> list[dict]:
         out += [{**base, "remedy": "N'_rrr < 0 (sign constraint)", "nrrr_upper": 0.0},
                 {**base, "remedy": "priors ±20 %", "prior_rel_sd": 0.2},
                 {**base, "remedy": "wake C1, C2± free", "extra_free": ("C1", "C2_plus", "C2_minus")},
+                {**base, "remedy": "N'_vvr, N'_rrr fixed at reference", "fix": ("Nvvr", "Nrrr")},
+                {**base, "remedy": "peer's x_G, k_zz, x'_P, m, ρ (fixed)", "particulars": peer_particulars()},
                 {**base, "remedy": "+ 35/5 zigzag in training", "train": (*train, "35/5 S")}]
     return out
 
@@ -422,7 +438,8 @@ def main(argv=None) -> int:
         train = [train_runs[(k, v["noise"])] for k in v["train"]]
         t0 = time.perf_counter()
         fit = fit_variant(train, v["free"], v["priors"], prior_rel_sd=v.get("prior_rel_sd", 0.5),
-                          extra_free=v.get("extra_free", ()), nrrr_upper=v.get("nrrr_upper"))
+                          extra_free=v.get("extra_free", ()), fix=v.get("fix", ()), nrrr_upper=v.get("nrrr_upper"),
+                          particulars=v.get("particulars"))
         row = {"label": label, **v, "fit": fit_summary(fit), **judge(fit.model, fit, train, peer, n)}
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
