@@ -246,6 +246,25 @@ def fly(model, rec: dict, n: float):
         return None
 
 
+def partial_turn(model, rec: dict, n: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Midship track (x0, y0) of a turning circle up to its blow-up, and the blow-up time [s] (for figures)."""
+    import jax.numpy as jnp
+
+    from diffship.manoeuvres import ScheduleLaw, closed_loop
+
+    s = 1.0 if rec["meta"]["first_rudder"] == "starboard" else -1.0
+    ts = np.arange(0.0, TURN_S + 0.5 * PEER_DT, PEER_DT)
+    law = ScheduleLaw(jnp.asarray([0.0]), jnp.asarray([s * math.radians(rec["meta"]["rudder_angle_deg"])]))
+    u_const = jnp.asarray([0.0, n])
+    xs, _, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(model.initial_state({"u": U0})), u_const,
+                               model.input_names.index("delta"), jnp.asarray(math.radians(HELM_RATE_DEG_S)),
+                               jnp.asarray(math.radians(35.0)), jnp.asarray(0.0))
+    xs, valid = np.asarray(xs), np.asarray(valid)
+    k = int(np.argmin(valid)) if not valid.all() else len(ts)
+    i, j = model.state_names.index("x0"), model.state_names.index("y0")
+    return xs[:k, i], xs[:k, j], float(ts[k - 1])
+
+
 def metrics(run, rec: dict) -> dict:
     """Turning (TD, advance [m]) or zigzag (1st, 2nd overshoot [°]) metrics of a Run; NaN if none."""
     from diffship.manoeuvres import turning_metrics, zigzag_metrics
@@ -391,8 +410,10 @@ def _figure(path: Path, peer: dict, rows: list[dict]) -> None:
             run = row.get(f"{key}_run")
             if run is not None:
                 ax.plot(run["y0"] / 7.0, run["x0"] / 7.0, lw=1, label=row["label"])
-            elif row["label"] != "reference":
-                ax.plot([], [], lw=1, ls=":", label=row["label"] + " (blows up)")
+            elif row.get("model") is not None:
+                x, y, t_bad = partial_turn(row["model"], peer[key], row["n"])
+                ax.plot(y / 7.0, x / 7.0, lw=1, ls=":", label=f"{row['label']} (blows up at {t_bad:.0f} s)")
+                ax.plot(y[-1:] / 7.0, x[-1:] / 7.0, "rx")
         ax.set(xlabel="y0 / L (starboard)", ylabel="x0 / L (approach course)", title=f"35° turning circle, {key[-1]}",
                aspect="equal")
     axes[1].legend(fontsize=6, loc="best")
@@ -440,7 +461,8 @@ def main(argv=None) -> int:
         fit = fit_variant(train, v["free"], v["priors"], prior_rel_sd=v.get("prior_rel_sd", 0.5),
                           extra_free=v.get("extra_free", ()), fix=v.get("fix", ()), nrrr_upper=v.get("nrrr_upper"),
                           particulars=v.get("particulars"))
-        row = {"label": label, **v, "fit": fit_summary(fit), **judge(fit.model, fit, train, peer, n)}
+        row = {"label": label, **v, "fit": fit_summary(fit), **judge(fit.model, fit, train, peer, n),
+               "model": fit.model, "n": n}
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         print(f"{label}: TD err S {row['turnS_TD_err_pct']:+.1f} % P {row['turnP_TD_err_pct']:+.1f} %, "
@@ -449,7 +471,7 @@ def main(argv=None) -> int:
     suffix = "_quick" if a.quick else ""
     a.out.mkdir(parents=True, exist_ok=True)
     _figure(a.out / f"shipmmg_peer{suffix}.png", peer, rows)
-    keep = lambda r: {k: v for k, v in r.items() if not k.endswith("_run")}
+    keep = lambda r: {k: v for k, v in r.items() if not k.endswith("_run") and k != "model"}
     (a.out / f"shipmmg_peer{suffix}.json").write_text(json.dumps(
         {"n_rps": n, "U0": U0, "peer_metrics": pm, "rows": [keep(r) for r in rows]}, indent=1, default=str))
     text = report(rows, pm, n, quick=a.quick, wall=time.perf_counter() - t_start, version=shipmmg.__version__
