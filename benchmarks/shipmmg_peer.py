@@ -7,8 +7,9 @@ own.*
 **The peer.** `shipmmg <https://pypi.org/project/shipmmg/>`_ (T. Mitsuyuki, MIT licence,
 version 0.0.11; benchmark-only dependency, ``pip install -e ".[bench]"``), its own KVLCC2 L7
 parameters (the ``ship_KVLCC2_L7_model`` fixture of its ``tests/test_mmg_3dof.py``, copied
-below) and its own simulators: :func:`shipmmg.mmg_3dof.zigzag_test_mmg_3dof` for the zigzags,
-:func:`shipmmg.mmg_3dof.simulate_mmg_3dof` for the turning circles. **Nothing from diffship
+below) and its own simulator :func:`shipmmg.mmg_3dof.simulate_mmg_3dof` (one call per rudder order
+of a zigzag, with the steering logic of its ``zigzag_test_mmg_3dof``; :func:`peer_zigzag` says
+why that function is not called as it is). **Nothing from diffship
 generates the data**: the first half of this file (``peer_*``) imports only numpy, scipy and
 shipmmg (``tests/test_shipmmg_peer.py`` checks it), diffship is imported lazily in the second
 half, which only fits and judges.
@@ -42,10 +43,10 @@ half, which only fits and judges.
    e^{-C_1|\beta_P|})(C_2 - 1)]` with :math:`x'_P = -0.48`;
 3. centre of gravity and inertia: shipmmg x_G = 0.25 m, :math:`k_{zz}` = 0.25 L; diffship
    x_G = 0.0348 L = 0.2436 m, :math:`k_{zz}` = 0.2486 L;
-4. integration: the peer's zigzag runs :func:`scipy.integrate.solve_ivp` (RK45) at its default
-   tolerances (``zigzag_test_mmg_3dof`` does not pass options on), with δ a natural cubic
-   spline of the commanded ramp restarted at every rudder reversal; the turning circles are
-   integrated at ``rtol=1e-8``. diffship: RK4/Tsit5 with a first-order hold on δ.
+4. integration and rudder: the peer integrates with :func:`scipy.integrate.solve_ivp` (RK45, here
+   ``rtol=1e-8``), with δ a natural cubic spline of the rate-limited order (restarted at every
+   reversal; the record holds that δ); diffship: diffrax's classical RK4 on the sample grid (fits: one
+   step per 0.2 s sample; manoeuvres: two per 0.05 s sample) with a first-order hold on δ.
 
 Everything else (hull polynomial, rudder and propeller formulas, coefficient values) is the
 same MMG standard method with the same KVLCC2 L7 numbers (Yasukawa & Yoshimura 2015).
@@ -152,12 +153,59 @@ def _record(t, delta, u, v, r, x, y, psi, n, **meta) -> dict:
 
 
 def peer_zigzag(rudder_deg: float, switch_deg: float, first: str = "starboard", *, duration: float = 100.0,
-                dt: float = PEER_DT, n: float | None = None, u0: float = U0) -> dict:
-    """A zigzag from shipmmg's :func:`zigzag_test_mmg_3dof` (first order at t = 0).
+                dt: float = PEER_DT, n: float | None = None, u0: float = U0, rtol: float = 1e-8) -> dict:
+    """A zigzag simulated by shipmmg's :func:`simulate_mmg_3dof`, one call per rudder order.
 
-    ``first="port"`` is the same manoeuvre with negative target angles (shipmmg's function
-    takes the sign of the first rudder order from ``target_δ_rad``).
+    The steering logic is that of shipmmg's own :func:`zigzag_test_mmg_3dof` (first order at
+    t = 0 towards ``side·rudder``; reverse when ψ − ψ0 reaches ``±switch``; the rudder moves at
+    the helm rate), with two changes that make the record exact: the reversal happens at the
+    crossing found by ``solve_ivp``'s event location (not at the next sample), and the
+    integration runs at ``rtol`` (``zigzag_test_mmg_3dof`` cannot pass tolerances on; at
+    solve_ivp's defaults its heading is off by 0.7° after 11 s, :func:`peer_zigzag_builtin`).
+    The recorded δ is the δ state the peer integrated (its cubic spline of the order), not the
+    order itself.
     """
+    from shipmmg.mmg_3dof import simulate_mmg_3dof
+
+    basic, man, rho = peer_params()
+    n = peer_self_propulsion(u0) if n is None else n
+    grid = np.arange(0.0, duration + 0.5 * dt, dt)
+    out = np.full((8, grid.size), np.nan)
+    rate, switch = HELM_RATE_DEG_S * D2R, switch_deg * D2R
+    target = (1.0 if first == "starboard" else -1.0) * rudder_deg * D2R
+    t_now, state = 0.0, np.array([u0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, n])
+    while True:
+        ts = np.concatenate([[t_now], grid[grid > t_now + 1e-9]])
+        if ts.size < 2:
+            break
+        step = np.clip(target - state[6], -rate * (ts - t_now), rate * (ts - t_now))
+        level = np.sign(target) * switch
+
+        def hit(t, X, level=level):
+            return X[5] - level
+
+        hit.terminal, hit.direction = True, float(np.sign(target))
+        sol = simulate_mmg_3dof(basic, man, ts, state[6] + step, np.full(ts.shape, n), u0=state[0], v0=state[1],
+                                r0=state[2], x0=state[3], y0=state[4], ψ0=state[5], ρ=rho, events=hit, rtol=rtol,
+                                atol=1e-10)
+        if not sol.success:
+            raise RuntimeError(f"shipmmg zigzag failed: {sol.message}")
+        t_end = sol.t_events[0][0] if sol.status == 1 else grid[-1] + 1.0
+        k = (grid >= t_now) & (grid <= t_end)
+        out[:, k] = sol.sol(grid[k])
+        if sol.status != 1:
+            break
+        t_now, state, target = float(t_end), np.asarray(sol.y_events[0][0], dtype=np.float64), -target
+    u, v, r, x, y, psi, delta, _ = out
+    return _record(grid, delta, u, v, r, x, y, psi, np.full(grid.shape, n), manoeuvre="zigzag",
+                   rudder_angle_deg=float(rudder_deg), switch_heading_deg=float(switch_deg), first_rudder=first,
+                   t_execute=0.0)
+
+
+def peer_zigzag_builtin(rudder_deg: float, switch_deg: float, first: str = "starboard", *, duration: float = 100.0,
+                        dt: float = PEER_DT, n: float | None = None, u0: float = U0) -> dict:
+    """The same zigzag from shipmmg's :func:`zigzag_test_mmg_3dof` as it is (solve_ivp default tolerances,
+    reversal at the next sample; records the commanded δ) — for the comparison in the report."""
     from shipmmg.mmg_3dof import zigzag_test_mmg_3dof
 
     basic, man, rho = peer_params()
@@ -468,6 +516,9 @@ def main(argv=None) -> int:
         print(f"{label}: TD err S {row['turnS_TD_err_pct']:+.1f} % P {row['turnP_TD_err_pct']:+.1f} %, "
               f"blow-up {row['blowup']}, admissible {row['admissible']} ({row['wall_s']:.0f} s)", flush=True)
     pm = {k: peer_metrics(rec) for k, rec in peer.items()}
+    builtin = peer_zigzag_builtin(20, 20, duration=ZIGZAG_S, n=n)
+    pm["20/20 S (exact)"] = peer_metrics(zz["20/20 S"])
+    pm["20/20 S (zigzag_test_mmg_3dof as is)"] = peer_metrics(builtin)
     suffix = "_quick" if a.quick else ""
     a.out.mkdir(parents=True, exist_ok=True)
     _figure(a.out / f"shipmmg_peer{suffix}.png", peer, rows)
