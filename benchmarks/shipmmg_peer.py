@@ -406,6 +406,28 @@ def yaw_damping_limit(p: dict) -> float:
     return math.sqrt(-p["Nr"] / (3.0 * p["Nrrr"])) if p["Nrrr"] > 0 and p["Nr"] < 0 else math.inf
 
 
+def residual_memory(fit, train: list) -> dict[str, float]:
+    """Integrated autocorrelation time τ [samples] of the fit's output-error residuals, per channel.
+
+    τ = 1 + 2 Σ_k ρ_k (summed until ρ_k first drops below 0), averaged over the runs. The fit
+    weighs its N residuals as independent; with τ ≫ 1 (model-structure error, not white noise)
+    the data are over-counted about τ-fold against the priors — a ±50 % prior then acts like
+    one of ±50 %·√τ.
+    """
+    from diffship.metrics import simulate_run
+
+    out: dict[str, list[float]] = {c: [] for c in CHANNELS}
+    for run, x0 in zip((r.resample(FIT_DT) for r in train), fit.initial_states):
+        ys = np.asarray(simulate_run(fit.model, run, np.asarray(x0)).ys)
+        for c in CHANNELS:
+            e = ys[:, fit.model.output_names.index(c)] - run[c]
+            e = e - e.mean()
+            acf = np.correlate(e, e, "full")[e.size - 1:] / max(float(e @ e), 1e-300)
+            neg = np.nonzero(acf < 0)[0]
+            out[c].append(1.0 + 2.0 * float(np.sum(acf[1:neg[0] if neg.size else acf.size])))
+    return {c: float(np.mean(v)) for c, v in out.items()}
+
+
 def fit_summary(fit) -> dict:
     ident = fit.info["identifiability"]
     pri = fit.info.get("priors", {})
@@ -433,7 +455,10 @@ def variants(quick: bool) -> list[dict]:
                 {**base, "remedy": "wake C1, C2± free", "extra_free": ("C1", "C2_plus", "C2_minus")},
                 {**base, "remedy": "N'_vvr, N'_rrr fixed at reference", "fix": ("Nvvr", "Nrrr")},
                 {**base, "remedy": "peer's x_G, k_zz, x'_P, m, ρ (fixed)", "particulars": peer_particulars()},
-                {**base, "remedy": "+ 35/5 zigzag in training", "train": (*train, "35/5 S")}]
+                {**base, "remedy": "+ 35/5 zigzag in training", "train": (*train, "35/5 S")},
+                {**base, "remedy": "wake C1, C2± free and N'_rrr < 0", "extra_free": ("C1", "C2_plus", "C2_minus"),
+                 "nrrr_upper": 0.0},
+                {**base, "remedy": "priors ±50 %/√τ (τ: residual memory of the default fit)", "tau_scaled": True}]
     return out
 
 
@@ -506,11 +531,17 @@ def main(argv=None) -> int:
                  + (f", {v['remedy']}" if v.get("remedy") else ""))
         train = [train_runs[(k, v["noise"])] for k in v["train"]]
         t0 = time.perf_counter()
+        if v.get("tau_scaled"):  # the default fit's residual memory, as an effective-sample-size correction
+            base = next(r for r in rows if r["group"] == "main" and r["free"] == "default" and r["priors"]
+                        and r["noise"] == "none")
+            v["prior_rel_sd"] = 0.5 / math.sqrt(float(np.median(list(base["fit"]["tau"].values()))))
+            v["remedy"] += f" = ±{100 * v['prior_rel_sd']:.0f} %"
+            label += f" = ±{100 * v['prior_rel_sd']:.0f} %"
         fit = fit_variant(train, v["free"], v["priors"], prior_rel_sd=v.get("prior_rel_sd", 0.5),
                           extra_free=v.get("extra_free", ()), fix=v.get("fix", ()), nrrr_upper=v.get("nrrr_upper"),
                           particulars=v.get("particulars"))
-        row = {"label": label, **v, "fit": fit_summary(fit), **judge(fit.model, fit, train, peer, n),
-               "model": fit.model, "n": n}
+        row = {"label": label, **v, "fit": {**fit_summary(fit), "tau": residual_memory(fit, train)},
+               **judge(fit.model, fit, train, peer, n), "model": fit.model, "n": n}
         row["wall_s"] = time.perf_counter() - t0
         rows.append(row)
         print(f"{label}: TD err S {row['turnS_TD_err_pct']:+.1f} % P {row['turnP_TD_err_pct']:+.1f} %, "
@@ -525,7 +556,9 @@ def main(argv=None) -> int:
     keep = lambda r: {k: v for k, v in r.items() if not k.endswith("_run") and k != "model"}
     (a.out / f"shipmmg_peer{suffix}.json").write_text(json.dumps(
         {"n_rps": n, "U0": U0, "peer_metrics": pm, "rows": [keep(r) for r in rows]}, indent=1, default=str))
-    text = report(rows, pm, n, quick=a.quick, wall=time.perf_counter() - t_start, version=shipmmg.__version__
+    train = next(v["train"] for v in variants(a.quick))
+    rp = {"turn": max_rprime([peer["turnS"], peer["turnP"]]), "train": max_rprime([zz[k] for k in train])}
+    text = report(rows, pm, n, quick=a.quick, wall=time.perf_counter() - t_start, rp=rp, version=shipmmg.__version__
                   if hasattr(shipmmg, "__version__") else "0.0.11")
     (a.out / f"shipmmg_peer{suffix}.md").write_text(text)
     print(text)
@@ -551,7 +584,63 @@ _HEAD = ("| TD err S % | TD err P % | adv. err S % | adv. err P % | blow-up in 3
          "r'_crit |")
 
 
-def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, version: str) -> str:
+def _meets(r: dict) -> bool:
+    """Done-when of issue 12: no blow-up in the 35° turns, TD within 5 % of the peer's on both sides."""
+    return (not r["blowup"]) and all(abs(r[f"{k}_TD_err_pct"]) <= 5.0 for k in ("turnS", "turnP"))
+
+
+def max_rprime(recs) -> float:
+    """Largest non-dimensional yaw rate |r| L / U over peer records (L = 7 m, U midship speed)."""
+    return max(float(np.max(np.abs(c["r"]) * 7.0 / np.hypot(c["u"], c["v"]))) for c in (r["channels"] for r in recs))
+
+
+def verdict(rows: list[dict], rp: dict[str, float] | None = None) -> list[str]:
+    """The done-when verdict and the diagnosis, from the numbers."""
+    L = ["## Verdict (issue 12: no blow-up in a 35° turn, tactical diameter within 5 % of the peer's)", ""]
+    dflt = [r for r in rows if r["group"] == "main" and r["free"] == "default" and r["priors"]]
+    for r in dflt:
+        L.append(f"- default free set, default priors, noise {r['noise']}: "
+                 + ("blows up in the 35° turn" if r["blowup"] else
+                    f"TD error {r['turnS_TD_err_pct']:+.1f} % (S) / {r['turnP_TD_err_pct']:+.1f} % (P)")
+                 + f" → **{'MET' if _meets(r) else 'NOT MET'}**; admissibility check: "
+                 + ("admissible" if r["admissible"] else "NOT admissible, offending " + ", ".join(r["offending"])))
+    clean = next((r for r in dflt if r["noise"] == "none"), None)
+    if clean is None:
+        return L
+    f = clean["fit"]
+    z = dict(f["far_from_prior"]).get("Nrrr", math.nan)
+    tau = float(np.median(list(f["tau"].values())))
+    L += ["", "## Why", "",
+          (f"- **N'_rrr turns positive.** The clean default-prior fit moves N'_rrr from −0.013 to "
+          f"{f['params']['Nrrr']:+.4f} ({z:+.1f} prior SDs), so the hull's yaw damping N'_r + 3N'_rrr r'² changes "
+          f"sign at r' = {f['rp_crit']:.2f}; the peer's 35° turns reach r' = {rp['turn']:.2f}, the training zigzags "
+          f"{rp['train']:.2f}. "
+          "The identifiability report finds no poorly identified direction (condition number "
+          f"{f['condition'] if isinstance(f['condition'], str) else format(f['condition'], '.3g')}) but warns "
+          f"of the sign flip ({', '.join(f['sign_flips'])}) and the distance from the prior; the admissibility "
+          f"check fails r-motion self-damping and names {', '.join(clean['offending'])}."),
+          ("- **It is not noise and not a lack of data: the data pull it there.** The peer and diffship's MMG "
+          "differ in structure (module docstring: drift angle at −x_G, a symmetric wake exp(−4β_P²) against "
+          "Yasukawa's C1/C2± wake, x_G, k_zz, x'_P), and N'_rrr (with N'_vvr, J'_z) absorbs that misfit on the "
+          "zigzags. Without priors the same happens, further."),
+          (f"- **Why the ±50 % priors lose.** The fit weighs its residuals as independent, but the residuals of a "
+          f"structural misfit have memory: integrated autocorrelation time τ ≈ {tau:.0f} samples "
+          f"({', '.join(f'{c} {t:.0f}' for c, t in f['tau'].items())}), so the data are over-counted about "
+          f"{tau:.0f}-fold against the priors and a ±50 % prior acts like ±{50 * math.sqrt(tau):.0f} %.")]
+    rem = [r for r in rows if r["group"] == "remedy"]
+    if rem:
+        ok = [r["remedy"] for r in rem if _meets(r) and r["admissible"]]
+        L += [(f"- **What fixes it** (table below; same clean data): meeting the target *and* admissible: "
+              f"{'; '.join(ok) or 'none of the changes tried'}.")]
+        for r in rem:
+            L.append(f"  - {r['remedy']}: " + ("blows up" if r["blowup"] else
+                     f"TD {r['turnS_TD_err_pct']:+.1f} / {r['turnP_TD_err_pct']:+.1f} %")
+                     + f", {'admissible' if r['admissible'] else 'not admissible'}")
+    return L + [""]
+
+
+def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, version: str,
+           rp: dict[str, float]) -> str:
     main_rows = [r for r in rows if r["group"] in ("reference", "main")]
     rem = [r for r in rows if r["group"] == "remedy"]
     train = next((r["train"] for r in rows if r["group"] == "main"), ())
@@ -564,6 +653,7 @@ def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, ve
          f"helm {HELM_RATE_DEG_S} °/s. Training zigzags (first rudder to starboard): {', '.join(train)}. "
          f"Fit: output error on {', '.join(CHANNELS)} resampled to {FIT_DT} s, {MAX_STEPS} LM steps per pass. "
          f"Model-test noise: {', '.join(f'{k} {v:.3g}' for k, v in MODEL_TEST_NOISE.items())} (SI, rad)."), "",
+         *verdict(rows, rp),
          "## Peer's own manoeuvres (the truth)", "",
          "| manoeuvre | tactical diameter | advance | 1st overshoot | 2nd overshoot |", "|---|---|---|---|---|"]
     for k, m in pm.items():
@@ -573,7 +663,7 @@ def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, ve
           ("Errors are diffship − peer (TD, advance in % of the peer's; overshoots in degrees). `reference` is "
           "diffship's KVLCC2 L7 model with the published coefficients, not fitted. r'_crit: the "
           "non-dimensional yaw rate above which the fitted hull's yaw damping ∂N'_H/∂r' = N'_r + 3N'_rrr r'² "
-          "(v' = 0) turns positive (the peer's steady 35° turn reaches r' ≈ 0.9)."), "",
+          f"(v' = 0) turns positive (the peer's 35° turns reach r' = {rp['turn']:.2f})."), "",
           "| free set | priors | noise " + _HEAD, "|---" * 14 + "|"]
     for r in main_rows:
         pri = "–" if r["group"] == "reference" else ("reference ±50 %" if r["priors"] else "off")
@@ -598,6 +688,8 @@ def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, ve
               (f"- furthest from the prior mean (in prior SDs): {far}; sign flips against the reference: "
               f"{', '.join(f['sign_flips']) or 'none'}; condition number {_fmt(f['condition'], '.3g') if isinstance(f['condition'], float) else f['condition']}"),
               f"- poorly identified directions (identifiability report): {'; '.join(f['weak']) or 'none'}",
+              "- residual autocorrelation time τ [samples of 0.2 s] (data over-counted ≈τ-fold against the priors): "
+              + ", ".join(f"{c} {t:.0f}" for c, t in f["tau"].items()),
               "", "```", r["admissibility"], "```", ""]
     return "\n".join(L) + "\n"
 
