@@ -37,7 +37,7 @@ def test_peer_data_are_made_without_diffship():
             "import shipmmg_peer as P; n = P.peer_self_propulsion();"
             "z = P.peer_zigzag(10, 10, duration=20.0, n=n); t = P.peer_turn(duration=10.0, n=n);"
             "print(n, z['channels']['psi'].max(), t['channels']['r'][-1])")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     n, psi_max, r_end = map(float, proc.stdout.split())
     assert 10.0 < n < 14.0  # self-propulsion of the L = 7 m KVLCC2 at 1.179 m/s (HSVA: 10.23 rev/s)
