@@ -470,35 +470,43 @@ def _fmt(v, spec=".1f"):
 
 
 def _figure(path: Path, peer: dict, rows: list[dict]) -> None:
+    """Turning tracks (both sides) and the held-out 20/20 heading: one row of panels per group of fits."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(15, 5))
-    for ax, key in zip(axes[:2], ("turnS", "turnP")):
-        c = peer[key]["channels"]
-        ax.plot(c["y0"] / 7.0, c["x0"] / 7.0, "k", lw=2.5, label="shipmmg (peer)")
-        for row in rows:
-            run = row.get(f"{key}_run")
+    groups = [[r for r in rows if r["group"] in ("reference", "main")], [r for r in rows if r["group"] == "remedy"]]
+    groups = [g for g in groups if g]
+    fig, axes = plt.subplots(len(groups), 3, figsize=(19, 5.2 * len(groups)), squeeze=False)
+    for gi, (group, ax_row) in enumerate(zip(groups, axes)):
+        colours = plt.cm.tab10(np.linspace(0, 1, 10))
+        for ax, key in zip(ax_row[:2], ("turnS", "turnP")):
+            c = peer[key]["channels"]
+            ax.plot(c["y0"] / 7.0, c["x0"] / 7.0, "k", lw=2.5, label="shipmmg (peer)")
+            for k, row in enumerate(group):
+                lab = row["label"] if row["group"] != "remedy" else row["remedy"]
+                run = row.get(f"{key}_run")
+                if run is not None:
+                    ax.plot(run["y0"] / 7.0, run["x0"] / 7.0, lw=1, color=colours[k % 10], label=lab)
+                elif row.get("model") is not None:
+                    x, y, t_bad = partial_turn(row["model"], peer[key], row["n"])
+                    ax.plot(y / 7.0, x / 7.0, lw=1, ls=":", color=colours[k % 10],
+                            label=f"{lab} (blows up at {t_bad:.0f} s)")
+                    ax.plot(y[-1:] / 7.0, x[-1:] / 7.0, "x", color=colours[k % 10])
+            ax.set(xlabel="y0 / L (starboard)", ylabel="x0 / L (approach course)", aspect="equal",
+                   title=f"35° turning circle, {'starboard' if key == 'turnS' else 'port'}"
+                   + (" — fits" if gi == 0 else " — remedies (clean data, priors on)"))
+            ax.legend(fontsize=6, loc="lower left" if key == "turnS" else "lower right")
+        c = peer["zz20P"]["channels"]
+        ax_row[2].plot(c["time"], np.degrees(c["psi"]), "k", lw=2.5, label="shipmmg (peer)")
+        for k, row in enumerate(group):
+            run = row.get("zz20P_run")
             if run is not None:
-                ax.plot(run["y0"] / 7.0, run["x0"] / 7.0, lw=1, label=row["label"])
-            elif row.get("model") is not None:
-                x, y, t_bad = partial_turn(row["model"], peer[key], row["n"])
-                ax.plot(y / 7.0, x / 7.0, lw=1, ls=":", label=f"{row['label']} (blows up at {t_bad:.0f} s)")
-                ax.plot(y[-1:] / 7.0, x[-1:] / 7.0, "rx")
-        ax.set(xlabel="y0 / L (starboard)", ylabel="x0 / L (approach course)", title=f"35° turning circle, {key[-1]}",
-               aspect="equal")
-    axes[1].legend(fontsize=6, loc="best")
-    c = peer["zz20P"]["channels"]
-    axes[2].plot(c["time"], np.degrees(c["psi"]), "k", lw=2.5, label="shipmmg (peer)")
-    for row in rows:
-        run = row.get("zz20P_run")
-        if run is not None:
-            axes[2].plot(run.time, np.degrees(run["psi"]), lw=1, label=row["label"])
-    axes[2].set(xlabel="t [s]", ylabel="ψ [°]", title="held-out 20/20 zigzag, port first")
+                ax_row[2].plot(run.time, np.degrees(run["psi"]), lw=1, color=colours[k % 10])
+        ax_row[2].set(xlabel="t [s]", ylabel="ψ [°]", title="held-out 20/20 zigzag, port first (closed loop)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
