@@ -103,6 +103,8 @@ HELM_RATE_DEG_S = 15.8
 PEER_DT = 0.05
 #: Model-test sensor noise (one standard deviation, white), SI units and radians.
 MODEL_TEST_NOISE = {"x0": 0.01, "y0": 0.01, "psi": 0.1 * D2R, "u": 0.01, "v": 0.01, "r": 0.1 * D2R}
+#: Noisy variants: label → seed base (run i of a variant gets seed base + i).
+NOISE_SEEDS = {"model-test": 1200, "model-test #2": 2200, "model-test #3": 3200}
 
 
 def peer_params():
@@ -448,6 +450,9 @@ def variants(quick: bool) -> list[dict]:
         for noise in ("none", "model-test"):
             for priors in (True, False):
                 out.append({"train": train, "free": free, "priors": priors, "noise": noise, "group": "main"})
+    if not quick:  # two more noise seeds for the default free set
+        out += [{"train": train, "free": "default", "priors": priors, "noise": noise, "group": "main"}
+                for noise in list(NOISE_SEEDS)[1:] for priors in (True, False)]
     if not quick:  # what would fix the default-prior fit (diagnosis, same clean data)
         base = {"train": train, "free": "default", "priors": True, "noise": "none", "group": "remedy"}
         out += [{**base, "remedy": "N'_rrr < 0 (sign constraint)", "nrrr_upper": 0.0},
@@ -528,7 +533,8 @@ def main(argv=None) -> int:
     train_runs = {}
     for i, (k, rec) in enumerate(zz.items()):
         train_runs[(k, "none")] = to_run(rec, f"shipmmg {k}")
-        train_runs[(k, "model-test")] = to_run(add_noise(rec, MODEL_TEST_NOISE, seed=1200 + i), f"shipmmg {k} noisy")
+        for lab, seed in NOISE_SEEDS.items():
+            train_runs[(k, lab)] = to_run(add_noise(rec, MODEL_TEST_NOISE, seed=seed + i), f"shipmmg {k} {lab}")
     from diffship.models.mmg import kvlcc2_mmg
 
     print(f"peer self-propulsion: n = {n:.4f} rev/s at U0 = {U0} m/s", flush=True)
@@ -660,7 +666,7 @@ def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, ve
          (f"Model scale L = 7 m, U0 = {U0} m/s, propeller {n:.3f} rev/s (the peer's self-propulsion point at U0), "
          f"helm {HELM_RATE_DEG_S} °/s. Training zigzags (first rudder to starboard): {', '.join(train)}. "
          f"Fit: output error on {', '.join(CHANNELS)} resampled to {FIT_DT} s, {MAX_STEPS} LM steps per pass. "
-         f"Model-test noise: {', '.join(f'{k} {v:.3g}' for k, v in MODEL_TEST_NOISE.items())} (SI, rad)."), "",
+         f"Model-test noise: {', '.join(f'{k} {v:.3g}' for k, v in MODEL_TEST_NOISE.items())} (SI, rad), white, one seed per noisy variant (`model-test`, `#2`, `#3`: different seeds)."), "",
          *verdict(rows, rp),
          "## Peer's own manoeuvres (the truth)", "",
          "| manoeuvre | tactical diameter | advance | 1st overshoot | 2nd overshoot |", "|---|---|---|---|---|"]
