@@ -64,7 +64,9 @@ Inputs: ``delta`` [rad] (starboard-positive) and ``n`` [rev/s] (propeller speed,
 ahead; the open-water map is only valid for ahead operation). Parameters: every coefficient
 above; the reference values (:func:`kvlcc2_mmg`) are the KVLCC2 L7 model of Yasukawa &
 Yoshimura (2015, Tables 1–3), with x_G = 0.0348 L and k_zz = 0.2486 L from the HSVA model
-(SIMMAN 2008). Free by default: ``Yv, Yr, Nv, Nr, Nvvr, Nrrr`` (hull), ``Jz``, ``f_alpha``,
+(SIMMAN 2008). The damping derivatives Y'_v, Y'_vvv, N'_r and N'_rrr are bounded above by 0
+(dissipative sway and yaw damping: a zigzag-only fit otherwise flips N'_rrr and the model blows up in
+a hard turn). Free by default: ``Yv, Yr, Nv, Nr, Nvvr, Nrrr`` (hull), ``Jz``, ``f_alpha``,
 ``R0`` and ``delta0`` — what the real-data study (:mod:`diffship.studies.kvlcc2`) needs; every
 other parameter is fixed at its reference value.
 
@@ -146,18 +148,18 @@ class MMG(AbstractShip3):
     Xvr: jnp.ndarray = _p("Xvr", _ND, "surge force derivative X'_vr")
     Xrr: jnp.ndarray = _p("Xrr", _ND, "surge force derivative X'_rr")
     Xvvvv: jnp.ndarray = _p("Xvvvv", _ND, "surge force derivative X'_vvvv")
-    Yv: jnp.ndarray = _p("Yv", _ND, "sway force derivative Y'_v")
+    Yv: jnp.ndarray = _p("Yv", _ND, "sway force derivative Y'_v (damping: ≤ 0)", upper=0.0)
     Yr: jnp.ndarray = _p("Yr", _ND, "sway force derivative Y'_r")
-    Yvvv: jnp.ndarray = _p("Yvvv", _ND, "sway force derivative Y'_vvv")
+    Yvvv: jnp.ndarray = _p("Yvvv", _ND, "sway force derivative Y'_vvv (damping: ≤ 0)", upper=0.0)
     Yvvr: jnp.ndarray = _p("Yvvr", _ND, "sway force derivative Y'_vvr")
     Yvrr: jnp.ndarray = _p("Yvrr", _ND, "sway force derivative Y'_vrr")
     Yrrr: jnp.ndarray = _p("Yrrr", _ND, "sway force derivative Y'_rrr")
     Nv: jnp.ndarray = _p("Nv", _ND, "yaw moment derivative N'_v")
-    Nr: jnp.ndarray = _p("Nr", _ND, "yaw moment derivative N'_r")
+    Nr: jnp.ndarray = _p("Nr", _ND, "yaw moment derivative N'_r (damping: ≤ 0)", upper=0.0)
     Nvvv: jnp.ndarray = _p("Nvvv", _ND, "yaw moment derivative N'_vvv")
     Nvvr: jnp.ndarray = _p("Nvvr", _ND, "yaw moment derivative N'_vvr")
     Nvrr: jnp.ndarray = _p("Nvrr", _ND, "yaw moment derivative N'_vrr")
-    Nrrr: jnp.ndarray = _p("Nrrr", _ND, "yaw moment derivative N'_rrr")
+    Nrrr: jnp.ndarray = _p("Nrrr", _ND, "yaw moment derivative N'_rrr (damping: ≤ 0)", upper=0.0)
     mx: jnp.ndarray = _p("mx", _ND, "surge added mass m'_x", lower=0.0)
     my: jnp.ndarray = _p("my", _ND, "sway added mass m'_y", lower=0.0)
     Jz: jnp.ndarray = _p("Jz", _ND, "yaw added moment of inertia J'_z", lower=0.0)
