@@ -255,7 +255,7 @@ def add_noise(rec: dict, levels: dict[str, float], seed: int) -> dict:
 # ------------------------------------------------------------------------------------------
 #: Free sets: the MMG default, and every hull derivative of Y and N.
 HULL = ("Yv", "Yr", "Yvvv", "Yvvr", "Yvrr", "Yrrr", "Nv", "Nr", "Nvvv", "Nvvr", "Nvrr", "Nrrr")
-FREE_SETS = {"default": None, "hull": (*HULL, "Jz", "f_alpha", "R0", "delta0")}
+FREE_SETS = {"default": None, "hull": (*HULL, "Jz", "f_alpha", "R0", "delta0"), "study": "study"}
 #: Fit settings (those of diffship.studies.kvlcc2): channels, sample interval, LM steps per pass.
 CHANNELS, FIT_DT, MAX_STEPS = ("psi", "u", "v", "r"), 0.2, 60
 #: Simulated durations [s] of the judged manoeuvres (the peer's and the fitted model's).
@@ -390,7 +390,10 @@ def fit_variant(train: list, free: str, priors: bool, *, prior_rel_sd: float = 0
 
     model = kvlcc2_mmg(**(particulars or {}))
     spec = model.spec()
-    if FREE_SETS[free] is not None:
+    if FREE_SETS[free] == "study":  # the KVLCC2 study's default: all 30 hydrodynamic coefficients
+        from diffship.studies.kvlcc2 import DEFAULT_FREE
+        spec = spec.only_free(list(DEFAULT_FREE))
+    elif FREE_SETS[free] is not None:
         spec = spec.only_free(list(FREE_SETS[free]))
     spec = spec.free(extra_free).fix(fix)
     if nrrr_upper is not None:  # a sign constraint: N'_rrr < bound (yaw damping never turns destabilising)
@@ -446,7 +449,7 @@ def fit_summary(fit) -> dict:
 def variants(quick: bool) -> list[dict]:
     train = ("20/20 S",) if quick else ("10/10 S", "20/20 S")
     out = []
-    for free in (("default",) if quick else ("default", "hull")):
+    for free in (("default",) if quick else ("default", "hull", "study")):
         for noise in ("none", "model-test"):
             for priors in (True, False):
                 out.append({"train": train, "free": free, "priors": priors, "noise": noise, "group": "main"})
