@@ -20,17 +20,37 @@ from .metrics import Evaluation
 if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
     from .fit.result import FitResult
 
-__all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS"]
+__all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS", "CHANNEL_NAMES", "failed_methods",
+           "is_failed"]
 
 _DEG = 180.0 / math.pi
 CHANNEL_UNITS = {"x0": ("m", 1.0), "y0": ("m", 1.0), "psi": ("deg", _DEG), "u": ("m/s", 1.0), "v": ("m/s", 1.0),
                  "r": ("deg/s", _DEG), "delta": ("deg", _DEG), "p": ("deg/s", _DEG), "phi": ("deg", _DEG)}
+#: Channel names diffship knows (``--columns NAME=COLUMN`` maps a file's column to one) and their
+#: units inside diffship (files in degrees: ``--degrees COLUMN``).
+CHANNEL_NAMES = {
+    "time": "s", "x0": "m, north/ahead", "y0": "m, east/starboard", "psi": "rad, clockwise", "u": "m/s",
+    "v": "m/s, starboard", "r": "rad/s, clockwise", "delta": "rad, starboard-positive after --rudder-sign",
+    "n": "rev/s, propeller", "tau_x": "N", "tau_y": "N", "tau_z": "N m", "delta_n": "rad, water-jet nozzle",
+    "rpm": "rev/min, water jets", "z0": "m", "phi": "rad", "theta": "rad", "w": "m/s", "p": "rad/s", "q": "rad/s",
+}
 _LABEL = {"equation_error": "equation error", "output_error": "output error"}
 HORIZON_NOTE = "metrics: whole-horizon simulation of every run from its initial state (no one-step prediction)"
 
 
 def _fmt(v: float) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.5g}"
+
+
+def is_failed(ev: Evaluation) -> bool:
+    """An estimate whose whole-horizon simulation blows up or is worse than the measured mean
+    (NRMSE fit % below 0 in some channel) has failed as a prediction."""
+    return (not ev.ok) or any(f < 0.0 or math.isnan(f) for f in ev.fit_percent.values())
+
+
+def failed_methods(evs: Mapping[str, Evaluation]) -> tuple[str, ...]:
+    """Methods whose training evaluation :func:`is_failed`."""
+    return tuple(m for m, ev in evs.items() if is_failed(ev))
 
 
 def text_report(
@@ -64,9 +84,15 @@ def text_report(
                 row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
         lines.append(row)
     lines.append("")
+    failed = failed_methods(train)
     for m in methods:
         r = results[m]
         how = r.info.get("programs", "")
+        if m in failed:
+            worst = min(train[m].fit_percent.values(), default=float("nan"))
+            lines.append(f"{_LABEL.get(m, m)}: FAILED — its simulation "
+                         + ("blows up" if not train[m].ok else f"is worse than the measured mean (fit {worst:.0f} %)")
+                         + "; do not use these values (kept off the figure's axis scaling)")
         lines.append(f"{_LABEL.get(m, m)}: {r.status}; {r.iterations} iterations; fit {r.fit_seconds:.2f} s, "
                      f"compile {r.compile_seconds:.2f} s" + (f" ({how})" if how else "")
                      + (f"; integrator: {r.info['integrator']}" if "integrator" in r.info else ""))
@@ -83,10 +109,11 @@ def text_report(
             for c in chans:
                 unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
                 row += f"{ev.rmse[c] * k:>14.4g}"
-            lines.append(row + ("" if ev.ok else "   (simulation blew up)"))
-        lines.append(f"{title} fit %" + " " * 7 + "".join(f"{c:>14}" for c in chans))
+            lines.append(row + ("" if ev.ok else "   (simulation blew up)") + ("   FAILED" if m in failed else ""))
+        lines.append(f"{title} fit [%]" + " " * 5 + "".join(f"{c + ' [%]':>14}" for c in chans))
         for m, ev in evs.items():
-            lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans))
+            lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans)
+                         + ("   FAILED" if m in failed else ""))
     return "\n".join(lines)
 
 
@@ -98,8 +125,13 @@ def plot_fit(
     validation: Mapping[str, Evaluation],
     path: str | Path | None = None,
     max_runs: int = 4,
+    failed: Sequence[str] = (),
 ):
-    """Measured vs simulated channels (both methods) per run, plus the track where available."""
+    """Measured vs simulated channels (both methods) per run, plus the track where available.
+
+    Curves of ``failed`` methods (:func:`failed_methods`) are drawn thin, labelled FAILED and
+    left out of the axis limits, which follow the measurements and the other curves.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -122,9 +154,16 @@ def plot_fit(
             y = np.asarray(run[c])
             y = np.unwrap(y) if c == "psi" else y
             ax.plot(t, y * k, color="0.4", lw=1.0, label="measured")
+            kept = [y * k]
             for m, ev in ev_map.items():
-                ax.plot(t, ev.simulated[run.name][c] * k, color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-",
-                        label=f"{_LABEL.get(m, m)} (RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+                ys = ev.simulated[run.name][c] * k
+                bad = m in failed
+                ax.plot(t, ys, color=colors.get(m), lw=0.6 if bad else 1.2, ls="--" if m == "equation_error" else "-",
+                        label=f"{_LABEL.get(m, m)}{' FAILED' if bad else ''} "
+                              f"(RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+                if not bad:
+                    kept.append(ys)
+            _limits(ax, kept)
             ax.set_title(f"{run.name} ({kind}): {c}", fontsize=9)
             ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
             ax.legend(fontsize=6, loc="best")
@@ -139,6 +178,9 @@ def plot_fit(
                 s = ev.simulated[run.name]
                 ax.plot(s["y0"], s["x0"], color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-", label=_LABEL.get(m, m))
             ax.set_aspect("equal", adjustable="datalim")
+            if failed:
+                ok = [ev.simulated[run.name] for m, ev in ev_map.items() if m not in failed]
+                _limits(ax, [np.asarray(run["x0"])] + [s["x0"] for s in ok], xs=[np.asarray(run["y0"])] + [s["y0"] for s in ok])
             ax.set_xlabel("y0 (east/starboard) [m]", fontsize=8)
             ax.set_ylabel("x0 (north/ahead) [m]", fontsize=8)
             ax.set_title(f"{run.name}: track", fontsize=9)
@@ -159,6 +201,18 @@ def plot_fit(
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return fig
+
+
+def _limits(ax, ys, xs=None, pad=0.08) -> None:
+    """Axis limits from the given curves only (finite values), so a failed curve cannot stretch them."""
+    for arrs, setter in ((ys, ax.set_ylim), (xs, ax.set_xlim)):
+        if not arrs:
+            continue
+        v = np.concatenate([np.ravel(a)[np.isfinite(np.ravel(a))] for a in arrs])
+        if v.size:
+            lo, hi = float(v.min()), float(v.max())
+            d = (hi - lo) * pad or 1.0
+            setter(lo - d, hi + d)
 
 
 def _metrics(ev: Evaluation | None) -> dict:
