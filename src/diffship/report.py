@@ -42,15 +42,23 @@ def _fmt(v: float) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.5g}"
 
 
-def is_failed(ev: Evaluation) -> bool:
+def is_failed(ev: Evaluation, channels: Sequence[str] | None = None) -> bool:
     """An estimate whose whole-horizon simulation blows up or is worse than the measured mean
-    (NRMSE fit % below 0 in some channel) has failed as a prediction."""
-    return (not ev.ok) or any(f < 0.0 or math.isnan(f) for f in ev.fit_percent.values())
+    (NRMSE fit % below 0 in one of ``channels``, default all) has failed as a prediction."""
+    fp = {c: f for c, f in ev.fit_percent.items() if channels is None or c in channels}
+    return (not ev.ok) or any(f < 0.0 or math.isnan(f) for f in fp.values())
 
 
-def failed_methods(evs: Mapping[str, Evaluation]) -> tuple[str, ...]:
-    """Methods whose training evaluation :func:`is_failed`."""
-    return tuple(m for m, ev in evs.items() if is_failed(ev))
+def failed_methods(evs: Mapping[str, Evaluation], results: Mapping[str, FitResult] | None = None) -> tuple[str, ...]:
+    """Methods whose training evaluation :func:`is_failed` in the channels they fitted (``results``;
+    without them, every channel but the positions ``x0``, ``y0``, which drift and are not fitted by default)."""
+    out = []
+    for m, ev in evs.items():
+        fitted = tuple(c for c in (results[m].channels if results and m in results else ()) if c in ev.channels)
+        chans = fitted or tuple(c for c in ev.channels if c not in ("x0", "y0"))
+        if is_failed(ev, chans):
+            out.append(m)
+    return tuple(out)
 
 
 def text_report(
@@ -84,12 +92,12 @@ def text_report(
                 row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
         lines.append(row)
     lines.append("")
-    failed = failed_methods(train)
+    failed = failed_methods(train, results)
     for m in methods:
         r = results[m]
         how = r.info.get("programs", "")
         if m in failed:
-            worst = min(train[m].fit_percent.values(), default=float("nan"))
+            worst = min((f for c, f in train[m].fit_percent.items() if c not in ("x0", "y0")), default=float("nan"))
             lines.append(f"{_LABEL.get(m, m)}: FAILED — its simulation "
                          + ("blows up" if not train[m].ok else f"is worse than the measured mean (fit {worst:.0f} %)")
                          + "; do not use these values (kept off the figure's axis scaling)")
@@ -177,7 +185,7 @@ def plot_fit(
             for m, ev in ev_map.items():
                 s = ev.simulated[run.name]
                 ax.plot(s["y0"], s["x0"], color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-", label=_LABEL.get(m, m))
-            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_aspect("equal", adjustable="box" if failed else "datalim")
             if failed:
                 ok = [ev.simulated[run.name] for m, ev in ev_map.items() if m not in failed]
                 _limits(ax, [np.asarray(run["x0"])] + [s["x0"] for s in ok], xs=[np.asarray(run["y0"])] + [s["y0"] for s in ok])
