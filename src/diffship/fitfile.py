@@ -10,6 +10,7 @@ without the data or the code that made it:
   (``{name: {"mean", "sd", "source"}}`` where the fit used them);
 * ``method``, ``status``, ``converged``, ``cost``; ``channels`` fitted and their ``noise_std``;
   ``integrator`` (name for :func:`diffship.integrators.get_integrator` and description);
+* ``data_ranges`` (``{channel: [min, max]}`` of the training runs: what the fit has seen);
 * ``initial_states`` per run (``state_names`` order) and ``operating_point``: the mean of
   every channel over the first second of each training run (speed ``u`` [m/s], propeller
   ``n`` [rev/s], ...), which :mod:`diffship.predict` uses as its default approach condition;
@@ -104,6 +105,17 @@ def _operating_point(runs: Sequence[Run], first_s: float = 1.0) -> dict[str, flo
     return {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
 
 
+def _ranges(runs: Sequence[Run]) -> dict[str, list[float]]:
+    """``{channel: [min, max]}`` over the training runs (what the fit has seen)."""
+    out: dict[str, list[float]] = {}
+    for run in runs:
+        for c in run.channel_names:
+            a = np.asarray(run[c])
+            lo, hi = out.get(c, [math.inf, -math.inf])
+            out[c] = [min(lo, float(a.min())), max(hi, float(a.max()))]
+    return out
+
+
 def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str | None = None,
                  extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The fit-file document of ``result`` (``runs``: the training runs, for provenance)."""
@@ -137,6 +149,7 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
         "integrator": {**integrator_name(result.integrator), "description": result.integrator.describe()},
         "initial_states": x0,
         "operating_point": _operating_point(runs) if runs else {},
+        "data_ranges": _ranges(runs),
         "ship": {"length_m": length, "model_scale": scales[0] if len(scales) == 1 else None},
         "data": [_provenance(r) for r in runs],
         "messages": list(result.messages),
@@ -177,6 +190,7 @@ class LoadedFit:
         integrator: the integrator the fit was made with (rebuilt by name).
         initial_states: ``{run: state vector}``.
         operating_point: mean channel values at the start of the training runs.
+        data_ranges: ``{channel: [min, max]}`` over the training runs.
         ship: ``{"length_m", "model_scale"}`` where known.
         data: provenance of the training runs.
         path: the file read; ``document``: the whole JSON document.
@@ -198,6 +212,7 @@ class LoadedFit:
     integrator: AbstractIntegrator
     initial_states: dict[str, np.ndarray]
     operating_point: dict[str, float]
+    data_ranges: dict[str, list[float]]
     ship: dict[str, Any]
     data: tuple[dict[str, Any], ...]
     path: Path
@@ -265,6 +280,7 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
         units=dict(doc.get("units", {})), priors=doc.get("priors"), channels=tuple(doc.get("channels", ())),
         integrator=integrator,
         initial_states={k: np.asarray(v, dtype=np.float64) for k, v in x0.get("runs", {}).items()},
-        operating_point=dict(doc.get("operating_point", {})), ship=dict(doc.get("ship", {})),
+        operating_point=dict(doc.get("operating_point", {})), data_ranges=dict(doc.get("data_ranges", {})),
+        ship=dict(doc.get("ship", {})),
         data=tuple(doc.get("data", ())), path=path, document=doc,
     )

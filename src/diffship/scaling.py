@@ -120,7 +120,8 @@ def model_length(model) -> float | None:
         return None
 
 
-def helm_rate(model=None, *, rudder_rate_deg_s: float | None = None, scale: float | None = None) -> tuple[float, str]:
+def helm_rate(model=None, *, rudder_rate_deg_s: float | None = None, scale: float | None = None,
+              length: float | None = None) -> tuple[float, str]:
     """The steering-gear rate [°/s] for a simulated manoeuvre, and where it comes from.
 
     * ``rudder_rate_deg_s`` given: used as is;
@@ -128,6 +129,8 @@ def helm_rate(model=None, *, rudder_rate_deg_s: float | None = None, scale: floa
     * a model at least :data:`FULL_SCALE_MIN_LENGTH_M` long: 2.32°/s (full scale);
     * a shorter model: :class:`~diffship.errors.ModelError` — a model-scale ship needs its own rate;
     * a model without a length (Nomoto, ...): 2.32°/s, said in the returned text.
+
+    ``length`` [m] stands in for the model's own length (e.g. a Nomoto model of a known ship).
     """
     if rudder_rate_deg_s is not None:
         if not rudder_rate_deg_s > 0:
@@ -136,7 +139,7 @@ def helm_rate(model=None, *, rudder_rate_deg_s: float | None = None, scale: floa
     if scale is not None:
         s = FroudeScale(float(scale))
         return IMO_HELM_RATE_DEG_S * s.sqrt, f"IMO 2.32°/s at full scale × √λ (λ = {scale:g})"
-    L = model_length(model)
+    L = length if length is not None else model_length(model)
     if L is None:
         return IMO_HELM_RATE_DEG_S, "IMO full-scale 2.32°/s (the model has no length; give a rate or a scale)"
     if L >= FULL_SCALE_MIN_LENGTH_M:

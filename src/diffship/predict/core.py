@@ -288,6 +288,28 @@ def _durations(length, speed, duration) -> tuple[dict[str, float], float, str | 
             "set --duration")
 
 
+_EXTRAPOLATION = {"r": ("yaw rate", "deg/s", 180.0 / math.pi), "v": ("sway speed", "m/s", 1.0),
+                  "delta": ("rudder angle", "deg", 180.0 / math.pi)}
+
+
+def extrapolation(fit: LoadedFit, spec: ManoeuvreSpec, run: Run, margin: float = 1.1) -> str | None:
+    """A sentence when the manoeuvre leaves the range of the training runs (|r|, |v|, |δ| beyond
+    ``margin`` times the largest measured), else ``None``."""
+    over = []
+    for c, (what, unit, k) in _EXTRAPOLATION.items():
+        rng = fit.data_ranges.get(c)
+        if rng is None or not run.has(c):
+            continue
+        seen = max(abs(rng[0]), abs(rng[1]))
+        top = float(np.max(np.abs(np.asarray(run[c]))))
+        if top > margin * seen:
+            over.append(f"|{c}| up to {top * k:.3g} {unit} (training runs: ≤ {seen * k:.3g})")
+    if not over:
+        return None
+    return (f"{spec.label} is an EXTRAPOLATION: {', '.join(over)}; its metrics rest on the model outside the "
+            "data it was fitted to, which the intervals do not cover")
+
+
 def _draw(fit: LoadedFit, n: int, seed: int) -> tuple[np.ndarray, str]:
     names = fit.covariance_names
     mean = np.asarray([fit.params[k] for k in names])
@@ -309,7 +331,8 @@ def _draw(fit: LoadedFit, n: int, seed: int) -> tuple[np.ndarray, str]:
             break
     return np.asarray(out[:n]), (f"{n} parameter sets drawn from N(θ̂, Σ) of the {len(names)} free parameters "
                                  "(Monte Carlo through the nonlinear manoeuvre simulation; draws outside bounds "
-                                 "redrawn); intervals: 2.5–97.5 percentiles")
+                                 "redrawn); intervals: 2.5–97.5 percentiles; parameter uncertainty only (not "
+                                 "model-structure error)")
 
 
 def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpec], *, speed: float | None = None,
@@ -340,7 +363,7 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
         notes.append(f"scale λ = {scale:g} from the fit file's training data (ship.model_scale)")
     length = length or model_length(model)
     sp, inp, how = approach(fit, speed=speed, inputs=inputs)
-    rate, rate_src = helm_rate(model, rudder_rate_deg_s=helm_rate_deg_s, scale=scale)
+    rate, rate_src = helm_rate(model, rudder_rate_deg_s=helm_rate_deg_s, scale=scale, length=length)
     durs, dt, dnote = _durations(length, sp, duration)
     if dnote:
         notes.append(dnote)
@@ -359,6 +382,9 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
             raise ModelError(f"{spec.label}: model {model.name} has no track; give --speed for a kinematic track")
         run = _fly(model, spec, cond, fit.integrator)
         met = manoeuvre_metrics(spec, run, length)
+        extra = extrapolation(fit, spec, run)
+        if extra:
+            notes.append(extra)
         samp, failed = [], 0
         for theta in draws:
             try:
