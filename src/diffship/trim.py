@@ -137,9 +137,13 @@ def trim(model: AbstractModel, *, speed: float | None = None, inputs: Mapping[st
     else:
         raise ModelError(f"trim of {model.name}: no equilibrium {which} found up to {hi:g}; "
                          "check the model's resistance and propulsion parameters")
-    sol = optx.root_find(f, optx.Bisection(rtol=1e-12, atol=1e-12), jnp.asarray(0.5 * (a + b)),
-                         options={"lower": a, "upper": b}, throw=False, max_steps=400)
-    y = float(sol.value)
+    fa, fb = float(f(jnp.asarray(a))), float(f(jnp.asarray(b)))
+    if fa == 0.0 or fb == 0.0:  # a grid point is the root (bisection needs a strict sign change)
+        y = a if fa == 0.0 else b
+    else:
+        sol = optx.root_find(f, optx.Bisection(rtol=1e-12, atol=1e-12), jnp.asarray(0.5 * (a + b)),
+                             options={"lower": a, "upper": b}, throw=False, max_steps=400)
+        y = float(sol.value)
     res = float(f(jnp.asarray(y)))
     ok = abs(res) <= atol
     vals_in = {n: float(inputs.get(n, 0.0)) for n in model.input_names}
