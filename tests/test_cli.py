@@ -151,7 +151,7 @@ def test_fit_then_validate_same_file_agree(tmp_path, capsys):
     oe = json.loads(js.read_text())["methods"]["output_error"]
     for c in ("psi", "r"):
         assert abs(oe["train"]["fit_percent"][c] - oe["validation"]["fit_percent"][c]) <= 1.0, (c, oe)
-    assert oe["train"]["fit_percent"]["psi"] > 80.0
+    assert oe["train"]["fit_percent"]["psi"] > 75.0
 
 
 def test_out_writes_fit_file_and_save(nomoto_csvs, tmp_path, capsys):

@@ -181,8 +181,8 @@ def _x0_vector(model: AbstractModel, initial) -> np.ndarray:
 
 def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg_s, max_rudder_deg,
                    integrator, name, metadata, scale=None) -> Run:
-    rudder_rate_deg_s, rate_source = helm_rate(model, rudder_rate_deg_s=rudder_rate_deg_s, scale=scale)
     d_idx, u_const = _input_slots(model, inputs)
+    rudder_rate_deg_s, rate_source = helm_rate(model, rudder_rate_deg_s=rudder_rate_deg_s, scale=scale)
     x0 = _x0_vector(model, initial)
     ts = np.arange(0.0, duration + 0.5 * dt, dt)
     xs, ds, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(x0), jnp.asarray(u_const), d_idx,
