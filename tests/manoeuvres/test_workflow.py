@@ -13,8 +13,8 @@ from diffship.models.mmg import kvlcc2_mmg
 
 @pytest.fixture(scope="module")
 def turn_and_release():
-    kw = dict(rudder_deg=35.0, inputs={"n": 10.23}, dt=0.5, t_execute=1.0, rudder_rate_deg_s=15.8,
-              integrator=RK4(substeps=2))
+    kw = {"rudder_deg": 35.0, "inputs": {"n": 10.23}, "dt": 0.5, "t_execute": 1.0, "rudder_rate_deg_s": 15.8,
+          "integrator": RK4(substeps=2)}
     m = kvlcc2_mmg()
     po = M.pull_out(m, {"u": 1.179}, turn_s=220.0, settle_s=100.0, **kw)
     return po

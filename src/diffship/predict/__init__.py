@@ -6,18 +6,32 @@ intervals from the fit's covariance, and checks the IMO 2002 criteria
 (:mod:`diffship.predict.criteria`); :mod:`diffship.predict.report` prints and plots it.
 """
 
-from .core import (
-    Condition as Condition,
-    ManoeuvrePrediction as ManoeuvrePrediction,
-    ManoeuvreSpec as ManoeuvreSpec,
-    Prediction as Prediction,
-    parse_manoeuvre as parse_manoeuvre,
-    predict as predict,
-)
-from .criteria import Criterion as Criterion, check_criteria as check_criteria, overshoot_limits as overshoot_limits
-from .report import plot_prediction as plot_prediction, prediction_json as prediction_json
-from .report import prediction_text as prediction_text, write_prediction as write_prediction
+from .core import Condition as Condition
+from .core import ManoeuvrePrediction as ManoeuvrePrediction
+from .core import ManoeuvreSpec as ManoeuvreSpec
+from .core import Prediction as Prediction
+from .core import parse_manoeuvre as parse_manoeuvre
+from .core import predict as predict
+from .criteria import Criterion as Criterion
+from .criteria import check_criteria as check_criteria
+from .criteria import overshoot_limits as overshoot_limits
+from .report import plot_prediction as plot_prediction
+from .report import prediction_json as prediction_json
+from .report import prediction_text as prediction_text
+from .report import write_prediction as write_prediction
 
-__all__ = ["predict", "parse_manoeuvre", "ManoeuvreSpec", "Condition", "ManoeuvrePrediction", "Prediction",
-           "Criterion", "check_criteria", "overshoot_limits", "prediction_text", "plot_prediction",
-           "prediction_json", "write_prediction"]
+__all__ = [
+    "Condition",
+    "Criterion",
+    "ManoeuvrePrediction",
+    "ManoeuvreSpec",
+    "Prediction",
+    "check_criteria",
+    "overshoot_limits",
+    "parse_manoeuvre",
+    "plot_prediction",
+    "predict",
+    "prediction_json",
+    "prediction_text",
+    "write_prediction",
+]

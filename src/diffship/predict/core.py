@@ -38,14 +38,30 @@ import numpy as np
 from ..data import Run
 from ..errors import DataError, ModelError
 from ..fitfile import LoadedFit, load_fit
-from ..manoeuvres import pull_out, pullout_metrics, side_name, side_sign, turning_circle, turning_metrics, zigzag
-from ..manoeuvres import zigzag_metrics
+from ..manoeuvres import (
+    pull_out,
+    pullout_metrics,
+    side_name,
+    side_sign,
+    turning_circle,
+    turning_metrics,
+    zigzag,
+    zigzag_metrics,
+)
 from ..scaling import FroudeScale, helm_rate, model_length
 from ..trim import trim
 from .criteria import Criterion, check_criteria
 
-__all__ = ["ManoeuvreSpec", "Condition", "ManoeuvrePrediction", "Prediction", "parse_manoeuvre", "predict",
-           "approach", "METRIC_KINDS"]
+__all__ = [
+    "METRIC_KINDS",
+    "Condition",
+    "ManoeuvrePrediction",
+    "ManoeuvreSpec",
+    "Prediction",
+    "approach",
+    "parse_manoeuvre",
+    "predict",
+]
 
 #: How each metric scales to full scale (``length``: × λ, ``time``: × √λ, ``rate``: ÷ √λ, else unchanged) and its unit.
 METRIC_KINDS = {
@@ -259,8 +275,8 @@ def approach(fit: LoadedFit, *, speed: float | None = None, inputs: Mapping[str,
 def _fly(model, spec: ManoeuvreSpec, cond: Condition, integrator, fixed_duration: float | None = None) -> Run:
     initial = {"u": cond.speed} if "u" in model.state_names else {}
     inputs = {k: v for k, v in cond.inputs.items() if k != "delta"}
-    kw = dict(rudder_deg=spec.rudder_deg, first=spec.side, inputs=inputs, dt=cond.dt, t_execute=cond.dt,
-              rudder_rate_deg_s=cond.helm_rate_deg_s, integrator=integrator)
+    kw = {"rudder_deg": spec.rudder_deg, "first": spec.side, "inputs": inputs, "dt": cond.dt, "t_execute": cond.dt,
+          "rudder_rate_deg_s": cond.helm_rate_deg_s, "integrator": integrator}
     dur = fixed_duration or cond.duration[spec.kind]
     if spec.kind == "turning_circle":
         for _ in range(4):  # long enough for 450° of heading change (steady diameter over ≥ 180° of arc)
@@ -284,8 +300,8 @@ def _durations(length, speed, duration) -> tuple[dict[str, float], float, str | 
         lv = length / speed
         return ({"turning_circle": 45 * lv, "zigzag": 40 * lv, "pull_out": 50 * lv}, lv / 50.0, None)
     return ({"turning_circle": 300.0, "zigzag": 200.0, "pull_out": 300.0}, 0.1,
-            "no ship length or speed: durations 300 s (turning, pull-out) and 200 s (zigzag), dt 0.1 s; "
-            "set --duration")
+            ("no ship length or speed: durations 300 s (turning, pull-out) and 200 s (zigzag), dt 0.1 s; "
+             "set --duration"))
 
 
 _EXTRAPOLATION = {"r": ("yaw rate", "deg/s", 180.0 / math.pi), "v": ("sway speed", "m/s", 1.0),

@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-__all__ = ["Criterion", "overshoot_limits", "check_criteria"]
+__all__ = ["Criterion", "check_criteria", "overshoot_limits"]
 
 
 @dataclasses.dataclass(frozen=True)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .core import METRIC_KINDS, Prediction
 
-__all__ = ["prediction_text", "plot_prediction", "prediction_json", "write_prediction"]
+__all__ = ["plot_prediction", "prediction_json", "prediction_text", "write_prediction"]
 
 _NAMES = {
     "advance": "advance", "transfer": "transfer", "tactical_diameter": "tactical diameter",
@@ -34,8 +34,8 @@ def prediction_text(p: Prediction) -> str:
     lam = c.scale
     lines = [f"diffship prediction — model {p.model_name} from {p.fit_path}",
              f"approach: {c.approach}",
-             f"helm rate {c.helm_rate_deg_s:.3g} °/s, autopilot delay {c.delay_s:g} s, time step {c.dt:.3g} s "
-             "(all at the fit's scale)"]
+             (f"helm rate {c.helm_rate_deg_s:.3g} °/s, autopilot delay {c.delay_s:g} s, time step {c.dt:.3g} s "
+              "(all at the fit's scale)")]
     if c.length:
         lines.append(f"ship length L = {c.length:g} m" + (f" (full scale {c.length * lam:g} m)" if lam else "")
                      + (f"; L/V = {c.l_over_v:.3g} s" if c.l_over_v else "")
