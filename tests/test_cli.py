@@ -235,3 +235,20 @@ def test_help_lists_every_model_and_channel_names(capsys):
     out = capsys.readouterr().out
     assert all(m in out for m in MODELS)
     assert "--columns" in out and "psi [rad" in out and "delta [rad" in out
+
+
+def test_resampling_sensitivity_is_reported(capsys):
+    """The SSPA zigzag at 10 Hz vs its own 50 Hz: Nomoto K and T1 move by many standard errors
+    (issue 15: 0.835/3.31 vs 1.33/14.8); the report says so with --check-sampling, and warns without."""
+    code = fit_main([SSPA, "--rudder-sign", "port", "--resample", "0.1", "--method", "output-error", "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0 and "resampled from 50 Hz to 10 Hz" in out and "--check-sampling" in out
+    code = fit_main([SSPA, "--rudder-sign", "port", "--resample", "0.1", "--method", "output-error",
+                     "--check-sampling", "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0
+    line = next(ln for ln in out.splitlines() if ln.startswith("WARNING: sampling-rate sensitivity"))
+    assert "K, T1" in line
+    rows = {ln.split()[0]: ln for ln in out.splitlines() if "σ)" in ln}
+    z = float(rows["K"].rsplit("(", 1)[1].split()[0])
+    assert z > 2.0
