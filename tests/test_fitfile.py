@@ -86,3 +86,20 @@ def test_priors_are_carried(fitted, tmp_path):
     res2 = dataclasses.replace(res, info={**res.info, "priors": priors})
     fit = diffship.load_fit(save_fit(res2, tmp_path / "p.json", runs))
     assert fit.priors == priors
+
+
+def test_structure_is_checked_on_load(tmp_path):
+    """A water-jet USV fit is not silently loaded into the force-input Fossen 3-DOF of the same name."""
+    from diffship.fit import FitResult
+    from diffship.models import Fossen3, WaterJet, usv_standard
+
+    jet = usv_standard(actuator=WaterJet())
+    res = FitResult(method="output_error", model=jet, params=jet.param_values(), stderr={}, free=(), converged=True,
+                    status="converged", iterations=0, cost=0.0, fit_seconds=0.0, compile_seconds=0.0)
+    path = save_fit(res, tmp_path / "jet.json")
+    assert json.loads(path.read_text())["model"]["registry"] == "fossen3_waterjet"
+    assert diffship.load_fit(path).model.input_names == jet.input_names
+    with pytest.raises(ModelError, match="inputs"):
+        Fossen3.from_fit(path)
+    with pytest.raises(DataError, match="inputs"):
+        diffship.load_fit(path, model=Fossen3())

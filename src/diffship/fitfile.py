@@ -71,7 +71,7 @@ def registry_key(model: AbstractModel) -> str | None:
             m = MODELS[k]()
         except Exception:  # noqa: BLE001, S112  (a registry entry that cannot be built is no match)
             continue
-        if type(m) is type(model) and m.param_names == model.param_names:
+        if type(m) is type(model) and m.param_names == model.param_names and m.input_names == model.input_names:
             return k
     return None
 
@@ -132,7 +132,9 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
     doc = {
         "schema": SCHEMA,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "model": {"name": model.name, "registry": registry or registry_key(model), "class": type(model).__name__},
+        "model": {"name": model.name, "registry": registry or registry_key(model), "class": type(model).__name__,
+                  "states": list(model.state_names), "inputs": list(model.input_names),
+                  "outputs": list(model.output_names)},
         "method": result.method,
         "status": result.status,
         "converged": bool(result.converged),
@@ -260,6 +262,10 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
             raise DataError(f"{path}: model {doc['model'].get('name')!r} is not in the model registry; pass a "
                             "model of the same structure: load_fit(path, model=...)")
         model = MODELS[key]()
+    inputs = doc["model"].get("inputs")
+    if inputs is not None and tuple(inputs) != tuple(model.input_names):
+        raise DataError(f"{path}: the fitted model has inputs {tuple(inputs)}, model {model.name} here has "
+                        f"{model.input_names}; pass a model of the same structure: load_fit(path, model=...)")
     unknown = sorted(set(doc["params"]) - set(model.param_names))
     if unknown:
         raise DataError(f"{path}: parameter(s) {', '.join(unknown)} are not parameters of model {model.name}")

@@ -206,6 +206,10 @@ class AbstractModel(eqx.Module):
         name = doc.get("model", {}).get("name")
         if name != model.name:
             raise ModelError(f"{path}: holds a fit of model {name!r}, not {model.name!r}; use diffship.load_fit(path)")
+        inputs = doc["model"].get("inputs")
+        if inputs is not None and tuple(inputs) != tuple(model.input_names):
+            raise ModelError(f"{path}: the fitted {name} has inputs {tuple(inputs)}, {cls.__name__}() has "
+                             f"{model.input_names}; use diffship.load_fit(path)")
         return model.with_params(doc["params"])
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:

@@ -373,7 +373,7 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
     specs = [m if isinstance(m, ManoeuvreSpec) else parse_manoeuvre(m) for m in manoeuvres]
     if not specs:
         raise DataError("no manoeuvre given: e.g. --manoeuvre turning:35 zigzag:10/10 zigzag:20/20")
-    notes = []
+    notes = [] if fit.converged else [f"the fit did NOT converge ({fit.status}): treat these predictions with care"]
     if scale is None and fit.ship.get("model_scale"):
         scale = float(fit.ship["model_scale"])
         notes.append(f"scale λ = {scale:g} from the fit file's training data (ship.model_scale)")
