@@ -77,13 +77,14 @@ def text_report(
         f"training runs: {', '.join(r.name for r in train_runs)}",
         f"validation runs: {', '.join(r.name for r in val_runs) if val_runs else 'none (pass --validate RUN.csv)'}",
         "",
-        f"{'parameter':<12}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
+        f"{'parameter [unit]':<22}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
     ]
     free = []
     for m in methods:
         free += [n for n in results[m].free if n not in free]
     for n in free:
-        row = f"{n:<12}"
+        unit = next((p.unit for r in results.values() for p in r.model.PARAMS if p.name == n), "") or "-"
+        row = f"{n + ' [' + unit + ']':<22}"
         for m in methods:
             r = results[m]
             if n in r.free:
