@@ -204,6 +204,9 @@ def test_failed_estimate_labelled_and_off_the_axes(capsys, tmp_path):
     assert code == 0
     line = next(ln for ln in out.splitlines() if ln.startswith("equation error: FAILED"))
     assert "worse than the measured mean" in line
+    cost = next(ln for ln in out.splitlines() if ln.startswith("training cost on one scale"))
+    ee, oe_cost = (float(cost.split(name + " ")[1].split()[0].rstrip(",")) for name in ("equation error", "output error"))
+    assert ee > 100 * oe_cost  # one scale for both methods (the solvers' own costs are not comparable)
     import diffship
 
     oe = diffship.load_fit(tmp_path / "fit.json")

@@ -20,8 +20,16 @@ from .metrics import Evaluation
 if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
     from .fit.result import FitResult
 
-__all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS", "CHANNEL_NAMES", "failed_methods",
-           "is_failed"]
+__all__ = [
+    "CHANNEL_NAMES",
+    "CHANNEL_UNITS",
+    "failed_methods",
+    "is_failed",
+    "plot_fit",
+    "text_report",
+    "to_json_dict",
+    "write_json",
+]
 
 _DEG = 180.0 / math.pi
 CHANNEL_UNITS = {"x0": ("m", 1.0), "y0": ("m", 1.0), "psi": ("deg", _DEG), "u": ("m/s", 1.0), "v": ("m/s", 1.0),
@@ -123,7 +131,26 @@ def text_report(
         for m, ev in evs.items():
             lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans)
                          + ("   FAILED" if m in failed else ""))
+    if train:
+        lines.append(_common_cost(train, train_runs, failed))
     return "\n".join(lines)
+
+
+def _common_cost(evs: Mapping[str, Evaluation], runs: Sequence[Run], failed: Sequence[str]) -> str:
+    """Training cost of every method on one scale: ½ Σ_c Σ_k (e_ck / s_c)² with s_c the spread of the
+    measured channel c over the training runs (the solvers' own costs use different weights per pass)."""
+    chans = next(iter(evs.values())).channels
+    n = sum(r.n for r in runs)
+    spread = {}
+    for c in chans:
+        y = np.concatenate([np.unwrap(r[c]) if c == "psi" else np.asarray(r[c]) for r in runs if r.has(c)])
+        spread[c] = float(np.std(y)) or 1.0
+    parts = []
+    for m, ev in evs.items():
+        cost = 0.5 * sum(n * (ev.rmse[c] / spread[c]) ** 2 for c in chans if c not in ("x0", "y0"))
+        parts.append(f"{_LABEL.get(m, m)} {cost:.4g}" + (" (FAILED)" if m in failed else ""))
+    return ("training cost on one scale, ½Σ(e/s)² with s the spread of each measured channel (x0, y0 left "
+            "out) [-]: " + ", ".join(parts))
 
 
 def plot_fit(
