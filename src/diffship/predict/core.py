@@ -15,7 +15,8 @@ list of manoeuvres (:func:`parse_manoeuvre`: ``turning:35``, ``zigzag:10/10``, `
    the IMO 2002 criteria (:mod:`diffship.predict.criteria`) at full scale;
 4. **intervals**: where the fit has a finite covariance Σ of its free parameters, ``samples``
    parameter vectors are drawn from N(θ̂, Σ) (draws outside a parameter's bounds are redrawn
-   out; draws whose manoeuvre blows up are counted), each is flown through the same
+   out; draws whose manoeuvre blows up are counted), each is flown (looped, one compiled
+   closed-loop simulation reused for every draw) through the same
    manoeuvres, and the 2.5 and 97.5 percentiles of each metric are reported — Monte-Carlo
    propagation of the Gaussian (linearised) parameter uncertainty through the nonlinear
    simulation; model-structure error is not in it.
@@ -346,7 +347,8 @@ def _draw(fit: LoadedFit, n: int, seed: int) -> tuple[np.ndarray, str]:
         if len(out) >= n:
             break
     return np.asarray(out[:n]), (f"{n} parameter sets drawn from N(θ̂, Σ) of the {len(names)} free parameters "
-                                 "(Monte Carlo through the nonlinear manoeuvre simulation; draws outside bounds "
+                                 "(Monte Carlo through the nonlinear manoeuvre simulation, one compiled simulation "
+                                 "per draw in a loop, not vmapped; draws outside bounds "
                                  "redrawn); intervals: 2.5–97.5 percentiles; parameter uncertainty only (not "
                                  "model-structure error)")
 
