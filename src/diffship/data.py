@@ -104,37 +104,38 @@ def _psi_unwrap(psi: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> None:
-    """Conservative heuristics that catch degrees passed as radians."""
-    hint = ("pass degrees=['{c}'] (CLI: --degrees {c}), or check_units=False "
-            "if the values really are radians.")
+    """Conservative heuristics that catch degrees passed as radians; every problem in one error."""
+    problems: list[tuple[str, str]] = []  # (channel, what)
     for c, limit, unit in (("delta", 1.0, "rad"), ("nozzle", 1.0, "rad"),
                            ("r", 3.0, "rad/s"), ("p", 3.0, "rad/s"), ("q", 3.0, "rad/s")):
         if c in ch and np.max(np.abs(ch[c])) > limit:
             i = int(np.argmax(np.abs(ch[c])))
-            raise DataError(f"{where}: column '{c}' looks like degrees (|value| up to "
-                            f"{abs(ch[c][i]):.4g} at row {i}, more than {limit} {unit}); "
-                            + hint.format(c=c))
-    if "psi" not in ch:
-        return
-    psi = ch["psi"]
-    unwrapped, wraps_at_360 = _psi_unwrap(psi)
-    big = np.max(np.abs(psi)) > 2 * np.pi + 0.5
-    looks_0_360 = psi.min() >= -0.5 and psi.max() <= 360.5 and psi.max() > 7.0
-    if big and (wraps_at_360 or (looks_0_360 and abs(psi[0]) > 2 * np.pi + 0.5)):
-        raise DataError(f"{where}: column 'psi' looks like degrees (values from {psi.min():.4g} "
-                        f"to {psi.max():.4g}); " + hint.format(c="psi"))
-    if "r" in ch and np.std(ch["r"]) > 1e-4:
-        r = ch["r"]
-        g = np.gradient(unwrapped, time)
-        if np.std(g) > 0 and np.corrcoef(g, r)[0, 1] > 0.7:
-            slope = float(g @ r / (r @ r))
-            if 30.0 < slope < 100.0:
-                raise DataError(f"{where}: column 'psi' looks like degrees while 'r' is in "
-                                f"rad/s (d psi/dt = {slope:.3g} r); " + hint.format(c="psi"))
-            if 0.01 < slope < 0.03:
-                raise DataError(f"{where}: column 'r' looks like deg/s while 'psi' is in rad "
-                                f"(d psi/dt = {slope:.3g} r, about 1/57.3); "
-                                + hint.format(c="r"))
+            problems.append((c, f"column '{c}' looks like degrees (|value| up to {abs(ch[c][i]):.4g} at row {i}, "
+                                f"more than {limit} {unit})"))
+    if "psi" in ch:
+        psi = ch["psi"]
+        unwrapped, wraps_at_360 = _psi_unwrap(psi)
+        big = np.max(np.abs(psi)) > 2 * np.pi + 0.5
+        looks_0_360 = psi.min() >= -0.5 and psi.max() <= 360.5 and psi.max() > 7.0
+        if big and (wraps_at_360 or (looks_0_360 and abs(psi[0]) > 2 * np.pi + 0.5)):
+            problems.append(("psi", f"column 'psi' looks like degrees (values from {psi.min():.4g} "
+                                    f"to {psi.max():.4g})"))
+        elif "r" in ch and np.std(ch["r"]) > 1e-4 and not any(c == "r" for c, _ in problems):
+            r = ch["r"]
+            g = np.gradient(unwrapped, time)
+            if np.std(g) > 0 and np.corrcoef(g, r)[0, 1] > 0.7:
+                slope = float(g @ r / (r @ r))
+                if 30.0 < slope < 100.0:
+                    problems.append(("psi", f"column 'psi' looks like degrees while 'r' is in rad/s "
+                                            f"(d psi/dt = {slope:.3g} r)"))
+                if 0.01 < slope < 0.03:
+                    problems.append(("r", f"column 'r' looks like deg/s while 'psi' is in rad "
+                                          f"(d psi/dt = {slope:.3g} r, about 1/57.3)"))
+    if problems:
+        cols = " ".join(dict.fromkeys(c for c, _ in problems))
+        raise DataError(f"{where}: " + "; ".join(w for _, w in problems)
+                        + f"; pass degrees=[{', '.join(repr(c) for c in dict.fromkeys(c for c, _ in problems))}] "
+                        f"(CLI: --degrees {cols}), or check_units=False if the values really are radians.")
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)

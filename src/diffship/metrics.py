@@ -93,9 +93,12 @@ def evaluate(
 ) -> Evaluation:
     """Simulate ``model`` on every run (whole horizon) and compare with the measurements.
 
-    ``x0``: initial states per run (e.g. a fit's ``initial_states``); by default from the
-    filtered measurements (:func:`diffship.simulate.initial_state`). ``integrator``: use the
-    fit's (``fit.integrator``) so the model is judged as it was fitted.
+    ``x0``: initial states per run; by default from the filtered measurements at the first sample
+    (:func:`diffship.simulate.initial_state`) — **the one initial-state rule** of every metric
+    diffship reports: ``python -m diffship.fit`` judges training and ``--validate`` runs this way,
+    so a file fitted and then validated gives the same fit % (pass a fit's ``initial_states`` to
+    see the fit's own estimated starts instead). ``integrator``: use the fit's
+    (``fit.integrator``) so the model is judged as it was fitted.
     """
 
     pooled_e: dict[str, list] = {}

@@ -14,23 +14,57 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .data import Run
+from .data import CHANNEL_UNITS, Run
 from .metrics import Evaluation
 
 if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
     from .fit.result import FitResult
 
-__all__ = ["text_report", "plot_fit", "to_json_dict", "write_json", "CHANNEL_UNITS"]
+__all__ = [
+    "CHANNEL_NAMES",
+    "CHANNEL_UNITS",
+    "failed_methods",
+    "is_failed",
+    "plot_fit",
+    "text_report",
+    "to_json_dict",
+    "write_json",
+]
 
-_DEG = 180.0 / math.pi
-CHANNEL_UNITS = {"x0": ("m", 1.0), "y0": ("m", 1.0), "psi": ("deg", _DEG), "u": ("m/s", 1.0), "v": ("m/s", 1.0),
-                 "r": ("deg/s", _DEG), "delta": ("deg", _DEG), "p": ("deg/s", _DEG), "phi": ("deg", _DEG)}
+
+#: Channel names diffship knows (``--columns NAME=COLUMN`` maps a file's column to one) and their
+#: units inside diffship (files in degrees: ``--degrees COLUMN``).
+CHANNEL_NAMES = {
+    "time": "s", "x0": "m, north/ahead", "y0": "m, east/starboard", "psi": "rad, clockwise", "u": "m/s",
+    "v": "m/s, starboard", "r": "rad/s, clockwise", "delta": "rad, starboard-positive after --rudder-sign",
+    "n": "rev/s, propeller", "tau_x": "N", "tau_y": "N", "tau_z": "N m", "delta_n": "rad, water-jet nozzle",
+    "rpm": "rev/min, water jets", "z0": "m", "phi": "rad", "theta": "rad", "w": "m/s", "p": "rad/s", "q": "rad/s",
+}
 _LABEL = {"equation_error": "equation error", "output_error": "output error"}
 HORIZON_NOTE = "metrics: whole-horizon simulation of every run from its initial state (no one-step prediction)"
 
 
 def _fmt(v: float) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.5g}"
+
+
+def is_failed(ev: Evaluation, channels: Sequence[str] | None = None) -> bool:
+    """An estimate whose whole-horizon simulation blows up or is worse than the measured mean
+    (NRMSE fit % below 0 in one of ``channels``, default all) has failed as a prediction."""
+    fp = {c: f for c, f in ev.fit_percent.items() if channels is None or c in channels}
+    return (not ev.ok) or any(f < 0.0 or math.isnan(f) for f in fp.values())
+
+
+def failed_methods(evs: Mapping[str, Evaluation], results: Mapping[str, FitResult] | None = None) -> tuple[str, ...]:
+    """Methods whose training evaluation :func:`is_failed` in the channels they fitted (``results``;
+    without them, every channel but the positions ``x0``, ``y0``, which drift and are not fitted by default)."""
+    out = []
+    for m, ev in evs.items():
+        fitted = tuple(c for c in (results[m].channels if results and m in results else ()) if c in ev.channels)
+        chans = fitted or tuple(c for c in ev.channels if c not in ("x0", "y0"))
+        if is_failed(ev, chans):
+            out.append(m)
+    return tuple(out)
 
 
 def text_report(
@@ -49,13 +83,14 @@ def text_report(
         f"training runs: {', '.join(r.name for r in train_runs)}",
         f"validation runs: {', '.join(r.name for r in val_runs) if val_runs else 'none (pass --validate RUN.csv)'}",
         "",
-        f"{'parameter':<12}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
+        f"{'parameter [unit]':<22}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
     ]
     free = []
     for m in methods:
         free += [n for n in results[m].free if n not in free]
     for n in free:
-        row = f"{n:<12}"
+        unit = next((p.unit for r in results.values() for p in r.model.PARAMS if p.name == n), "") or "-"
+        row = f"{n + ' [' + unit + ']':<22}"
         for m in methods:
             r = results[m]
             if n in r.free:
@@ -64,9 +99,15 @@ def text_report(
                 row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
         lines.append(row)
     lines.append("")
+    failed = failed_methods(train, results)
     for m in methods:
         r = results[m]
         how = r.info.get("programs", "")
+        if m in failed:
+            worst = min((f for c, f in train[m].fit_percent.items() if c not in ("x0", "y0")), default=float("nan"))
+            lines.append(f"{_LABEL.get(m, m)}: FAILED — its simulation "
+                         + ("blows up" if not train[m].ok else f"is worse than the measured mean (fit {worst:.0f} %)")
+                         + "; do not use these values (kept off the figure's axis scaling)")
         lines.append(f"{_LABEL.get(m, m)}: {r.status}; {r.iterations} iterations; fit {r.fit_seconds:.2f} s, "
                      f"compile {r.compile_seconds:.2f} s" + (f" ({how})" if how else "")
                      + (f"; integrator: {r.info['integrator']}" if "integrator" in r.info else ""))
@@ -83,11 +124,31 @@ def text_report(
             for c in chans:
                 unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
                 row += f"{ev.rmse[c] * k:>14.4g}"
-            lines.append(row + ("" if ev.ok else "   (simulation blew up)"))
-        lines.append(f"{title} fit %" + " " * 7 + "".join(f"{c:>14}" for c in chans))
+            lines.append(row + ("" if ev.ok else "   (simulation blew up)") + ("   FAILED" if m in failed else ""))
+        lines.append(f"{title} fit [%]" + " " * 5 + "".join(f"{c + ' [%]':>14}" for c in chans))
         for m, ev in evs.items():
-            lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans))
+            lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans)
+                         + ("   FAILED" if m in failed else ""))
+    if train:
+        lines.append(_common_cost(train, train_runs, failed))
     return "\n".join(lines)
+
+
+def _common_cost(evs: Mapping[str, Evaluation], runs: Sequence[Run], failed: Sequence[str]) -> str:
+    """Training cost of every method on one scale: ½ Σ_c Σ_k (e_ck / s_c)² with s_c the spread of the
+    measured channel c over the training runs (the solvers' own costs use different weights per pass)."""
+    chans = next(iter(evs.values())).channels
+    n = sum(r.n for r in runs)
+    spread = {}
+    for c in chans:
+        y = np.concatenate([np.unwrap(r[c]) if c == "psi" else np.asarray(r[c]) for r in runs if r.has(c)])
+        spread[c] = float(np.std(y)) or 1.0
+    parts = []
+    for m, ev in evs.items():
+        cost = 0.5 * sum(n * (ev.rmse[c] / spread[c]) ** 2 for c in chans if c not in ("x0", "y0"))
+        parts.append(f"{_LABEL.get(m, m)} {cost:.4g}" + (" (FAILED)" if m in failed else ""))
+    return ("training cost on one scale, ½Σ(e/s)² with s the spread of each measured channel (x0, y0 left "
+            "out) [-]: " + ", ".join(parts))
 
 
 def plot_fit(
@@ -98,8 +159,13 @@ def plot_fit(
     validation: Mapping[str, Evaluation],
     path: str | Path | None = None,
     max_runs: int = 4,
+    failed: Sequence[str] = (),
 ):
-    """Measured vs simulated channels (both methods) per run, plus the track where available."""
+    """Measured vs simulated channels (both methods) per run, plus the track where available.
+
+    Curves of ``failed`` methods (:func:`failed_methods`) are drawn thin, labelled FAILED and
+    left out of the axis limits, which follow the measurements and the other curves.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -122,9 +188,16 @@ def plot_fit(
             y = np.asarray(run[c])
             y = np.unwrap(y) if c == "psi" else y
             ax.plot(t, y * k, color="0.4", lw=1.0, label="measured")
+            kept = [y * k]
             for m, ev in ev_map.items():
-                ax.plot(t, ev.simulated[run.name][c] * k, color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-",
-                        label=f"{_LABEL.get(m, m)} (RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+                ys = ev.simulated[run.name][c] * k
+                bad = m in failed
+                ax.plot(t, ys, color=colors.get(m), lw=0.6 if bad else 1.2, ls="--" if m == "equation_error" else "-",
+                        label=f"{_LABEL.get(m, m)}{' FAILED' if bad else ''} "
+                              f"(RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+                if not bad:
+                    kept.append(ys)
+            _limits(ax, kept)
             ax.set_title(f"{run.name} ({kind}): {c}", fontsize=9)
             ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
             ax.legend(fontsize=6, loc="best")
@@ -138,7 +211,10 @@ def plot_fit(
             for m, ev in ev_map.items():
                 s = ev.simulated[run.name]
                 ax.plot(s["y0"], s["x0"], color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-", label=_LABEL.get(m, m))
-            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_aspect("equal", adjustable="box" if failed else "datalim")
+            if failed:
+                ok = [ev.simulated[run.name] for m, ev in ev_map.items() if m not in failed]
+                _limits(ax, [np.asarray(run["x0"])] + [s["x0"] for s in ok], xs=[np.asarray(run["y0"])] + [s["y0"] for s in ok])
             ax.set_xlabel("y0 (east/starboard) [m]", fontsize=8)
             ax.set_ylabel("x0 (north/ahead) [m]", fontsize=8)
             ax.set_title(f"{run.name}: track", fontsize=9)
@@ -159,6 +235,18 @@ def plot_fit(
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return fig
+
+
+def _limits(ax, ys, xs=None, pad=0.08) -> None:
+    """Axis limits from the given curves only (finite values), so a failed curve cannot stretch them."""
+    for arrs, setter in ((ys, ax.set_ylim), (xs, ax.set_xlim)):
+        if not arrs:
+            continue
+        v = np.concatenate([np.ravel(a)[np.isfinite(np.ravel(a))] for a in arrs])
+        if v.size:
+            lo, hi = float(v.min()), float(v.max())
+            d = (hi - lo) * pad or 1.0
+            setter(lo - d, hi + d)
 
 
 def _metrics(ev: Evaluation | None) -> dict:

@@ -18,7 +18,8 @@ def zigzag_csvs(tmp_path_factory):
     rng = np.random.default_rng(0)
     paths = []
     for i, (rud, first) in enumerate([(10, "starboard"), (20, "port"), (15, "starboard")]):
-        run = zigzag(truth, {"u": 1.179}, rudder_deg=rud, first=first, inputs={"n": 10.23}, duration=80.0, dt=0.5)
+        run = zigzag(truth, {"u": 1.179}, rudder_deg=rud, first=first, inputs={"n": 10.23}, duration=80.0, dt=0.5,
+                     rudder_rate_deg_s=2.32)
         noisy = {c: np.asarray(run[c]) + rng.normal(0, NOISE["realistic"][c] / 5, run.n)  # model scale: 1/5 of full-scale sensor noise
                  for c in ("x0", "y0", "psi", "u", "v", "r")}
         df = run.with_channels(**noisy).to_dataframe()

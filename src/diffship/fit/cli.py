@@ -21,7 +21,6 @@ from ..metrics import evaluate
 from ..models import MODELS, ConstantThrust, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
-from ..report import plot_fit, text_report, to_json_dict, write_json
 from ..admissibility import admissibility
 from ..vessel import (
     bundled_vessels,
@@ -32,6 +31,9 @@ from ..vessel import (
     require_particulars,
     speed_range,
 )
+from ..fitfile import save_fit
+from ..manoeuvres import check_turn_direction
+from ..report import CHANNEL_NAMES, failed_methods, plot_fit, text_report, to_json_dict, write_json
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
@@ -57,11 +59,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--init", nargs="*", default=[], metavar="NAME=VALUE", help="start values for output error")
     p.add_argument("--rudder-sign", default="starboard", choices=("starboard", "port"),
                    help="sign convention of delta in the files: starboard (positive turns to starboard) or port")
-    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN", help="map channel names to file columns")
+    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN",
+                   help="map diffship channel names to file columns, e.g. psi=heading. Channel names: "
+                        + ", ".join(f"{c} [{u}]" for c, u in CHANNEL_NAMES.items()) + "; columns with other "
+                        "names are kept under their own names")
     p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN", help="columns given in degrees (deg/s)")
     p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
     p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
-                   help="initial states of fitted channels: estimated per run (default) or taken from the data")
+                   help="initial states in the fit: estimated per run with the parameters (default; a measured "
+                        "heading offset never decays and biases the estimates) or taken from the data; the metrics "
+                        "always start every run, training or validation, from its measured (filtered) initial state, "
+                        "as metrics.evaluate does")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
                    help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
     p.add_argument("--solver", default="diffrax-rk4", choices=tuple(INTEGRATORS),
@@ -70,7 +78,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "(diffrax Tsit5, adaptive within each sample)")
     p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
     p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
-    p.add_argument("--out", default=None, metavar="DIR", help="write report.txt, fit.png (and fit.json) here")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="write report.txt, fit.png, report.json and the fit file fit.json here")
+    p.add_argument("--save", default=None, metavar="FILE",
+                   help="write the fit file (diffship.fit/1 JSON, for python -m diffship.predict) here")
+    p.add_argument("--check-sampling", action="store_true",
+                   help="with --resample: refit at the files' own rate and warn where the estimates move by more "
+                        "than their intervals")
+    p.add_argument("--skip-sign-check", action="store_true",
+                   help="do not stop when the heading turns against the rudder in a run")
     p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     _add_prior_arguments(p)
@@ -135,12 +151,16 @@ def _progress(quiet: bool):
     return say
 
 
-def _load(args, paths):
+def _columns(args) -> dict[str, str]:
     columns = {k: v for k, v in (c.split("=", 1) if "=" in c else (c, "") for c in args.columns)}
     bad = [k for k, v in columns.items() if not v]
     if bad:
         raise DiffshipError(f"--columns {bad[0]}: expected NAME=COLUMN, e.g. --columns psi=heading")
-    runs = load_runs(paths, columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+    return columns
+
+
+def _load(args, paths):
+    runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
     if args.resample:
         runs = [r.resample(args.resample) for r in runs]
     return runs
@@ -194,20 +214,18 @@ def _fit(args, say) -> int:
         if args.validate:
             val = _load(args, args.validate)
     _vessel_checks(args, model, vessel, train + val, say)
+    check_channels(model, train + list(val), args.channels)
+    if not args.skip_sign_check:
+        check_rudder_sign(train + list(val), args.rudder_sign)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",)}[args.method]
+    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
     results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
                        estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
-                       options=OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights,
-                                                  **_prior_options(args)),
-                       progress=say)
+                       options=options, progress=say)
     say("simulating every run over its whole horizon for the metrics...")
-    ev_train, ev_val = {}, {}
-    for m, r in results.items():
-        x0 = r.initial_states if m == "output_error" else None
-        ev_train[m] = evaluate(r.model, train, x0, flt=flt, integrator=r.integrator)
-        if val:
-            ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
+    ev_train, ev_val = evaluate_all(results, train, val, flt)
+    notes = resample_notes(args, model, spec, results, flt, options, say)
     report = text_report(model.name, results, ev_train, ev_val, train, val) + "\n\n" + fixed_values_text(spec, sources)
     oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None else None
@@ -216,17 +234,10 @@ def _fit(args, say) -> int:
         if adm is not None:
             report += "\n\n" + adm.summary()
             oe.info["admissibility"] = adm.as_json()
+    if notes:
+        report += "\n" + "\n".join(notes)
     print(report)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "report.txt").write_text(report + "\n")
-        plot_fit(model.name, train, val, ev_train, ev_val, out / "fit.png")
-        write_json(to_json_dict(model.name, results, ev_train, ev_val), out / "fit.json")
-        say(f"wrote {out / 'report.txt'}, {out / 'fit.png'} and {out / 'fit.json'}")
-    if args.json:
-        write_json(to_json_dict(model.name, results, ev_train, ev_val), args.json)
-        say(f"wrote {args.json}")
+    write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say)
     if not any(r.converged for r in results.values()):
         print("error: no fit converged (see the statuses above)", file=sys.stderr)
         return 1
@@ -298,3 +309,112 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
     for w in warnings:
         if w.startswith("warning") or not args.quiet:
             print(w, file=sys.stderr, flush=True)
+# ----------------------------------------------------------------------------------------
+# checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
+# ----------------------------------------------------------------------------------------
+def check_channels(model, runs, channels=None) -> None:
+    """Name every channel a model needs that a run lacks, before anything is compiled.
+
+    Needed: every model input (``model.input_names``), the surge speed ``u`` where it is a
+    state (a manoeuvring model cannot start without its speed), and the ``--channels`` asked for.
+    """
+    need = list(model.input_names) + (["u"] if "u" in model.state_names else []) + list(channels or ())
+    problems = []
+    for run in runs:
+        missing = [c for c in dict.fromkeys(need) if not run.has(c)]
+        if missing:
+            problems.append(f"{run.metadata.get('source', run.name)} (run '{run.name}') lacks {', '.join(missing)}")
+    if problems:
+        raise DiffshipError(
+            f"model {model.name} needs channels {', '.join(dict.fromkeys(need))}: " + "; ".join(problems)
+            + f". Map file columns with --columns NAME=COLUMN, or choose a model these runs can drive "
+            f"(inputs here: {', '.join(c for c in runs[0].channel_names if c in ('delta', 'n', 'rpm', 'tau_x'))})")
+
+
+def check_rudder_sign(runs, declared: str) -> None:
+    """Stop when a run's heading clearly turns against its rudder (``--rudder-sign`` likely wrong)."""
+    bad = []
+    for run in runs:
+        if not run.has("delta", "psi"):
+            continue
+        verdict = check_turn_direction(run)
+        if verdict is not None and not verdict["agrees"]:
+            bad.append(f"run '{run.name}' ({run.metadata.get('source', '')}): {verdict['text']}")
+    if bad:
+        other = "port" if declared == "starboard" else "starboard"
+        raise DiffshipError(
+            "the heading turns against the rudder: " + "; ".join(bad) + f". The files were read with "
+            f"--rudder-sign {declared}; if positive delta turns these ships the other way, pass --rudder-sign {other} "
+            "(or --skip-sign-check if the record really does this)")
+
+
+def evaluate_all(results, train, val, flt):
+    """Metrics with one initial-state rule for training and validation runs: the measured (filtered)
+    state at the first sample, as :func:`diffship.metrics.evaluate` does by default."""
+    ev_train, ev_val = {}, {}
+    for m, r in results.items():
+        ev_train[m] = evaluate(r.model, train, flt=flt, integrator=r.integrator)
+        if val:
+            ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
+    return ev_train, ev_val
+
+
+def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
+    """With ``--resample``: refit output error at the files' own rate and say if the estimates
+    move by more than their intervals (sampling-rate sensitivity, e.g. Nomoto K/T on the SSPA zigzag)."""
+    oe = results.get("output_error")
+    if not args.resample or oe is None or not args.runs:
+        return []
+    if not args.check_sampling:
+        rate = 1.0 / load_runs(args.runs[:1], columns=_columns(args) or None, degrees=args.degrees,
+                               rudder_sign=args.rudder_sign, check_units=False)[0].dt
+        return ["", f"WARNING: the runs were resampled from {rate:.3g} Hz to {1 / args.resample:g} Hz; identified "
+                "parameters can depend on the sampling rate by more than their intervals (the bundled SSPA zigzag: "
+                "Nomoto K/T1 1.33/14.8 at 50 Hz vs 0.835/3.31 at 10 Hz). Add --check-sampling to refit at the "
+                "files' rate and compare."]
+    say(f"--resample {args.resample:g}: refitting at the files' own sample rate to check the sensitivity...")
+    raw = load_runs(args.runs, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+    try:
+        ref = fit_both(model, raw, spec=spec.with_values(oe.params), methods=("output_error",), init=None,
+                       flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
+                       options=options)["output_error"]
+    except DiffshipError as exc:
+        return [f"note: the refit at the files' own sample rate failed ({exc}); sampling sensitivity unknown"]
+    rate = 1.0 / raw[0].dt
+    lines, moved = [], []
+    for n in oe.free:
+        a, b = oe.params[n], ref.params[n]
+        sa, sb = oe.stderr.get(n, float("nan")), ref.stderr.get(n, float("nan"))
+        z = abs(a - b) / max((sa * sa + sb * sb) ** 0.5, 1e-300)
+        lines.append(f"  {n:>10s}  {a: .5g} ± {sa:.2g}  vs  {b: .5g} ± {sb:.2g}  ({z:.1f} σ)")
+        if not z <= 2.0:
+            moved.append(n)
+    head = (f"WARNING: sampling-rate sensitivity: resampled to {1 / args.resample:g} Hz vs the files' {rate:.3g} Hz "
+            f"the estimates of {', '.join(moved)} differ by more than 2 combined standard errors; the intervals "
+            "above do not cover this (unmodelled dynamics or filtering show up at one rate and not the other)"
+            if moved else f"sampling-rate check: the estimates at {1 / args.resample:g} Hz and at the files' "
+            f"{rate:.3g} Hz agree within 2 combined standard errors")
+    return ["", head, *lines]
+
+
+def write_outputs(args, model_name, results, ev_train, ev_val, train, val, report, say) -> None:
+    """``--out DIR``: report.txt, fit.png, report.json and the fit file fit.json; ``--json``, ``--save``."""
+    doc = to_json_dict(model_name, results, ev_train, ev_val)
+    best = results.get("output_error") or next(iter(results.values()))
+    extra = {"metrics": {"train": doc["methods"][best.method]["train"],
+                         "validation": doc["methods"][best.method]["validation"],
+                         "validation_runs": [r.name for r in val]}}
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.txt").write_text(report + "\n")
+        plot_fit(model_name, train, val, ev_train, ev_val, out / "fit.png", failed=failed_methods(ev_train, results))
+        write_json(doc, out / "report.json")
+        save_fit(best, out / "fit.json", train, registry=args.model, extra=extra)
+        say(f"wrote {out / 'report.txt'}, {out / 'fit.png'}, {out / 'report.json'} and the fit file {out / 'fit.json'}")
+    if args.save:
+        save_fit(best, args.save, train, registry=args.model, extra=extra)
+        say(f"wrote the fit file {args.save} (python -m diffship.predict {args.save} --manoeuvre ...)")
+    if args.json:
+        write_json(doc, args.json)
+        say(f"wrote {args.json}")

@@ -18,6 +18,10 @@ from .drive import (
 )
 from .imo import (
     TurningMetrics as TurningMetrics,
+    check_turn_direction as check_turn_direction,
+    rudder_release as rudder_release,
+    side_name as side_name,
+    side_sign as side_sign,
     ZigzagMetrics as ZigzagMetrics,
     first_execute as first_execute,
     imo_metrics as imo_metrics,
@@ -30,4 +34,5 @@ __all__ = [
     "ZigzagLaw", "ScheduleLaw", "closed_loop", "zigzag", "turning_circle", "pull_out", "spiral",
     "ZigzagMetrics", "TurningMetrics", "SpiralResult", "zigzag_metrics", "turning_metrics",
     "pullout_metrics", "imo_metrics", "first_execute",
+    "check_turn_direction", "rudder_release", "side_name", "side_sign",
 ]

@@ -47,7 +47,9 @@ from ..data import Run
 from ..errors import ModelError
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
+from ..scaling import helm_rate
 from ..simulate import MAX_ABS
+from .imo import side_name, side_sign
 
 __all__ = ["ZigzagLaw", "ScheduleLaw", "closed_loop", "zigzag", "turning_circle", "pull_out", "spiral", "SpiralResult"]
 
@@ -178,8 +180,9 @@ def _x0_vector(model: AbstractModel, initial) -> np.ndarray:
 
 
 def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg_s, max_rudder_deg,
-                   integrator, name, metadata) -> Run:
+                   integrator, name, metadata, scale=None) -> Run:
     d_idx, u_const = _input_slots(model, inputs)
+    rudder_rate_deg_s, rate_source = helm_rate(model, rudder_rate_deg_s=rudder_rate_deg_s, scale=scale)
     x0 = _x0_vector(model, initial)
     ts = np.arange(0.0, duration + 0.5 * dt, dt)
     xs, ds, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(x0), jnp.asarray(u_const), d_idx,
@@ -193,6 +196,7 @@ def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg
     for j, n in enumerate(model.input_names):
         channels[n] = us[:, j]
     meta = {"simulated": True, "model": model.name, "rudder_rate_deg_s": rudder_rate_deg_s,
+            "rudder_rate_source": rate_source,
             "max_rudder_deg": max_rudder_deg, "valid": bool(valid.all()), **metadata}
     if not valid.all():
         t_bad = float(ts[int(np.argmin(valid))])
@@ -201,26 +205,26 @@ def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg
     return Run(name, ts, channels, meta, check_units=False)
 
 
-def _side(first: str) -> float:
-    if first not in ("starboard", "port"):
-        raise ModelError(f"first rudder side must be 'starboard' or 'port', got {first!r}")
-    return 1.0 if first == "starboard" else -1.0
+def _side(first: str | float) -> float:
+    return side_sign(first)
 
 
 def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_deg: float | None = None,
-           first: str = "starboard", inputs: Mapping[str, float] | None = None, duration: float = 100.0,
-           dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-           switch_delay_s: float = 0.0, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
+           first: str | float = "starboard", inputs: Mapping[str, float] | None = None, duration: float = 100.0,
+           dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float | None = None, max_rudder_deg: float = 35.0,
+           switch_delay_s: float = 0.0, scale: float | None = None, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a ``rudder_deg``/``switch_deg`` zigzag (switch defaults to the rudder angle).
 
     Args:
         model: any model with a ``delta`` input and a ``psi`` state.
         initial: initial state (mapping of state names, e.g. ``{"u": 1.179}``, or a vector).
-        first: side of the first rudder order, ``"starboard"`` or ``"port"``.
+        first: side of the first rudder order, ``"starboard"``/``+1`` or ``"port"``/``−1``.
         inputs: constant values of the model's other inputs (e.g. ``{"n": 10.23}``).
         duration, dt: simulated time and sample interval [s].
         t_execute: time of the first rudder order [s].
-        rudder_rate_deg_s: steering-gear rate [°/s] (IMO: ≥ 2.32 °/s at full scale).
+        rudder_rate_deg_s: steering-gear rate [°/s]; by default :func:`diffship.scaling.helm_rate`
+            (IMO's 2.32°/s, Froude-scaled with ``scale``; a model-scale ship without either is an error).
+        scale: length ratio λ = L_full / L_model for the default helm rate.
         max_rudder_deg: rudder saturation [°].
         switch_delay_s: autopilot delay between the heading reaching ±ψ_s and the rudder order [s].
     """
@@ -228,9 +232,10 @@ def zigzag(model: AbstractModel, initial, *, rudder_deg: float = 10.0, switch_de
     psi0 = float(_x0_vector(model, initial)[model.state_names.index("psi")])
     law = ZigzagLaw(*(jnp.asarray(v, dtype=jnp.float64) for v in (
         math.radians(rudder_deg), math.radians(switch_deg), _side(first), t_execute, psi0, switch_delay_s)))
+    first = side_name(first)
     tag = f"{rudder_deg:g}/{switch_deg:g} zigzag ({first} first)"
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=duration, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator, scale=scale,
                           name=name or f"{model.name} {tag}",
                           metadata={"manoeuvre": "zigzag", "rudder_angle_deg": float(rudder_deg),
                                     "switch_heading_deg": float(switch_deg), "first_rudder": first,
@@ -241,30 +246,30 @@ def _schedule(times, levels_deg):
     return ScheduleLaw(jnp.asarray(times, dtype=jnp.float64), jnp.asarray(np.radians(levels_deg), dtype=jnp.float64))
 
 
-def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, first: str = "starboard",
+def turning_circle(model: AbstractModel, initial, *, rudder_deg: float = 35.0, first: str | float = "starboard",
                    inputs: Mapping[str, float] | None = None, duration: float = 300.0, dt: float = 0.1,
-                   t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0,
-                   integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
+                   t_execute: float = 0.0, rudder_rate_deg_s: float | None = None, max_rudder_deg: float = 35.0,
+                   scale: float | None = None, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a turning circle: straight until ``t_execute``, then ``rudder_deg`` to ``first``."""
-    s = _side(first)
+    s, first = _side(first), side_name(first)
     law = _schedule([t_execute], [s * rudder_deg])
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=duration, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator, scale=scale,
                           name=name or f"{model.name} {rudder_deg:g} deg turning circle ({first})",
                           metadata={"manoeuvre": "turning_circle", "rudder_angle_deg": float(rudder_deg),
                                     "first_rudder": first, "t_execute": float(t_execute)})
 
 
-def pull_out(model: AbstractModel, initial, *, rudder_deg: float = 20.0, first: str = "starboard",
+def pull_out(model: AbstractModel, initial, *, rudder_deg: float = 20.0, first: str | float = "starboard",
              inputs: Mapping[str, float] | None = None, turn_s: float = 120.0, settle_s: float = 120.0,
-             dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float = 2.32,
-             max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
+             dt: float = 0.1, t_execute: float = 0.0, rudder_rate_deg_s: float | None = None,
+             max_rudder_deg: float = 35.0, scale: float | None = None, integrator: AbstractIntegrator = Diffrax(substeps=2), name: str | None = None) -> Run:
     """Simulate a pull-out: ``rudder_deg`` for ``turn_s`` seconds (steady turn), then rudder to 0."""
-    s = _side(first)
+    s, first = _side(first), side_name(first)
     t_release = t_execute + turn_s
     law = _schedule([t_execute, t_release], [s * rudder_deg, 0.0])
     return _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=t_release + settle_s, dt=dt,
-                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
+                          rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator, scale=scale,
                           name=name or f"{model.name} {rudder_deg:g} deg pull-out ({first})",
                           metadata={"manoeuvre": "pull_out", "rudder_angle_deg": float(rudder_deg),
                                     "first_rudder": first, "t_execute": float(t_execute),
@@ -282,8 +287,8 @@ class SpiralResult:
 
 def spiral(model: AbstractModel, initial, *, rudder_deg: Sequence[float] = (15, 10, 5, 2, 0, -2, -5, -10, -15),
            hold_s: float = 120.0, average_fraction: float = 0.25, inputs: Mapping[str, float] | None = None,
-           dt: float = 0.2, rudder_rate_deg_s: float = 2.32, max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = Diffrax(substeps=2),
-           name: str | None = None) -> SpiralResult:
+           dt: float = 0.2, rudder_rate_deg_s: float | None = None, max_rudder_deg: float = 35.0, integrator: AbstractIntegrator = Diffrax(substeps=2),
+           name: str | None = None, scale: float | None = None) -> SpiralResult:
     """Simulate a (direct) spiral: rudder steps held ``hold_s`` each; steady r per step.
 
     Run the sequence down and up again (e.g. ``(15, ..., -15, ..., 15)``) to see a hysteresis
@@ -293,7 +298,7 @@ def spiral(model: AbstractModel, initial, *, rudder_deg: Sequence[float] = (15, 
     times = np.arange(len(levels)) * hold_s
     law = _schedule(times, levels)
     run = _run_manoeuvre(model, law, initial=initial, inputs=inputs or {}, duration=len(levels) * hold_s, dt=dt,
-                         rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator,
+                         rudder_rate_deg_s=rudder_rate_deg_s, max_rudder_deg=max_rudder_deg, integrator=integrator, scale=scale,
                          name=name or f"{model.name} spiral", metadata={"manoeuvre": "spiral", "hold_s": hold_s})
     run.require("r", "the spiral test's steady yaw rates")
     r = run["r"]

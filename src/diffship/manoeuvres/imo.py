@@ -36,7 +36,28 @@ from ..data import Run
 from ..errors import DataError
 
 __all__ = ["ZigzagMetrics", "TurningMetrics", "zigzag_metrics", "turning_metrics", "pullout_metrics", "imo_metrics",
-           "first_execute"]
+           "first_execute", "check_turn_direction", "side_sign", "side_name", "rudder_release"]
+
+
+def side_sign(side: str | float | int) -> float:
+    """The one first-rudder-side convention: ``+1`` starboard, ``−1`` port.
+
+    Accepts ``"starboard"``/``"port"`` (also ``"s"``/``"p"``, any case) and ``+1``/``−1``.
+    """
+    if isinstance(side, str):
+        key = side.strip().lower()
+        if key in ("starboard", "s", "stb", "+1", "1"):
+            return 1.0
+        if key in ("port", "p", "-1"):
+            return -1.0
+    elif isinstance(side, (int, float, np.integer, np.floating)) and float(side) in (1.0, -1.0):
+        return float(side)
+    raise DataError(f"first rudder side must be 'starboard' (+1) or 'port' (-1), got {side!r}")
+
+
+def side_name(side: str | float | int) -> str:
+    """``"starboard"`` or ``"port"`` for any accepted side (see :func:`side_sign`)."""
+    return "starboard" if side_sign(side) > 0 else "port"
 
 
 def _smooth(y: np.ndarray, dt: float, window_s: float) -> np.ndarray:
@@ -62,6 +83,58 @@ def first_execute(run: Run) -> tuple[int, float]:
     side = float(np.sign(d[half]))
     small = np.nonzero(np.abs(d[: half + 1]) <= 0.1 * amp)[0]
     return (int(small[-1]) if small.size else 0), side
+
+
+def check_turn_direction(run: Run, min_change_deg: float = 2.0) -> dict[str, Any] | None:
+    """Does the heading turn the way the rudder says (starboard-positive δ turns to starboard)?
+
+    From the first rudder execute to the first time the rudder is reversed or returned to
+    neutral (or the end of the record), the heading change must have the sign of the first
+    rudder order. Returns ``None`` where the record says nothing (rudder never moves, heading
+    change below ``min_change_deg``), else ``{"agrees": bool, "heading_change_deg", "side",
+    "text"}``.
+    """
+    if not run.has("delta", "psi"):
+        return None
+    try:
+        i0, side = first_execute(run)
+    except DataError:
+        return None
+    d = np.asarray(run["delta"], dtype=np.float64) - float(run["delta"][0])
+    order = side * d
+    peak = float(np.max(order[i0:]))
+    later = np.nonzero(order[i0:] >= 0.5 * peak)[0]
+    i_on = i0 + int(later[0]) if later.size else i0
+    back = np.nonzero(order[i_on:] < 0.25 * peak)[0]
+    i_end = i_on + int(back[0]) if back.size else run.n - 1
+    psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
+    h = math.degrees(side * (psi[i_end] - psi[i0]))
+    if abs(h) < min_change_deg:
+        return None
+    agrees = h > 0
+    name = side_name(side)
+    text = (f"first rudder order to {name} (δ {math.degrees(d[i_on]):+.1f}° at t = {run.time[i_on]:.1f} s, "
+            f"starboard-positive) and the heading changes by {side * h:+.1f}° "
+            f"({'to ' + name if agrees else 'the other way'}) before the rudder is reversed")
+    return {"agrees": bool(agrees), "heading_change_deg": float(side * h), "side": name, "text": text}
+
+
+def rudder_release(run: Run, i_start: int = 0, tol_deg: float = 0.5) -> int | None:
+    """Index of the first sample after ``i_start`` at which the rudder has returned to within
+    ``tol_deg`` of its value before the first execute (released), or ``None``.
+
+    A turning-circle record that continues after the rudder is released (a pull-out, or the
+    approach to the next test) must not enter the steady-diameter fit.
+    """
+    d = np.asarray(run["delta"], dtype=np.float64)
+    base = float(d[0])
+    order = np.abs(d - base)
+    amp = float(np.max(order[i_start:])) if run.n > i_start else 0.0
+    if amp < math.radians(2 * tol_deg):
+        return None
+    i_on = i_start + int(np.argmax(order[i_start:] >= 0.9 * amp))
+    back = np.nonzero(order[i_on:] <= math.radians(tol_deg))[0]
+    return i_on + int(back[0]) if back.size else None
 
 
 def _crossing_time(t, h, i, level):
@@ -188,9 +261,26 @@ def _circle_fit(x: np.ndarray, y: np.ndarray) -> float:
     return float(2.0 * math.sqrt(c[2] + xc * xc + yc * yc))
 
 
-def turning_metrics(run: Run, *, length: float | None = None, smooth_s: float = 0.0) -> TurningMetrics:
-    """IMO turning-circle metrics of a Run with ``time, x0, y0, psi, delta`` (see module docstring)."""
+def turning_metrics(run: Run, *, length: float | None = None, smooth_s: float = 0.0, t_end: float | None = None,
+                    detect_release: bool = True) -> TurningMetrics:
+    """IMO turning-circle metrics of a Run with ``time, x0, y0, psi, delta`` (see module docstring).
+
+    Only the record up to ``t_end`` [s] is used; by default (``detect_release``) also only up to
+    the rudder's return to neutral (:func:`rudder_release`), so a record that goes on after the
+    rudder is released still gives the steady diameter of the turn.
+    """
     run.require(("x0", "y0", "psi", "delta"), "turning-circle metrics")
+    stop = None
+    if t_end is not None:
+        stop = float(t_end)
+    if detect_release:
+        i_rel = rudder_release(run, first_execute(run)[0])
+        if i_rel is not None:
+            stop = float(run.time[i_rel]) if stop is None else min(stop, float(run.time[i_rel]))
+    if stop is not None:
+        if stop <= run.t0 + 2 * run.dt:
+            raise DataError(f"run '{run.name}': t_end = {stop:g} s leaves no turning-circle record")
+        run = run.slice(None, stop)
     t = np.asarray(run.time, dtype=np.float64)
     i0, side = first_execute(run)
     psi = _smooth(np.unwrap(np.asarray(run["psi"], dtype=np.float64)), run.dt, smooth_s)

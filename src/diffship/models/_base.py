@@ -205,6 +205,32 @@ class AbstractModel(eqx.Module):
         gyration about the CG); a particular the vessel does not give raises :class:`ModelError`.
         """
         return vessel.apply(self)
+    @classmethod
+    def from_fit(cls, path) -> AbstractModel:
+        """This model class with the parameter values of a fit file (``"schema": "diffship.fit/1"``).
+
+        Reads only the values (plain JSON, no fitting code): ``diffship.load_fit(path)`` gives the
+        whole fit (covariance, integrator, provenance). Fails if the file is another model's.
+        """
+        import json
+        from pathlib import Path
+
+        path = Path(path)
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise ModelError(f"{path}: cannot read a fit file ({exc})") from None
+        if not isinstance(doc, dict) or doc.get("schema") != "diffship.fit/1":
+            raise ModelError(f"{path}: not a diffship fit file (schema 'diffship.fit/1')")
+        model = cls()
+        name = doc.get("model", {}).get("name")
+        if name != model.name:
+            raise ModelError(f"{path}: holds a fit of model {name!r}, not {model.name!r}; use diffship.load_fit(path)")
+        inputs = doc["model"].get("inputs")
+        if inputs is not None and tuple(inputs) != tuple(model.input_names):
+            raise ModelError(f"{path}: the fitted {name} has inputs {tuple(inputs)}, {cls.__name__}() has "
+                             f"{model.input_names}; use diffship.load_fit(path)")
+        return model.with_params(doc["params"])
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
         """Relabel interchangeable parameters into a canonical order (identity unless overridden)."""

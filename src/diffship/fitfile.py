@@ -1,0 +1,292 @@
+r"""The fit file: one fit as a versioned JSON document, and loading it back.
+
+A fit file (``"schema": "diffship.fit/1"``) holds everything needed to predict with a fit
+without the data or the code that made it:
+
+* ``model``: the model's name and its registry key (``--model NAME``);
+* ``params`` (every parameter, SI units as in ``units``), ``free`` (estimated), ``fixed``
+  (held values), ``stderr`` and ``covariance`` (free parameters, ``covariance.names`` order;
+  ``null`` when the method gives none; ``Infinity`` for unidentifiable directions), ``priors``
+  (``{name: {"mean", "sd", "source"}}`` where the fit used them);
+* ``method``, ``status``, ``converged``, ``cost``; ``channels`` fitted and their ``noise_std``;
+  ``integrator`` (name for :func:`diffship.integrators.get_integrator` and description);
+* ``data_ranges`` (``{channel: [min, max]}`` of the training runs: what the fit has seen);
+* ``initial_states`` per run (``state_names`` order) and ``operating_point``: the mean of
+  every channel over the first second of each training run (speed ``u`` [m/s], propeller
+  ``n`` [rev/s], ...), which :mod:`diffship.predict` uses as its default approach condition;
+* ``data``: provenance of every training run — file, SHA-256 of the file, samples, time step,
+  duration, rudder sign in the source, resampling — and ``ship`` (length and model scale where
+  known).
+
+Angles are radians and every value SI, as everywhere in diffship. Writing is
+:func:`save_fit`; reading is :func:`load_fit` (a :class:`LoadedFit` with the model rebuilt from
+the registry) or, for the parameter values only, ``Model.from_fit(path)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import hashlib
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .data import Run
+from .errors import DataError
+from .integrators import RK4, AbstractIntegrator, Diffrax, Tsit5, get_integrator
+from .models import MODELS, AbstractModel
+
+if TYPE_CHECKING:  # type hints only
+    from .fit.result import FitResult
+
+__all__ = ["SCHEMA", "LoadedFit", "fit_document", "integrator_name", "load_fit", "save_fit"]
+
+SCHEMA = "diffship.fit/1"
+
+
+def integrator_name(integ: AbstractIntegrator) -> dict[str, Any]:
+    """``{"name": ..., "options": ...}`` such that ``get_integrator(name, **options)`` rebuilds ``integ``."""
+    if isinstance(integ, Diffrax):
+        name = "diffrax-tsit5" if type(integ.solver).__name__ == "Tsit5" else "diffrax-rk4"
+        return {"name": name, "options": {"substeps": int(integ.substeps)}}
+    if isinstance(integ, Tsit5):
+        return {"name": "tsit5", "options": {"rtol": float(integ.rtol), "atol": float(integ.atol)}}
+    if isinstance(integ, RK4):
+        return {"name": "rk4", "options": {}}
+    return {"name": getattr(integ, "name", "unknown"), "options": {}}
+
+
+def registry_key(model: AbstractModel) -> str | None:
+    """The ``MODELS`` key that rebuilds ``model``'s structure (same class and parameters), if any."""
+    keys = [model.name] + [k for k in MODELS if k != model.name]
+    for k in keys:
+        if k not in MODELS:
+            continue
+        try:
+            m = MODELS[k]()
+        except Exception:  # noqa: BLE001, S112  (a registry entry that cannot be built is no match)
+            continue
+        if type(m) is type(model) and m.param_names == model.param_names and m.input_names == model.input_names:
+            return k
+    return None
+
+
+def _sha256(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _provenance(run: Run) -> dict[str, Any]:
+    meta = run.metadata
+    src = meta.get("source")
+    p = Path(src) if isinstance(src, str) and src != "DataFrame" else None
+    return {"run": run.name, "file": p.name if p else src, "path": str(p.resolve()) if p and p.exists() else None,
+            "sha256": _sha256(p) if p and p.exists() else None, "samples": run.n, "dt": run.dt,
+            "duration": run.duration, "channels": list(run.channel_names),
+            "rudder_sign_in_source": meta.get("rudder_sign_in_source"),
+            "resampled_dt": meta.get("resampled_dt"), "degrees_converted": list(meta.get("degrees_converted", ())),
+            "simulated": bool(meta.get("simulated", False))}
+
+
+def _operating_point(runs: Sequence[Run], first_s: float = 1.0) -> dict[str, float]:
+    """Mean of each channel over the first ``first_s`` seconds, averaged over the runs."""
+    acc: dict[str, list[float]] = {}
+    for run in runs:
+        sel = run.time <= run.t0 + first_s
+        for c in run.channel_names:
+            acc.setdefault(c, []).append(float(np.mean(run[c][sel])))
+    return {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
+
+
+def _ranges(runs: Sequence[Run]) -> dict[str, list[float]]:
+    """``{channel: [min, max]}`` over the training runs (what the fit has seen)."""
+    out: dict[str, list[float]] = {}
+    for run in runs:
+        for c in run.channel_names:
+            a = np.asarray(run[c])
+            lo, hi = out.get(c, [math.inf, -math.inf])
+            out[c] = [min(lo, float(a.min())), max(hi, float(a.max()))]
+    return out
+
+
+def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str | None = None,
+                 extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The fit-file document of ``result`` (``runs``: the training runs, for provenance)."""
+    model = result.model
+    units = {p.name: p.unit for p in model.PARAMS}
+    cov = None
+    if result.covariance is not None:
+        cov = {"names": list(result.free), "matrix": np.asarray(result.covariance, dtype=np.float64).tolist(),
+               "units": "products of the parameters' units"}
+    x0 = {"state_names": list(model.state_names),
+          "runs": {n: np.asarray(x, dtype=np.float64).tolist() for n, x in zip(result.run_names, result.initial_states)}}
+    scales = sorted({float(r.metadata["model_scale"]) for r in runs if "model_scale" in r.metadata})
+    length = float(model.L) if hasattr(model, "L") else None
+    doc = {
+        "schema": SCHEMA,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "model": {"name": model.name, "registry": registry or registry_key(model), "class": type(model).__name__,
+                  "states": list(model.state_names), "inputs": list(model.input_names),
+                  "outputs": list(model.output_names)},
+        "method": result.method,
+        "status": result.status,
+        "converged": bool(result.converged),
+        "cost": float(result.cost),
+        "params": {n: float(v) for n, v in result.params.items()},
+        "units": units,
+        "free": list(result.free),
+        "fixed": {n: float(v) for n, v in result.params.items() if n not in result.free},
+        "stderr": {n: float(v) for n, v in result.stderr.items()},
+        "covariance": cov,
+        "priors": result.info.get("priors"),
+        "channels": list(result.channels),
+        "noise_std": dict(result.noise_std),
+        "integrator": {**integrator_name(result.integrator), "description": result.integrator.describe()},
+        "initial_states": x0,
+        "operating_point": _operating_point(runs) if runs else {},
+        "data_ranges": _ranges(runs),
+        "ship": {"length_m": length, "model_scale": scales[0] if len(scales) == 1 else None},
+        "data": [_provenance(r) for r in runs],
+        "messages": list(result.messages),
+        "conventions": "SI units, angles in rad, starboard-positive rudder (diffship.data)",
+    }
+    if extra:
+        doc.update(extra)
+    return doc
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def save_fit(result: FitResult, path: str | Path, runs: Sequence[Run] = (), *, registry: str | None = None,
+             extra: Mapping[str, Any] | None = None) -> Path:
+    """Write ``result`` as a fit file (``"schema": "diffship.fit/1"``); returns the path."""
+    path = Path(path)
+    if path.parent and not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    doc = fit_document(result, runs, registry=registry, extra=extra)
+    path.write_text(json.dumps(doc, indent=2, default=_json_default, allow_nan=True))
+    return path
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LoadedFit:
+    """A fit read back from a fit file.
+
+    Attributes:
+        model: the model with the fitted parameter values.
+        params, free, fixed, stderr, units, priors: as in the file.
+        covariance: covariance of ``free`` (``covariance_names`` order), or ``None``.
+        integrator: the integrator the fit was made with (rebuilt by name).
+        initial_states: ``{run: state vector}``.
+        operating_point: mean channel values at the start of the training runs.
+        data_ranges: ``{channel: [min, max]}`` over the training runs.
+        ship: ``{"length_m", "model_scale"}`` where known.
+        data: provenance of the training runs.
+        path: the file read; ``document``: the whole JSON document.
+    """
+
+    model: AbstractModel
+    method: str
+    status: str
+    converged: bool
+    params: dict[str, float]
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    stderr: dict[str, float]
+    covariance: np.ndarray | None
+    covariance_names: tuple[str, ...]
+    units: dict[str, str]
+    priors: dict[str, Any] | None
+    channels: tuple[str, ...]
+    integrator: AbstractIntegrator
+    initial_states: dict[str, np.ndarray]
+    operating_point: dict[str, float]
+    data_ranges: dict[str, list[float]]
+    ship: dict[str, Any]
+    data: tuple[dict[str, Any], ...]
+    path: Path
+    document: dict[str, Any]
+
+    @property
+    def has_covariance(self) -> bool:
+        """A covariance with finite entries (intervals can be drawn from it)."""
+        return self.covariance is not None and bool(np.all(np.isfinite(self.covariance)))
+
+    def summary(self) -> str:
+        lines = [f"fit of {self.model.name} ({self.method.replace('_', ' ')}, {self.status}) from {self.path}"]
+        for n in self.free:
+            se = self.stderr.get(n, math.nan)
+            lines.append(f"  {n:>10s} = {self.params[n]: .6g} ± {se:.3g} {self.units.get(n, '')}".rstrip())
+        return "\n".join(lines)
+
+
+def read_document(path: str | Path) -> dict[str, Any]:
+    """The JSON document of a fit file, schema checked (:class:`DataError` naming the file otherwise)."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataError(f"{path}: fit file not found; write one with python -m diffship.fit ... --out DIR "
+                        "(DIR/fit.json) or --save FILE") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(f"{path}: not a readable JSON fit file ({exc})") from None
+    schema = doc.get("schema") if isinstance(doc, dict) else None
+    if schema != SCHEMA:
+        hint = (" (this is the --json report of a fit; the fit file is --out DIR/fit.json or --save FILE)"
+                if isinstance(doc, dict) and "methods" in doc else "")
+        raise DataError(f"{path}: schema {schema!r} is not {SCHEMA!r}{hint}")
+    return doc
+
+
+def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
+    """Read a fit file; the model is rebuilt from the registry (or from ``model``, a template of
+    the same structure) with the fitted parameter values."""
+    path = Path(path)
+    doc = read_document(path)
+    key = doc["model"].get("registry")
+    if model is None:
+        if key not in MODELS:
+            raise DataError(f"{path}: model {doc['model'].get('name')!r} is not in the model registry; pass a "
+                            "model of the same structure: load_fit(path, model=...)")
+        model = MODELS[key]()
+    inputs = doc["model"].get("inputs")
+    if inputs is not None and tuple(inputs) != tuple(model.input_names):
+        raise DataError(f"{path}: the fitted model has inputs {tuple(inputs)}, model {model.name} here has "
+                        f"{model.input_names}; pass a model of the same structure: load_fit(path, model=...)")
+    unknown = sorted(set(doc["params"]) - set(model.param_names))
+    if unknown:
+        raise DataError(f"{path}: parameter(s) {', '.join(unknown)} are not parameters of model {model.name}")
+    model = model.with_params(doc["params"])
+    cov = doc.get("covariance")
+    integ = doc.get("integrator") or {}
+    try:
+        integrator = get_integrator(integ.get("name", "diffrax-rk4"), **integ.get("options", {}))
+    except (ValueError, TypeError) as exc:
+        raise DataError(f"{path}: integrator {integ!r} cannot be rebuilt ({exc})") from None
+    x0 = doc.get("initial_states") or {"runs": {}}
+    return LoadedFit(
+        model=model, method=doc.get("method", ""), status=doc.get("status", ""), converged=bool(doc.get("converged")),
+        params=dict(doc["params"]), free=tuple(doc.get("free", ())), fixed=dict(doc.get("fixed", {})),
+        stderr=dict(doc.get("stderr", {})),
+        covariance=np.asarray(cov["matrix"], dtype=np.float64) if cov else None,
+        covariance_names=tuple(cov["names"]) if cov else (),
+        units=dict(doc.get("units", {})), priors=doc.get("priors"), channels=tuple(doc.get("channels", ())),
+        integrator=integrator,
+        initial_states={k: np.asarray(v, dtype=np.float64) for k, v in x0.get("runs", {}).items()},
+        operating_point=dict(doc.get("operating_point", {})), data_ranges=dict(doc.get("data_ranges", {})),
+        ship=dict(doc.get("ship", {})),
+        data=tuple(doc.get("data", ())), path=path, document=doc,
+    )

@@ -1,0 +1,67 @@
+"""``python -m diffship.predict FIT.json --manoeuvre turning:35 zigzag:10/10 ...`` (thin: parse, call, print)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from ..errors import DiffshipError
+from ..params import parse_assignments
+from .core import predict
+from .report import prediction_text, write_prediction
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m diffship.predict",
+        description="Fly standard manoeuvres with a saved fit (python -m diffship.fit ... --out DIR writes "
+                    "DIR/fit.json): IMO metrics at model and full scale, intervals from the fit's covariance, "
+                    "IMO 2002 (MSC.137(76)) criteria. Speeds, rates and times are at the fit's (model) scale.")
+    p.add_argument("fit", metavar="FIT.json", help="fit file (schema diffship.fit/1)")
+    p.add_argument("--manoeuvre", "-m", nargs="+", default=["turning:35", "zigzag:10/10", "zigzag:20/20"],
+                   metavar="SPEC", help="turning:ANGLE[:SIDE], zigzag:RUDDER/SWITCH[:SIDE], pullout[:ANGLE][:SIDE]; "
+                   "SIDE starboard|port|+1|-1 (default starboard); default: turning:35 zigzag:10/10 zigzag:20/20")
+    p.add_argument("--speed", type=float, default=None, metavar="M/S",
+                   help="approach speed [m/s] (default: the training runs' speed); the propulsion input from trim")
+    p.add_argument("--rps", type=float, default=None, metavar="REV/S",
+                   help="propeller rate [rev/s] (input n); alone: the speed from trim")
+    p.add_argument("--input", nargs="*", default=[], metavar="NAME=VALUE", help="other constant inputs")
+    p.add_argument("--scale", type=float, default=None, metavar="LAMBDA",
+                   help="length ratio L_full/L_model for full-scale values and criteria (default: the fit file's)")
+    p.add_argument("--length", type=float, default=None, metavar="M", help="ship length at the fit's scale "
+                   "(default: the model's L)")
+    p.add_argument("--helm-rate", type=float, default=None, metavar="DEG/S",
+                   help="steering-gear rate [°/s] at the fit's scale (default: IMO 2.32°/s × √λ)")
+    p.add_argument("--delay", type=float, default=0.0, metavar="S", help="zigzag autopilot delay [s] (default 0)")
+    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per manoeuvre [s]")
+    p.add_argument("--samples", type=int, default=40, help="parameter draws for the 95 %% intervals (0: none)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
+    p.add_argument("--quiet", action="store_true")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    t0 = time.perf_counter()
+    try:
+        inputs = parse_assignments(args.input, "--input")
+        if args.rps is not None:
+            inputs["n"] = args.rps
+        pred = predict(args.fit, args.manoeuvre, speed=args.speed, inputs=inputs or None, scale=args.scale,
+                       length=args.length, helm_rate_deg_s=args.helm_rate, delay_s=args.delay,
+                       duration=args.duration, samples=args.samples)
+    except DiffshipError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(prediction_text(pred))
+    if args.out:
+        files = write_prediction(pred, args.out)
+        if not args.quiet:
+            print(f"[{time.perf_counter() - t0:6.1f} s] wrote {', '.join(str(f) for f in files)}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
