@@ -176,7 +176,7 @@ def test_missing_channels_named_before_any_compute(tmp_path, capsys):
     import time
 
     t0 = time.perf_counter()
-    code = fit_main([SSPA, "--rudder-sign", "port", "--model", "mmg", "--quiet"])
+    code = fit_main([SSPA, "--rudder-sign", "port", "--model", "mmg", "--vessel", "kvlcc2_model", "--quiet"])
     dt = time.perf_counter() - t0
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("error: ") and err.count("\n") == 1, err
