@@ -39,7 +39,11 @@ def test_parse_priors_forms_and_errors(tmp_path):
 def test_reference_priors_only_on_the_reference_vessel():
     m = Fossen3()
     pri, why = default_priors(m, m.spec())
-    assert len(pri) == len(m.spec().free_names) and "on by default" in why
+    assert "on by default" in why
+    # every free parameter with a nonzero reference value; the USV standard model has no added
+    # masses (zero: not in the reference set, no prior)
+    assert set(pri.by_name) == {n for n in m.spec().free_names if getattr(m, n) != 0}
+    assert "Xudot" not in pri.by_name and "Nr" in pri.by_name
     other = m.spec().fix({"m": 2 * m.m})  # another vessel: its coefficients are no prior
     pri, why = default_priors(m, other)
     assert len(pri) == 0 and "m" in why and "differ" in why

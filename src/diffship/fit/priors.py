@@ -21,7 +21,8 @@ Where to get a prior:
   ``REFERENCE = "..."`` has published or standard defaults (MMG: the KVLCC2 L7 model of
   Yasukawa & Yoshimura 2015; Fossen 3-DOF: the seed-002 USV standard model; Fossen 6-DOF:
   BlueROV2 Heavy). Every free parameter gets the reference value as mean and a standard
-  deviation of ``rel_sd·|value|`` (at least ``rel_sd·scale``). These priors are used by default
+  deviation of ``rel_sd·|value|`` (at least ``rel_sd·scale``); a zero reference value (not in
+  the set) gives no prior. These priors are used by default
   only when the model's fixed parameters (mass, inertia, main dimensions …) *are* the reference
   vessel's: a prior from another ship would be wrong;
 * the user: ``NAME=MEAN±SD`` on the command line (:func:`parse_priors`), a JSON file
@@ -140,7 +141,8 @@ def load_priors(path: str | Path) -> Priors:
 def reference_priors(model: AbstractModel, spec: ParamSpec, rel_sd: float = 0.5) -> Priors:
     """Priors on every free parameter from the model class's reference values (its defaults).
 
-    Mean = the class default; standard deviation ``rel_sd·max(|default|, scale)``.
+    Mean = the class default; standard deviation ``rel_sd·max(|default|, scale)``. Parameters
+    whose reference value is exactly zero get no prior (not in the reference set).
     """
     ref = type(model).PARAMS
     src = getattr(type(model), "REFERENCE", None)
@@ -148,7 +150,9 @@ def reference_priors(model: AbstractModel, spec: ParamSpec, rel_sd: float = 0.5)
         return Priors({}, "none")
     out = {}
     for p in ref:
-        if p.name in spec.free_names:
+        # a zero reference value means "not in the reference set" (the seed-002 USV has no
+        # added masses; a rudder offset belongs to a test, not to a hull): no prior
+        if p.name in spec.free_names and p.value != 0.0:
             out[p.name] = Prior(p.value, rel_sd * max(abs(p.value), p.scale), f"reference: {src}")
     return Priors(out, f"reference set {src} (±{100 * rel_sd:.0f} %)")
 
