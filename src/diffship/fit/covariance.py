@@ -31,6 +31,12 @@ Three estimates of Ω (``kind``):
   counterpart of ``"hac"`` at linearised cost (no refits), for comparison.
 * ``"auto"`` — ``"hac"`` where the residuals are not white (:func:`whiteness`), else ``"white"``.
 
+**Measured inputs** (errors in variables): noise on the inputs the fit simulates with moves
+the estimate through a low-frequency component of the residuals that the fit itself absorbs,
+so no estimate from the fitted residuals sees it. Given its contribution
+:math:`\Omega_u = A^\top\Sigma_u A` (``input_meat``; :mod:`diffship.fit.input_noise`), it is
+added to the middle of the sandwich: :math:`H^{-1}(\Omega + \Omega_u)H^{-1}`.
+
 Inverse and rank: :math:`H^{-1}` comes from the SVD :math:`J = U\Sigma V^\top` as
 :math:`V\Sigma^{-2}V^\top`. Where ``J`` is (numerically) rank deficient the inverse does not
 exist: the directions with singular values below ``rtol·σ_max`` are dropped and every unknown
@@ -134,6 +140,7 @@ class Covariance:
         kind: the estimate used (``"white"``, ``"hac"`` or ``"block"``; never ``"auto"``).
         bandwidth: per-run Bartlett bandwidth [samples] (``"hac"``/``"block"``; empty otherwise).
         whiteness: residual whiteness, where the residuals' run/channel layout was given.
+        input_noise: ``{input: σ̂}`` of the measured inputs whose noise was propagated (empty: none).
     """
 
     matrix: np.ndarray
@@ -144,6 +151,7 @@ class Covariance:
     kind: str = "white"
     bandwidth: tuple[float, ...] = ()
     whiteness: Whiteness | None = None
+    input_noise: dict[str, float] = dataclasses.field(default_factory=dict)
 
     @property
     def full_rank(self) -> bool:
@@ -156,11 +164,16 @@ class Covariance:
                "block": "moving-block bootstrap of the score, linearised"}[self.kind]
         bw = (f", bandwidth {min(self.bandwidth):.0f}–{max(self.bandwidth):.0f} samples"
               if self.bandwidth else "")
-        return f"covariance: {how}{bw}" + (f"; {self.whiteness.describe()}" if self.whiteness is not None else "")
+        eiv = ""
+        if self.input_noise:
+            eiv = (" + measured-input noise propagated (errors in variables; σ̂ "
+                   + ", ".join(f"{k} {v:.3g}" for k, v in self.input_noise.items()) + ")")
+        return f"covariance: {how}{bw}{eiv}" + (f"; {self.whiteness.describe()}" if self.whiteness is not None else "")
 
     def info(self) -> dict:
         """JSON-ready summary for ``FitResult.info``."""
-        out = {"covariance": self.kind, "covariance_bandwidth": list(self.bandwidth)}
+        out = {"covariance": self.kind + ("+inputs" if self.input_noise else ""),
+               "covariance_bandwidth": list(self.bandwidth), "input_noise": dict(self.input_noise)}
         if self.whiteness is not None:
             out["whiteness"] = self.whiteness.as_dict()
         return out
@@ -282,7 +295,8 @@ def _block_draws(scores: list[np.ndarray], p: int, n_boot: int, seed: int) -> tu
 def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: float | None = None,
                involvement: float = 0.3, kind: str = "white", mask: np.ndarray | None = None, n_channels: int = 1,
                runs: tuple[str, ...] = (), channels: tuple[str, ...] = (), n_boot: int = 2000,
-               seed: int = 0) -> Covariance:
+               seed: int = 0, input_meat: np.ndarray | None = None,
+               input_noise: dict[str, float] | None = None) -> Covariance:
     """Covariance of the unknowns at a least-squares optimum (see the module docstring).
 
     Args:
@@ -298,6 +312,8 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         n_channels: number of channels per sample in that layout.
         runs, channels: labels for the whiteness table.
         n_boot, seed: resamples and random seed of ``"block"``.
+        input_meat: :math:`\Omega_u` ``(p, p)`` of measured-input noise (added to the sandwich).
+        input_noise: the input noise levels behind ``input_meat`` (for the description).
     """
     if kind not in KINDS:
         raise FitError(f"covariance kind must be one of {', '.join(KINDS)}, got {kind!r}")
@@ -335,12 +351,16 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
             dz = draws @ inv
             mat = correction * (dz.T @ dz) / n_boot
         mat = 0.5 * (mat + mat.T)
+    if input_meat is not None:
+        mat = mat + inv @ np.asarray(input_meat, dtype=np.float64) @ inv
+        mat = 0.5 * (mat + mat.T)
     bad: tuple[int, ...] = ()
     if not np.all(keep):
         involved = np.any(np.abs(vt[~keep]) > involvement, axis=0)
         bad = tuple(int(i) for i in np.flatnonzero(involved))
         mat = mat + np.diag(np.where(involved, np.inf, 0.0))
-    return Covariance(mat, s2, sv, int(np.sum(keep)), bad, kind, bandwidth, white)
+    eiv = dict(input_noise or {}) if input_meat is not None else {}
+    return Covariance(mat, s2, sv, int(np.sum(keep)), bad, kind, bandwidth, white, eiv)
 
 
 def relabelled(cov: np.ndarray, values: dict[str, float], new: dict[str, float], free: tuple[str, ...]) -> np.ndarray:
