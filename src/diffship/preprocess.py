@@ -86,7 +86,7 @@ def auto_cutoff(y: np.ndarray, dt: float, *, snr: float = 100.0, lo: float = 0.0
     the noise floor :math:`P_0` is the median power above 60 % of the Nyquist frequency
     :math:`f_N` (white sensor noise is flat there); the cut-off is the lowest frequency above
     which the spectrum stays below ``snr``·:math:`P_0`, clipped to ``[lo, hi]``·:math:`f_N`. A
-    signal without a flat floor (noise-free) gets ``hi``·:math:`f_N`.
+    noise-free signal has only the window's leakage as its floor and gets a high cut-off.
 
     ``snr = 100`` (20 dB): differentiation multiplies the noise at f by (2πf)², so the
     derivative near the cut-off is clean only where the signal stands well above the floor.

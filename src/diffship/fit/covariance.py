@@ -312,7 +312,7 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         n_channels: number of channels per sample in that layout.
         runs, channels: labels for the whiteness table.
         n_boot, seed: resamples and random seed of ``"block"``.
-        input_meat: :math:`\Omega_u` ``(p, p)`` of measured-input noise (added to the sandwich).
+        input_meat: Ω_u ``(p, p)`` of measured-input noise (added to the sandwich).
         input_noise: the input noise levels behind ``input_meat`` (for the description).
     """
     if kind not in KINDS:

@@ -86,7 +86,7 @@ class InputSensitivity(eqx.Module):
         """:math:`\\Omega_u = A^\\top \\Sigma_u A` (see the module docstring)."""
         _, vjp = jax.vjp(lambda us: self.reversible.residuals(z, data.replace(us=us)), data.us)
         A = jax.vmap(lambda c: vjp(c)[0])(J.T)  # (n_z, R, N, n_u)
-        A = A * data.mask[None, :, :, None]
+        A = jnp.where(data.mask[None, :, :, None], A, 0.0)
         return jnp.einsum("prnu,qrnv,uv->pq", A, A, sigma2)
 
 
