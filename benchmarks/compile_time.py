@@ -40,8 +40,9 @@ MODELS = ("nomoto2", "fossen3", "fossen6", "vmm_simple", "vmm_abkowitz", "mmg", 
 DEG = np.pi / 180.0
 
 
-def write_data(name: str, folder: Path) -> list[Path]:
-    """Two small noisy runs of the model's reference vessel, as CSV files (returns the paths)."""
+def write_data(name: str, folder: Path, input_noise: bool = False) -> list[Path]:
+    """Two small noisy runs of the model's reference vessel, as CSV files (returns the paths);
+    ``input_noise``: the logged inputs carry measurement noise too."""
     from diffship.data import Run
     from diffship.manoeuvres import zigzag
     from diffship.models import get_model
@@ -79,14 +80,20 @@ def write_data(name: str, folder: Path) -> list[Path]:
         if name in ("vmm_simple", "vmm_abkowitz", "mmg"):  # noise-free manoeuvres: add small sensor noise
             for c, s in (("psi", 0.1 * DEG), ("u", 0.01), ("v", 0.01), ("r", 0.05 * DEG)):
                 df[c] = df[c] + rng.normal(0.0, s, len(df))
+        if input_noise:  # measured inputs, as in model tests: rudder 0.05°, thrust/forces 1 %
+            for c in model.input_names:
+                if c == "delta":
+                    df[c] = df[c] + rng.normal(0.0, 0.05 * DEG, len(df))
+                elif c != "tau":
+                    df[c] = df[c] * (1 + 0.01 * rng.normal(size=len(df)))
         p = folder / f"{name}_{i}.csv"
         df.to_csv(p, index=False)
         paths.append(p)
     return paths
 
 
-def one_process(model: str, files: list[Path], cache: Path, out_json: Path) -> dict:
-    env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(cache), "PYTHONPATH": os.environ.get("PYTHONPATH", "src")}
+def one_process(model: str, files: list[Path], cache: Path, out_json: Path, src: str | None = None) -> dict:
+    env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(cache), "PYTHONPATH": src or os.environ.get("PYTHONPATH", "src")}
     cmd = [sys.executable, "-m", "diffship.fit", *map(str, files), "--model", model, "--quiet", "--json", str(out_json)]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -145,6 +152,9 @@ def main(argv=None):
     ap.add_argument("--hlo", action="store_true", help="also count lowered HLO lines per program")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--tag", default="", help="suffix of the result files")
+    ap.add_argument("--input-noise", action="store_true", help="noisy logged inputs (rudder 0.05°, thrust 1 %%)")
+    ap.add_argument("--src", nargs="*", default=[None],
+                    help="diffship source folders to compare (PYTHONPATH of the CLI processes; default: $PYTHONPATH)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -154,15 +164,16 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for name in args.models:
-            files = write_data(name, tmp)
+            files = write_data(name, tmp, args.input_noise)
             for rep in range(args.repeats):
-                cache = tmp / f"cache_{name}_{rep}"
-                cache.mkdir()
-                for mode in ("cold", "cached"):
-                    row = {"model": name, "repeat": rep, "mode": mode, "load1": os.getloadavg()[0],
-                           **one_process(name, files, cache, tmp / "out.json")}
-                    rows.append(row)
-                    print(json.dumps(row), flush=True)
+                for k, src in enumerate(args.src):  # interleaved: the sources see the same load
+                    cache = tmp / f"cache_{name}_{rep}_{k}"
+                    cache.mkdir()
+                    for mode in ("cold", "cached"):
+                        row = {"model": name, "src": src or "", "repeat": rep, "mode": mode, "load1": os.getloadavg()[0],
+                               **one_process(name, files, cache, tmp / "out.json", src)}
+                        rows.append(row)
+                        print(json.dumps(row), flush=True)
             if args.hlo:
                 try:
                     h = hlo_lines(name, files)
@@ -176,24 +187,25 @@ def main(argv=None):
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         w.writerows(rows)
-    lines = [f"# Compile time per model: cold `python -m diffship.fit` process, empty vs warm cache{tag}", "",
+    lines = [f"# Compile time per model: cold `python -m diffship.fit` process, empty vs warm cache {args.tag}", "",
              f"Machine: {os.cpu_count()} CPUs shared with other sessions; load average at start "
              f"{' '.join(f'{x:.2f}' for x in load0)}, at end {' '.join(f'{x:.2f}' for x in os.getloadavg())}. "
              f"Total {(time.perf_counter() - t_all) / 60:.1f} min. Median over {args.repeats} repeat(s). "
-             "Data: two small synthetic runs per model (see `write_data`), default `--method both`.", "",
-             "| model | cold wall [s] | OE compile (cold) [s] | EE compile (cold) [s] | cached wall [s] | "
+             f"Data: two small synthetic runs per model (see `write_data`), default `--method both`; logged inputs "
+             f"{'noisy (rudder 0.05°, thrust 1 %)' if args.input_noise else 'exact'}.", "",
+             "| model | source | cold wall [s] | OE compile (cold) [s] | EE compile (cold) [s] | cached wall [s] | "
              "OE compile (cached) [s] | OE fit [s] | OE converged | load1 |",
-             "|---|---:|---:|---:|---:|---:|---:|---|---:|"]
+             "|---|---|---:|---:|---:|---:|---:|---:|---|---:|"]
 
     def med(rs, k):
         v = [r[k] for r in rs if isinstance(r.get(k), (int, float))]
         return f"{np.median(v):.1f}" if v else "–"
 
-    for name in args.models:
-        cold = [r for r in rows if r["model"] == name and r["mode"] == "cold"]
-        warm = [r for r in rows if r["model"] == name and r["mode"] == "cached"]
+    for name, src in ((n, s) for n in args.models for s in args.src):
+        cold = [r for r in rows if r["model"] == name and r["mode"] == "cold" and r["src"] == (src or "")]
+        warm = [r for r in rows if r["model"] == name and r["mode"] == "cached" and r["src"] == (src or "")]
         conv = ",".join(str(r.get("output_error_converged", r.get("error", "?"))) for r in cold)
-        lines.append(f"| {name} | {med(cold, 'wall_s')} | {med(cold, 'output_error_compile_s')} | "
+        lines.append(f"| {name} | {src or '$PYTHONPATH'} | {med(cold, 'wall_s')} | {med(cold, 'output_error_compile_s')} | "
                      f"{med(cold, 'equation_error_compile_s')} | {med(warm, 'wall_s')} | "
                      f"{med(warm, 'output_error_compile_s')} | {med(warm, 'output_error_fit_s')} | {conv} | "
                      f"{med(cold, 'load1')} |")

@@ -19,12 +19,14 @@ to the middle of the sandwich :math:`H^{-1}\Omega H^{-1}` (:mod:`diffship.fit.co
 ``A`` costs one reverse-mode pass through the batched simulation per unknown (``jax.vmap`` of a
 VJP with the Jacobian's columns as cotangents), compiled once per problem structure.
 
-The noise level of each input is estimated from the data (:func:`input_noise_levels`): the
-median absolute second difference of the measured signal over all runs,
-:math:`\hat\sigma = 1.4826\,\mathrm{MAD}(\Delta^2 \tilde u)/\sqrt 6` (white noise has
-:math:`\mathrm{Var}\,\Delta^2 w = 6\sigma^2`; a rate-limited rudder or a ramped thrust has zero
-second differences except at its corners, which the median ignores). A noise-free input gives
-σ̂ ≈ 0 and no correction.
+The noise of each input is estimated from the data (:func:`input_noise`): white noise has
+:math:`\mathrm{Var}\,\Delta^2 w = 6\sigma^2`, while a rate-limited rudder or a ramped thrust
+has zero second differences except at its corners. Per channel, second differences beyond five
+robust scales (1.4826·MAD) are taken for corners and dropped; the noise variance at every
+sample is the mean of :math:`(\Delta^2\tilde u)^2/6` over a window of ``window`` samples around
+it, so that noise proportional to the reading (a thrust gauge's 1 %) is followed in time; the
+correlation between channels (jet forces computed from one measured thrust) is that of the kept
+second differences. A noise-free input gives σ̂ = 0 and no correction.
 """
 
 from __future__ import annotations
@@ -39,33 +41,52 @@ from ..compiled import compiled
 from ..integrators import RK4
 from .kernel import Kernel, KernelData
 
-__all__ = ["input_noise_levels", "InputSensitivity", "input_noise_meat", "measured_input_meat"]
+__all__ = ["input_noise", "input_noise_levels", "InputSensitivity", "input_noise_meat", "measured_input_meat"]
+
+
+def input_noise(us: Float[np.ndarray, "R N n_u"], mask: Bool[np.ndarray, "R N"], window: int = 51
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Local noise scale ``(R, N, n_u)`` of every input sample and the channels' noise correlation
+    ``(n_u, n_u)`` (see the module docstring)."""
+    us = np.asarray(us, dtype=np.float64)
+    mask = np.asarray(mask, dtype=bool)
+    R, N, n_u = us.shape
+    scale = np.zeros((R, N, n_u))
+    d2s = [np.diff(us[i, mask[i]], 2, axis=0) for i in range(R)]
+    pooled = np.concatenate(d2s) if d2s else np.zeros((0, n_u))
+    if pooled.shape[0] < 3:
+        return scale, np.eye(n_u)
+    centre = np.median(pooled, axis=0)
+    robust = 1.4826 * np.median(np.abs(pooled - centre), axis=0)
+    keep_all = []
+    for i, d2 in enumerate(d2s):
+        d2 = d2 - centre
+        ok = np.abs(d2) <= 5 * robust
+        keep_all.append(np.all(ok, axis=1))
+        v = np.where(ok, d2 * d2 / 6.0, 0.0)
+        c_v = np.concatenate([np.zeros((1, n_u)), np.cumsum(v, 0)])
+        c_n = np.concatenate([np.zeros((1, n_u)), np.cumsum(ok, 0)])
+        n = d2.shape[0]
+        k = np.arange(n)
+        lo, hi = np.clip(k - window // 2, 0, n), np.clip(k + window // 2 + 1, 0, n)
+        var = (c_v[hi] - c_v[lo]) / np.maximum(c_n[hi] - c_n[lo], 1)
+        var = np.concatenate([var[:1], var, var[-1:]])  # the two end samples take their neighbours'
+        idx = np.flatnonzero(mask[i])
+        scale[i, idx] = np.sqrt(var)
+    x = (pooled - centre)[np.concatenate(keep_all)]
+    corr = np.eye(n_u)
+    if x.shape[0] > 2:
+        cov = x.T @ x
+        d = np.sqrt(np.diag(cov))
+        corr = np.divide(cov, np.outer(d, d), out=np.eye(n_u), where=np.outer(d, d) > 0)
+    return scale, corr
 
 
 def input_noise_levels(us: Float[np.ndarray, "R N n_u"], mask: Bool[np.ndarray, "R N"]) -> np.ndarray:
-    """Robust white-noise covariance of the measured input channels ``(n_u, n_u)``.
-
-    Scales per channel from the MAD of the second differences; correlations between channels
-    (e.g. jet forces computed from one measured thrust) from the sample covariance of the
-    second differences at the samples where no channel is an outlier (5 robust scales)."""
-    us = np.asarray(us, dtype=np.float64)
-    mask = np.asarray(mask, dtype=bool)
-    d2 = np.concatenate([np.diff(us[i, mask[i]], 2, axis=0) for i in range(us.shape[0])])
-    n_u = us.shape[-1]
-    if d2.shape[0] < 3:
-        return np.zeros((n_u, n_u))
-    d2 = d2 - np.median(d2, axis=0)
-    scale = 1.4826 * np.median(np.abs(d2), axis=0)
-    inlier = np.all(np.abs(d2) <= 5 * np.where(scale > 0, scale, np.inf), axis=1)
-    cov = np.zeros((n_u, n_u))
-    if np.sum(inlier) > 2:
-        x = d2[inlier]
-        cov = (x.T @ x) / x.shape[0] / 6.0
-    # the diagonal from the robust scales (the inlier cut trims the tails)
-    sd = scale / np.sqrt(6.0)
-    corr = np.divide(cov, np.sqrt(np.outer(np.diag(cov), np.diag(cov))), out=np.zeros_like(cov),
-                     where=np.outer(np.diag(cov), np.diag(cov)) > 0)
-    return corr * np.outer(sd, sd) + np.diag(np.where(np.diag(corr) == 0, sd**2, 0.0))
+    """Overall noise covariance of the input channels ``(n_u, n_u)`` (RMS of the local scales)."""
+    scale, corr = input_noise(us, mask)
+    rms = np.sqrt(np.mean(scale[np.asarray(mask, dtype=bool)] ** 2, axis=0)) if np.any(mask) else np.zeros(corr.shape[0])
+    return corr * np.outer(rms, rms)
 
 
 class InputSensitivity(eqx.Module):
@@ -82,28 +103,31 @@ class InputSensitivity(eqx.Module):
                       n_extra=k.n_extra, integrator=RK4(getattr(k.integrator, "substeps", 1)))
 
     def meat(self, z: Float[Array, " n_z"], data: KernelData, J: Float[Array, "m n_z"],
-             sigma2: Float[Array, "n_u n_u"]) -> Float[Array, "n_z n_z"]:
+             scale: Float[Array, "R N n_u"], corr: Float[Array, "n_u n_u"]) -> Float[Array, "n_z n_z"]:
         """:math:`\\Omega_u = A^\\top \\Sigma_u A` (see the module docstring)."""
         _, vjp = jax.vjp(lambda us: self.reversible.residuals(z, data.replace(us=us)), data.us)
         A = jax.vmap(lambda c: vjp(c)[0])(J.T)  # (n_z, R, N, n_u)
-        A = jnp.where(data.mask[None, :, :, None], A, 0.0)
-        return jnp.einsum("prnu,qrnv,uv->pq", A, A, sigma2)
+        A = jnp.where(data.mask[None, :, :, None], A * scale[None], 0.0)
+        return jnp.einsum("prnu,qrnv,uv->pq", A, A, corr)
 
 
-def input_noise_meat(kernel: Kernel, z, data: KernelData, J, sigma: np.ndarray) -> tuple[np.ndarray, float]:
-    """``(Ω_u, compile seconds)`` for the input noise covariance ``sigma`` ``(n_u, n_u)``."""
+def input_noise_meat(kernel: Kernel, z, data: KernelData, J, scale: np.ndarray, corr: np.ndarray
+                     ) -> tuple[np.ndarray, float]:
+    """``(Ω_u, compile seconds)`` for local input noise scales ``(R, N, n_u)`` and correlation ``(n_u, n_u)``."""
     owner = InputSensitivity(kernel)
-    args = (jnp.asarray(z, dtype=jnp.float64), data, jnp.asarray(J, dtype=jnp.float64),
-            jnp.asarray(sigma, dtype=jnp.float64))
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    args = (f(z), data, f(J), f(scale), f(corr))
     fn, c = compiled(owner, "meat", args)
     return np.asarray(fn(*args)), c
 
 
 def measured_input_meat(kernel: Kernel, z, data: KernelData, J, mask, names) -> tuple[np.ndarray | None, dict, float]:
-    """``(Ω_u or None, {input: σ̂}, compile seconds)`` with the noise levels estimated from the
+    """``(Ω_u or None, {input: RMS σ̂}, compile seconds)`` with the noise estimated from the
     measured inputs of ``data`` (``None`` where every input looks noise-free)."""
-    cov = input_noise_levels(np.asarray(data.us), mask)
-    if not np.any(np.diag(cov) > 0):
+    mask = np.asarray(mask, dtype=bool)
+    scale, corr = input_noise(np.asarray(data.us), mask)
+    rms = np.sqrt(np.mean(scale[mask] ** 2, axis=0))
+    if not np.any(rms > 0):
         return None, {}, 0.0
-    meat, c = input_noise_meat(kernel, z, data, J, cov)
-    return meat, {n: float(np.sqrt(s)) for n, s in zip(names, np.diag(cov))}, c
+    meat, c = input_noise_meat(kernel, z, data, J, scale, corr)
+    return meat, {n: float(s) for n, s in zip(names, rms)}, c
