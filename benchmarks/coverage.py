@@ -222,7 +222,7 @@ def fit_and_covariances(case, runs):
     J = np.asarray(kernel.call("jacobian", z, data))
     n_p = len(spec.free_names)
     dth = fspec.dtheta_dz(z[:n_p])
-    meat, sigma_u, _ = measured_input_meat(kernel, z, data, J, batch.mask, model.input_names)
+    meat, _, _ = measured_input_meat(kernel, z, data, J, batch.mask, model.input_names)
     ses, lag1 = {}, None
     for kind in KINDS:
         c = covariance(J, r, dof=batch.n_residuals - J.shape[1], kind=kind.split("+")[0], mask=batch.mask,
@@ -294,7 +294,7 @@ def write_report(path, rows, summary, seeds, load0, total_s):
     for case, s in summary.items():
         rr = [r for r in rows if r["case"] == case]
 
-        def cov(k):
+        def cov(k, rr=rr):
             return np.mean([abs(r[f"z_{k}"]) <= 1.96 for r in rr])
 
         rep = np.mean([abs(r["estimate"] - r["truth"]) <= 1.96 * r["se_reported"] for r in rr])

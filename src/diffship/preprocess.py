@@ -5,10 +5,12 @@ noise is amplified (a derivative multiplies noise at frequency f by 2πf). Filte
 zero-phase so that they add no lag:
 
 * ``"butter"`` (default): 4th-order Butterworth low-pass applied forwards and backwards
-  (``scipy.signal.filtfilt``), cut-off ``cutoff`` [Hz]; by default chosen **from the data, per
-  channel** (:func:`auto_cutoff`: where the signal's spectrum meets its noise floor), so that
-  fast degrees of freedom (roll and pitch of a small ROV) are not filtered away and slow ones
-  not left noisy. Derivative by central differences of the filtered signal.
+  (``scipy.signal.filtfilt``), cut-off ``cutoff`` [Hz]: a number, ``"auto"`` — chosen **from
+  the data, per channel** (:func:`auto_cutoff`: where the signal's spectrum meets its noise
+  floor), so that fast degrees of freedom (roll and pitch of a small ROV) are not filtered away
+  and slow ones not left noisy; what the equation-error fit uses unless told otherwise — or
+  ``None``, 10 % of the Nyquist frequency (heavy smoothing, for initial states taken from the
+  data). Derivative by central differences of the filtered signal.
 * ``"savgol"``: Savitzky–Golay local cubic fit over ``window`` [s] (default 1 s), which
   differentiates the fitted polynomial analytically.
 * ``"none"``: raw central differences (``numpy.gradient``).
@@ -35,27 +37,32 @@ class Filter:
 
     Attributes:
         kind: ``"butter"``, ``"savgol"`` or ``"none"``.
-        cutoff: Butterworth cut-off frequency [Hz]; ``None`` = chosen per channel from the data
-            (:func:`auto_cutoff`).
+        cutoff: Butterworth cut-off frequency [Hz]; ``"auto"`` = chosen per channel from the data
+            (:func:`auto_cutoff`); ``None`` = 10 % of Nyquist (the equation-error fit reads
+            ``None`` as ``"auto"``).
         order: Butterworth order.
         window: Savitzky–Golay window [s].
     """
 
     kind: str = "butter"
-    cutoff: float | None = None
+    cutoff: float | str | None = None
     order: int = 4
     window: float = 1.0
 
     def __post_init__(self):
         if self.kind not in ("butter", "savgol", "none"):
             raise DataError(f"unknown filter {self.kind!r}: use 'butter', 'savgol' or 'none'")
+        if isinstance(self.cutoff, str) and self.cutoff != "auto":
+            raise DataError(f"filter cut-off {self.cutoff!r}: give a frequency in Hz or 'auto'")
 
     @classmethod
     def parse(cls, text: str) -> Filter:
-        """``"butter"``, ``"butter:0.5"`` (cut-off Hz), ``"savgol:1.5"`` (window s) or ``"none"``."""
+        """``"butter"``, ``"butter:0.5"`` (cut-off Hz), ``"butter:auto"``, ``"savgol:1.5"`` (window s) or ``"none"``."""
         kind, _, arg = text.partition(":")
         if not arg:
             return cls(kind)
+        if kind == "butter" and arg == "auto":
+            return cls(kind, cutoff="auto")
         try:
             value = float(arg)
         except ValueError:
@@ -64,7 +71,8 @@ class Filter:
 
     def describe(self, dt: float) -> str:
         if self.kind == "butter":
-            fc = f"{self.cutoff:.3g} Hz" if self.cutoff is not None else "chosen per channel from the noise floor"
+            fc = ("chosen per channel from the noise floor" if self.cutoff == "auto"
+                  else f"{self.cutoff if self.cutoff is not None else 0.1 * 0.5 / dt:.3g} Hz")
             return f"zero-phase Butterworth order {self.order}, cut-off {fc}, central differences"
         if self.kind == "savgol":
             return f"Savitzky–Golay cubic, window {self.window:.3g} s"
@@ -118,7 +126,7 @@ def smooth_and_derivative(t: np.ndarray, y: np.ndarray, flt: Filter = Filter(), 
     n = y.size
     if flt.kind == "butter":
         nyq = 0.5 / dt
-        fc = flt.cutoff if flt.cutoff is not None else auto_cutoff(y, dt)
+        fc = auto_cutoff(y, dt) if flt.cutoff == "auto" else flt.cutoff if flt.cutoff is not None else 0.1 * nyq
         if not 0 < fc < nyq:
             raise DataError(f"{what}: Butterworth cut-off {fc} Hz must lie between 0 and the Nyquist frequency {nyq:g} Hz")
         b, a = signal.butter(flt.order, fc / nyq)

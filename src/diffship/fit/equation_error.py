@@ -28,9 +28,10 @@ way for every model:
    covariance is the per-run HAC sandwich (:mod:`diffship.fit.covariance`, ``kind="auto"``)
    rather than the classical ``σ̂²(JᵀJ)⁻¹``; they still ignore the errors in the regressors.
 
-The Butterworth cut-off is chosen from the data for every run and channel unless given
-(:func:`diffship.preprocess.auto_cutoff`: where the spectrum meets its noise floor); the
-chosen values are stated in the messages and in ``info["cutoff_hz"]``.
+The Butterworth cut-off is chosen from the data for every run and channel unless a frequency
+is given (a ``Filter("butter")`` without one is read as ``cutoff="auto"``:
+:func:`diffship.preprocess.auto_cutoff`, where the spectrum meets its noise floor); the chosen
+values are stated in the messages and in ``info["cutoff_hz"]``.
 
 Parameters are estimated unconstrained in model units (bounds are not imposed, as in the
 seeds); a result outside a bound is reported in the messages. A model without an
@@ -39,6 +40,7 @@ equation-error form (e.g. MMG) is refused with a :class:`~diffship.errors.ModelE
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -125,9 +127,15 @@ def equation_data(model: AbstractModel, run: Run, flt: Filter = Filter()) -> Equ
     return EquationSamples(z, zd, zdd, u)
 
 
+def differentiation_filter(flt: Filter) -> Filter:
+    """The filter equation error differentiates with: a Butterworth without a cut-off gets ``"auto"``."""
+    return dataclasses.replace(flt, cutoff="auto") if flt.kind == "butter" and flt.cutoff is None else flt
+
+
 def cutoffs(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict[str, dict[str, float]]:
     """``{run: {channel: Hz}}``: the Butterworth cut-off each measured equation channel is
-    smoothed with (chosen from the data when ``flt.cutoff`` is ``None``); empty for other filters."""
+    smoothed with by :func:`fit_equation_error` with ``flt``; empty for other filters."""
+    flt = differentiation_filter(flt)
     if flt.kind != "butter":
         return {}
     out = {}
@@ -139,7 +147,8 @@ def cutoffs(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -
                 continue
             y = np.asarray(run[name], dtype=np.float64)
             y = np.unwrap(y) if name in model.angle_outputs else y
-            per[name] = flt.cutoff if flt.cutoff is not None else auto_cutoff(y, float(np.median(np.diff(run.time))))
+            dt = float(np.median(np.diff(run.time)))
+            per[name] = auto_cutoff(y, dt) if flt.cutoff == "auto" else float(flt.cutoff)
         out[run.name] = per
     return out
 
@@ -194,6 +203,7 @@ def fit_equation_error(
     if not free:
         raise FitError("no free parameters: free at least one (remove it from --fix)")
     eq_names = tuple(model.EQUATIONS)
+    x0_flt, flt = flt, differentiation_filter(flt)
     samples = equation_samples(model, runs, flt)
     idx = spec.free_index()
     names = model.param_names
@@ -280,7 +290,7 @@ def fit_equation_error(
         if not (p.lower < vals[n] < p.upper):
             messages.append(f"{n} = {vals[n]:.4g} lies outside its physical bounds ({p.lower:g}, {p.upper:g})")
     fitted = model.with_params(vals)
-    x0s = tuple(initial_state(fitted, run, flt) for run in runs)
+    x0s = tuple(initial_state(fitted, run, x0_flt) for run in runs)
     fit_s = time.perf_counter() - t_start - compile_s
     return FitResult(
         method="equation_error",
