@@ -296,7 +296,7 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
                involvement: float = 0.3, kind: str = "white", mask: np.ndarray | None = None, n_channels: int = 1,
                runs: tuple[str, ...] = (), channels: tuple[str, ...] = (), n_boot: int = 2000,
                seed: int = 0, input_meat: np.ndarray | None = None,
-               input_noise: dict[str, float] | None = None) -> Covariance:
+               input_noise: dict[str, float] | None = None, variance: float | None = None) -> Covariance:
     """Covariance of the unknowns at a least-squares optimum (see the module docstring).
 
     Args:
@@ -314,6 +314,8 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         n_boot, seed: resamples and random seed of ``"block"``.
         input_meat: Ω_u ``(p, p)`` of measured-input noise (added to the sandwich).
         input_noise: the input noise levels behind ``input_meat`` (for the description).
+        variance: use this σ̂² instead of estimating it from ``r`` (e.g. 1 for residuals already
+            normalised by their noise level, as with prior rows stacked under scaled data rows).
     """
     if kind not in KINDS:
         raise FitError(f"covariance kind must be one of {', '.join(KINDS)}, got {kind!r}")
@@ -321,7 +323,7 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
     r = np.asarray(r, dtype=np.float64)
     m, p = J.shape
     dof = max(m - p, 1) if dof is None else max(int(dof), 1)
-    s2 = float(r @ r) / dof
+    s2 = float(r @ r) / dof if variance is None else float(variance)
     white = None
     if mask is not None:
         mask = np.asarray(mask, dtype=bool)

@@ -31,6 +31,8 @@ second differences. A noise-free input gives σ̂ = 0 and no correction.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -98,14 +100,13 @@ class InputSensitivity(eqx.Module):
     def reversible(self) -> Kernel:
         """The kernel with the scan-based RK4 (diffrax's forward-mode adjoint has no reverse mode);
         the sensitivity only scales a covariance term, so the integrator difference is immaterial."""
-        k = self.kernel
-        return Kernel(spec=k.spec, out_idx=k.out_idx, angle=k.angle, x0_idx=k.x0_idx, extra_idx=k.extra_idx,
-                      n_extra=k.n_extra, integrator=RK4(getattr(k.integrator, "substeps", 1)))
+        return dataclasses.replace(self.kernel, integrator=RK4(getattr(self.kernel.integrator, "substeps", 1)))
 
     def meat(self, z: Float[Array, " n_z"], data: KernelData, J: Float[Array, "m n_z"],
              scale: Float[Array, "R N n_u"], corr: Float[Array, "n_u n_u"]) -> Float[Array, "n_z n_z"]:
         """:math:`\\Omega_u = A^\\top \\Sigma_u A` (see the module docstring)."""
-        _, vjp = jax.vjp(lambda us: self.reversible.residuals(z, data.replace(us=us)), data.us)
+        m = J.shape[0]  # data rows (prior rows, if any, follow them and do not depend on the inputs)
+        _, vjp = jax.vjp(lambda us: self.reversible.residuals(z, data.replace(us=us))[:m], data.us)
         A = jax.vmap(lambda c: vjp(c)[0])(J.T)  # (n_z, R, N, n_u)
         A = jnp.where(data.mask[None, :, :, None], A * scale[None], 0.0)
         return jnp.einsum("prnu,qrnv,uv->pq", A, A, corr)
