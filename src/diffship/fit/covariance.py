@@ -69,7 +69,7 @@ from scipy import stats
 
 from ..errors import FitError
 
-__all__ = ["Covariance", "Whiteness", "covariance", "whiteness", "relabelled", "KINDS"]
+__all__ = ["KINDS", "Covariance", "Whiteness", "covariance", "relabelled", "whiteness"]
 
 #: Accepted values of ``kind``.
 KINDS = ("white", "hac", "block", "auto")

@@ -43,7 +43,7 @@ from ..compiled import compiled
 from ..integrators import RK4
 from .kernel import Kernel, KernelData
 
-__all__ = ["input_noise", "input_noise_levels", "InputSensitivity", "input_noise_meat", "measured_input_meat"]
+__all__ = ["InputSensitivity", "input_noise", "input_noise_levels", "input_noise_meat", "measured_input_meat"]
 
 
 def input_noise(us: Float[np.ndarray, "R N n_u"], mask: Bool[np.ndarray, "R N"], window: int = 51
@@ -116,7 +116,7 @@ def input_noise_meat(kernel: Kernel, z, data: KernelData, J, scale: np.ndarray, 
                      ) -> tuple[np.ndarray, float]:
     """``(Ω_u, compile seconds)`` for local input noise scales ``(R, N, n_u)`` and correlation ``(n_u, n_u)``."""
     owner = InputSensitivity(kernel)
-    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)
     args = (f(z), data, f(J), f(scale), f(corr))
     fn, c = compiled(owner, "meat", args)
     return np.asarray(fn(*args)), c
