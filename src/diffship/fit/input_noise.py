@@ -116,7 +116,7 @@ def input_noise_meat(kernel: Kernel, z, data: KernelData, J, scale: np.ndarray, 
                      ) -> tuple[np.ndarray, float]:
     """``(Ω_u, compile seconds)`` for local input noise scales ``(R, N, n_u)`` and correlation ``(n_u, n_u)``."""
     owner = InputSensitivity(kernel)
-    f = lambda a: jnp.asarray(a, dtype=jnp.float64)
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
     args = (f(z), data, f(J), f(scale), f(corr))
     fn, c = compiled(owner, "meat", args)
     return np.asarray(fn(*args)), c
