@@ -158,7 +158,9 @@ def _trimmed_lengths(runs: Sequence[Run]) -> list[int]:
 
 
 def equation_samples(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> EquationSamples:
-    """:func:`equation_data` of every run, trimmed at both ends (``TRIM``) and stacked."""
+    """:func:`equation_data` of every run, trimmed at both ends (``TRIM``) and stacked (with the
+    filter :func:`fit_equation_error` differentiates with: a Butterworth without cut-off is ``"auto"``)."""
+    flt = differentiation_filter(flt)
     parts = []
     for run in runs:
         d = equation_data(model, run, flt)
