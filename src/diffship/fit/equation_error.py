@@ -23,9 +23,15 @@ way for every model:
    residual RMS of equation ``j`` from a first unweighted pass (feasible generalised least
    squares). Where the model has a linear regression form (``regressors``, e.g. Nomoto's
    :math:`\dot r = a r + b\delta + c`), its least-squares solution mapped back to the
-   parameters (``from_regression``) is the start. Standard errors are the classical
-   ``σ̂²(JᵀJ)⁻¹``; they ignore the errors in the regressors and the correlation of filtered
-   noise, which is one reason this baseline is biased and over-confident on noisy data.
+   parameters (``from_regression``) is the start. Standard errors: the equation residuals of
+   filtered, differentiated data are coloured by construction, so where they are not white the
+   covariance is the per-run HAC sandwich (:mod:`diffship.fit.covariance`, ``kind="auto"``)
+   rather than the classical ``σ̂²(JᵀJ)⁻¹``; they still ignore the errors in the regressors.
+
+The Butterworth cut-off is chosen from the data for every run and channel unless a frequency
+is given (a ``Filter("butter")`` without one is read as ``cutoff="auto"``:
+:func:`diffship.preprocess.auto_cutoff`, where the spectrum meets its noise floor); the chosen
+values are stated in the messages and in ``info["cutoff_hz"]``.
 
 Parameters are estimated unconstrained in model units (bounds are not imposed, as in the
 seeds); a result outside a bound is reported in the messages. A model without an
@@ -34,6 +40,7 @@ equation-error form (e.g. MMG) is refused with a :class:`~diffship.errors.ModelE
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Sequence
@@ -48,13 +55,13 @@ from ..data import Run
 from ..errors import FitError, ModelError
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..preprocess import Filter, smooth_and_derivative
+from ..preprocess import Filter, auto_cutoff, smooth_and_derivative
 from ..simulate import initial_state, model_inputs
 from .covariance import covariance, relabelled as relabel_covariance
 from .result import FitResult
 
 __all__ = ["fit_equation_error", "EquationSamples", "equation_data", "equation_samples", "equation_residuals",
-           "TRIM"]
+           "TRIM", "cutoffs"]
 
 #: Fraction of each run dropped at both ends before the fit (filter edge effects).
 TRIM = 0.02
@@ -120,8 +127,40 @@ def equation_data(model: AbstractModel, run: Run, flt: Filter = Filter()) -> Equ
     return EquationSamples(z, zd, zdd, u)
 
 
+def differentiation_filter(flt: Filter) -> Filter:
+    """The filter equation error differentiates with: a Butterworth without a cut-off gets ``"auto"``."""
+    return dataclasses.replace(flt, cutoff="auto") if flt.kind == "butter" and flt.cutoff is None else flt
+
+
+def cutoffs(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict[str, dict[str, float]]:
+    """``{run: {channel: Hz}}``: the Butterworth cut-off each measured equation channel is
+    smoothed with by :func:`fit_equation_error` with ``flt``; empty for other filters."""
+    flt = differentiation_filter(flt)
+    if flt.kind != "butter":
+        return {}
+    out = {}
+    for run in runs:
+        per = {}
+        for c in model.EQUATION_CHANNELS:
+            name = c if run.has(c) or c not in model.EQUATION_RATE_OF else model.EQUATION_RATE_OF[c]
+            if not run.has(name):
+                continue
+            y = np.asarray(run[name], dtype=np.float64)
+            y = np.unwrap(y) if name in model.angle_outputs else y
+            dt = float(np.median(np.diff(run.time)))
+            per[name] = auto_cutoff(y, dt) if flt.cutoff == "auto" else float(flt.cutoff)
+        out[run.name] = per
+    return out
+
+
+def _trimmed_lengths(runs: Sequence[Run]) -> list[int]:
+    return [len(r.time) - 2 * int(TRIM * len(r.time)) for r in runs]
+
+
 def equation_samples(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> EquationSamples:
-    """:func:`equation_data` of every run, trimmed at both ends (``TRIM``) and stacked."""
+    """:func:`equation_data` of every run, trimmed at both ends (``TRIM``) and stacked (with the
+    filter :func:`fit_equation_error` differentiates with: a Butterworth without cut-off is ``"auto"``)."""
+    flt = differentiation_filter(flt)
     parts = []
     for run in runs:
         d = equation_data(model, run, flt)
@@ -166,6 +205,7 @@ def fit_equation_error(
     if not free:
         raise FitError("no free parameters: free at least one (remove it from --fix)")
     eq_names = tuple(model.EQUATIONS)
+    x0_flt, flt = flt, differentiation_filter(flt)
     samples = equation_samples(model, runs, flt)
     idx = spec.free_index()
     names = model.param_names
@@ -184,6 +224,10 @@ def fit_equation_error(
     n_eq = len(eq_names)
     w = np.ones(n_eq)
     messages = [f"derivatives: {flt.describe(runs[0].dt)}", f"equations: {', '.join(eq_names)}"]
+    cut = cutoffs(model, runs, flt)
+    if cut:
+        messages.append("Butterworth cut-offs [Hz]: " + "; ".join(
+            f"{run}: " + ", ".join(f"{c} {v:.2f}" for c, v in per.items()) for run, per in cut.items()))
     iterations = 0
     converged = False
     compile_s = 0.0
@@ -222,7 +266,16 @@ def fit_equation_error(
         raise FitError(f"equation error for {model.name} produced non-finite parameters on runs "
                        f"{', '.join(r_.name for r_ in runs)}; check the inputs and the filter")
     J = np.asarray(jac_jit(jnp.asarray(theta), jnp.asarray(w)))
-    cov_all = covariance(J, r)
+    # residuals of filtered data are coloured: the per-run HAC sandwich where they are not white
+    lengths = _trimmed_lengths(runs)
+    mask = np.arange(max(lengths))[None, :] < np.asarray(lengths)[:, None]
+    Jp = np.zeros(mask.shape + (n_eq, J.shape[1]))
+    rp = np.zeros(mask.shape + (n_eq,))
+    Jp[mask] = J.reshape(-1, n_eq, J.shape[1])
+    rp[mask] = r.reshape(-1, n_eq)
+    cov_all = covariance(Jp.reshape(-1, J.shape[1]), rp.reshape(-1), dof=r.size - J.shape[1], kind="auto", mask=mask,
+                         n_channels=n_eq, runs=tuple(r_.name for r_ in runs), channels=eq_names)
+    messages.append(cov_all.describe())
     cov = cov_all.matrix
     if not cov_all.full_rank:
         messages.append("not identifiable from these equations (rank deficient; standard errors infinite): "
@@ -239,7 +292,7 @@ def fit_equation_error(
         if not (p.lower < vals[n] < p.upper):
             messages.append(f"{n} = {vals[n]:.4g} lies outside its physical bounds ({p.lower:g}, {p.upper:g})")
     fitted = model.with_params(vals)
-    x0s = tuple(initial_state(fitted, run, flt) for run in runs)
+    x0s = tuple(initial_state(fitted, run, x0_flt) for run in runs)
     fit_s = time.perf_counter() - t_start - compile_s
     return FitResult(
         method="equation_error",
@@ -260,5 +313,5 @@ def fit_equation_error(
         run_names=tuple(r_.name for r_ in runs),
         covariance=cov,
         messages=tuple(messages),
-        info={"filter": flt.describe(runs[0].dt), "equations": eq_names},
+        info={"filter": flt.describe(runs[0].dt), "equations": eq_names, "cutoff_hz": cut, **cov_all.info()},
     )

@@ -54,6 +54,7 @@ from ..preprocess import Filter
 from ._lm import result_message
 from .covariance import covariance, relabelled
 from .identifiability import identifiability, per_scale_columns
+from .input_noise import measured_input_meat
 from .kernel import PENALTY, Kernel, kernel_data
 from .priors import Priors, default_priors, prior_arrays, prior_table
 from .problem import Batch, make_batch
@@ -321,14 +322,23 @@ def fit_output_error(
     # towards a log-mapped bound would otherwise hide the directions the data cannot see)
     col = per_scale_columns(spec, z, n_p + n_x0)
     J, J_prior = kernel.split(np.asarray(jac_fn(z, data)) * col, data)
-    cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1], involvement=0.05)  # padded samples are not data
+    # coloured residuals get the HAC sandwich; noise on measured inputs is propagated (errors in variables)
+    meat, sigma_u, c = measured_input_meat(kernel, z, data, J, batch.mask, model.input_names)
+    compile_s += c
+    cov_all = covariance(J, r, dof=batch.n_residuals - J.shape[1], involvement=0.05, kind="auto", mask=batch.mask,
+                         n_channels=len(batch.channels), runs=batch.names, channels=batch.channels,
+                         input_meat=meat, input_noise=sigma_u)  # padded samples are not data
+    messages.append(cov_all.describe())
+    cov_info = cov_all.info()
     if data.n_prior:
         # posterior: (J_dᵀJ_d/σ̂² + J_pᵀJ_p)⁻¹ — prior rows are unit-variance by construction
         # (with effective-sample weighting the scales already are σ_c·√τ_c: σ̂² = 1)
         s2 = 1.0 if taus else cov_all.residual_variance
         cov_all = dataclasses.replace(
-            covariance(np.vstack([J / math.sqrt(s2), J_prior]), r, variance=1.0, involvement=0.05),
+            covariance(np.vstack([J / math.sqrt(s2), J_prior]), r, variance=1.0, involvement=0.05,
+                       input_meat=None if meat is None else meat / s2, input_noise=sigma_u),
             residual_variance=s2)
+        cov_info["covariance"] = "posterior (white data rows)" + ("+inputs" if meat is not None else "")
     if not cov_all.full_rank:
         names = [*spec.free_names, *(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)]
         messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
@@ -384,7 +394,7 @@ def fit_output_error(
         info={"weights": o.weights, "integrator": o.integrator.describe(), "programs": how,
               "residual_variance": cov_all.residual_variance, "n_residuals": batch.n_residuals,
               "steps_per_pass": tuple(steps_per_pass), "warmup_samples": n_warm, "estimate_x0": o.estimate_x0,
-              "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1],
+              "jacobian_rank": cov_all.rank, "n_unknowns": J.shape[1], **cov_info,
               "priors": prior_info, "prior_source": priors.source, "prior_note": prior_note,
               "prior_cost": 0.5 * float(np.sum(prior_rows ** 2)),
               "correlation_time": ({c: float(t) for c, t in zip(batch.channels, taus[-1])} if taus else None), "identifiability": ident.as_json()},
