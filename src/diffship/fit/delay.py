@@ -83,6 +83,10 @@ def estimate_input_delay(runs, input: str, output: str | None = None, *, model=N
     method = method or ("refit" if model is not None else "xcorr")
     for r in runs:
         r.require((input,), "the input time-delay search")
+    if flt.kind == "butter" and flt.cutoff is None:
+        # a fixed cut-off (10 % of Nyquist) for every shifted refit: a data-chosen one
+        # would change with the shift and move the shallow minimum
+        flt = Filter("butter", cutoff=0.05 / float(np.median([r.dt for r in runs])))
     if method == "xcorr":
         if output is None:
             raise DataError("estimate_input_delay(method='xcorr') needs the output channel, e.g. output='r'")
