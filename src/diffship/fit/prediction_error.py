@@ -22,6 +22,15 @@ inputs, exactly as in simulation) and :math:`A_k = \partial F_k/\partial x`,
     \ell(\theta, Q, R) = \tfrac12 \sum_k \big(\varepsilon_k^\top\varepsilon_k + \log\det S_k\big) + \text{const},
     \qquad \varepsilon_k = L_k^{-1} e_k,\ S_k = L_k L_k^\top.
 
+**Disturbance model.** With ``disturbance="ou"`` (default) the unmeasured forces are not white:
+each state in ``process_states`` (velocities, yaw rate) gets an extra filter state :math:`w_i`
+added to its rate, :math:`\dot x_i = f_i(x, u) + w_i`, an Ornstein–Uhlenbeck process
+:math:`\dot w = -w/\tau + \sqrt{2/\tau}\,q\,\xi(t)` (stationary standard deviation ``q``
+[state unit/s], one time constant ``τ`` estimated with the noise levels). Wind and wave drift
+forces are coloured like this; a white-noise filter on such data leaves correlated innovations
+and biased estimates (measured on a Nomoto test: 2–4 standard errors off). ``"white"`` is the
+plain white process noise :math:`Q` on those states.
+
 **Least-squares form.** The residual rows are the normalised innovations :math:`\varepsilon_k`
 (``n_c`` per sample). When the noise covariances are estimated, one more row per sample,
 :math:`\rho_k = \sqrt{\log\det S_k - \log\det R_{\min}}`, makes :math:`\tfrac12\lVert r\rVert^2`
@@ -115,6 +124,11 @@ class PredictionErrorOptions:
         q_start: default process-noise start, as a fraction of each state's spread per √s.
         p0_rel: initial state standard deviation, as a fraction of each state's spread.
         noise_floor: measurement standard-deviation floor, as a fraction of the channel spread.
+        disturbance: ``"ou"`` (default): the process noise is an Ornstein–Uhlenbeck disturbance
+            added to the rates of ``process_states`` (extra filter states, time constant
+            estimated with the noise levels; ``process_noise`` is then its stationary standard
+            deviation [state unit/s]); ``"white"``: white noise on those states [state unit/√s].
+        tau: the disturbance time constant's start (or fixed value) [s].
     """
 
     process_states: tuple[str, ...] | None = None
@@ -124,12 +138,18 @@ class PredictionErrorOptions:
     q_start: float = 0.01
     p0_rel: float = 0.1
     noise_floor: float = 1e-4
+    disturbance: str = "ou"
+    tau: float = 10.0
 
     def __post_init__(self):
         for what, d in (("process_noise", self.process_noise), ("measurement_noise", self.measurement_noise)):
             for k, v in (d or {}).items():
                 if not (math.isfinite(v) and v > 0):
                     raise FitError(f"prediction error: {what}[{k!r}] must be a positive standard deviation, got {v!r}")
+        if self.disturbance not in ("ou", "white"):
+            raise FitError(f"prediction error: disturbance must be 'ou' or 'white', got {self.disturbance!r}")
+        if not (math.isfinite(self.tau) and self.tau > 0):
+            raise FitError(f"prediction error: the disturbance time constant tau must be positive, got {self.tau!r}")
         if self.process_states is not None:
             object.__setattr__(self, "process_states", tuple(self.process_states))
 
@@ -157,23 +177,20 @@ class FilterPass(NamedTuple):
     A: Array
 
 
-def ekf(model: AbstractModel, integrator: AbstractIntegrator, out_idx: tuple[int, ...], angle: tuple[bool, ...],
+def ekf(f: Callable, h: Callable, integrator: AbstractIntegrator, angle: tuple[bool, ...],
         q_var: Float[Array, " n_x"], r_var: Float[Array, " n_c"], ts: Float[Array, " N"], us: Float[Array, "N n_u"],
         ys: Float[Array, "N n_c"], mask: Bool[Array, " N"], x0: Float[Array, " n_x"], P0: Float[Array, "n_x n_x"],
         keep: bool = False) -> FilterPass:
     """The extended Kalman filter over one run (module docstring); pure, forward-differentiable.
 
-    ``q_var`` is the continuous process-noise intensity per state (variance per second),
-    ``r_var`` the measurement variance per channel; heading innovations are wrapped.
+    ``f(t, x, u)`` is the vector field, ``h(x, u)`` the fitted channels, ``q_var`` the
+    continuous process-noise intensity per state (variance per second), ``r_var`` the
+    measurement variance per channel; heading innovations (``angle``) are wrapped.
     """
-    oi = jnp.asarray(out_idx)
     ang = jnp.asarray(angle)
     n_x = x0.shape[0]
     eye = jnp.eye(n_x, dtype=x0.dtype)
     R = jnp.diag(r_var)
-
-    def h(x, u):
-        return model.observe(x, u)[oi]
 
     def step(carry, inp):
         x, P, ok = carry
@@ -191,7 +208,7 @@ def ekf(model: AbstractModel, integrator: AbstractIntegrator, out_idx: tuple[int
         Pf = jnp.where(m, IKH @ P @ IKH.T + K @ R @ K.T, P)
 
         def F(xx):
-            return integrator.interval(model.vector_field, t0, t1, xx, u0, u1)
+            return integrator.interval(f, t0, t1, xx, u0, u1)
 
         xp = F(xf)
         A = jax.jacfwd(F)(xf)
@@ -220,6 +237,7 @@ class PEData(KernelData):
         r_floor: measurement standard-deviation floor per channel.
         eta_q, eta_r: the noise unknowns used when the noise is not estimated.
         P0: initial state covariance ``(n_x, n_x)``.
+        tau0: disturbance time constant at ``ζ = 0`` (coloured noise) [s].
     """
 
     q_scale: Float[Array, " n_q"]
@@ -228,6 +246,7 @@ class PEData(KernelData):
     eta_q: Float[Array, " n_q"]
     eta_r: Float[Array, " n_c"]
     P0: Float[Array, "n_x n_x"]
+    tau0: Float[Array, ""]
 
 
 class PEKernel(Kernel):
@@ -238,22 +257,59 @@ class PEKernel(Kernel):
 
     q_idx: tuple[int, ...] = eqx.field(static=True, default=())
     estimate_noise: bool = eqx.field(static=True, default=True)
+    coloured: bool = eqx.field(static=True, default=True)
 
-    def noise(self, z: Float[Array, " n_z"], data: PEData) -> tuple[Float[Array, " n_x"], Float[Array, " n_c"]]:
-        """``(process intensity per state [unit²/s], measurement variance per channel)``."""
-        n, n_q = self.n_theta, len(self.q_idx)
-        eta_q, eta_r = (z[n:n + n_q], z[n + n_q:]) if self.estimate_noise else (data.eta_q, data.eta_r)
-        q = jnp.zeros(data.x0.shape[1], dtype=z.dtype).at[jnp.asarray(self.q_idx, dtype=int)].set(
-            data.q_scale ** 2 * (Q_FLOOR ** 2 + eta_q ** 2))
+    @property
+    def n_noise(self) -> int:
+        """Number of noise unknowns (0 when the noise is given)."""
+        if not self.estimate_noise:
+            return 0
+        return len(self.q_idx) + len(self.out_idx) + int(self.coloured)
+
+    def noise(self, z: Float[Array, " n_z"], data: PEData):
+        """``(q, r, τ)``: process standard deviation per noisy state (white: [unit/√s]; coloured:
+        the disturbance's stationary sd [unit/s]), measurement variance per channel, and the
+        disturbance time constant [s] (``nan`` for white noise)."""
+        n, n_q, n_c = self.n_theta, len(self.q_idx), len(self.out_idx)
+        if self.estimate_noise:
+            eta_q, eta_r = z[n:n + n_q], z[n + n_q:n + n_q + n_c]
+            zeta = z[n + n_q + n_c] if self.coloured else jnp.zeros(())
+        else:
+            eta_q, eta_r, zeta = data.eta_q, data.eta_r, jnp.zeros(())
+        q = data.q_scale * jnp.sqrt(Q_FLOOR ** 2 + eta_q ** 2)
         r = data.r_floor ** 2 + (data.r_scale * eta_r) ** 2
-        return q, r
+        tau = data.tau0 * jnp.exp(jnp.clip(zeta, -10.0, 10.0)) if self.coloured else jnp.full((), jnp.nan)
+        return q, r, tau
 
     def filter(self, z: Float[Array, " n_z"], data: PEData, keep: bool = False) -> FilterPass:
-        """The filter over every run (``vmap``) at ``z``."""
+        """The filter over every run (``vmap``) at ``z`` (coloured: states ``(x, w)``)."""
         model = self.model_at(z, data)
-        q, r = self.noise(z, data)
-        return jax.vmap(lambda t, u, y, m, x: ekf(model, self.integrator, self.out_idx, self.angle, q, r, t, u, y, m,
-                                                  x, data.P0, keep))(data.ts, data.us, data.ys, data.mask, data.x0)
+        q, r, tau = self.noise(z, data)
+        oi = jnp.asarray(self.out_idx)
+        qi = jnp.asarray(self.q_idx, dtype=int)
+        n_x = data.x0.shape[1]
+        if self.coloured:
+            def f(t, xa, u):
+                x, w = xa[:n_x], xa[n_x:]
+                return jnp.concatenate([model.vector_field(t, x, u).at[qi].add(w), -w / tau])
+
+            def h(xa, u):
+                return model.observe(xa[:n_x], u)[oi]
+
+            # white floor on the model states keeps P regular; the disturbance w is OU
+            q_var = jnp.concatenate([jnp.zeros(n_x).at[qi].set((Q_FLOOR * data.q_scale) ** 2), 2 * q ** 2 / tau])
+            P0 = jax.scipy.linalg.block_diag(data.P0, jnp.diag(q ** 2))
+            x0 = jnp.concatenate([data.x0, jnp.zeros((data.x0.shape[0], len(self.q_idx)))], axis=1)
+        else:
+            def f(t, x, u):
+                return model.vector_field(t, x, u)
+
+            def h(x, u):
+                return model.observe(x, u)[oi]
+
+            q_var, P0, x0 = jnp.zeros(n_x).at[qi].set(q ** 2), data.P0, data.x0
+        return jax.vmap(lambda t, u, y, m, x: ekf(f, h, self.integrator, self.angle, q_var, r, t, u, y, m, x, P0,
+                                                  keep))(data.ts, data.us, data.ys, data.mask, x0)
 
     def residuals(self, z: Float[Array, " n_z"], data: PEData) -> Float[Array, " m"]:
         fp = self.filter(z, data)
@@ -299,13 +355,13 @@ def pe_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, chann
         out_idx=tuple(model.output_names.index(c) for c in batch.channels),
         angle=tuple(c in model.angle_outputs for c in batch.channels),
         integrator=o.integrator, q_idx=tuple(model.state_names.index(s) for s in pstates),
-        estimate_noise=po.estimate_noise,
+        estimate_noise=po.estimate_noise, coloured=po.disturbance == "ou",
     )
     base = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, spread)
     fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(KernelData)}
     f64 = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
     data = PEData(**fields, q_scale=f64(q0), r_scale=f64(r_scale), r_floor=f64(floor), eta_q=f64(np.ones(len(q0))),
-                  eta_r=f64(np.ones(len(r0))), P0=f64(np.diag((po.p0_rel * sx) ** 2)))
+                  eta_r=f64(np.ones(len(r0))), P0=f64(np.diag((po.p0_rel * sx) ** 2)), tau0=f64(po.tau))
     return kernel, data, batch, pstates
 
 
@@ -339,7 +395,7 @@ def fit_prediction_error(
     p_mean, p_w = prior_arrays(priors, spec)
     if np.any(p_w):
         data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
-    n_noise = (len(pstates) + len(batch.channels)) if po.estimate_noise else 0
+    n_noise = kernel.n_noise
     messages = [prior_note, f"extended Kalman filter: process noise on {', '.join(pstates)}; noise levels "
                 + ("estimated" if po.estimate_noise else "given")]
     n_c = len(batch.channels)
@@ -377,8 +433,11 @@ def fit_prediction_error(
     z, result, steps, _ = solve_fn(jnp.asarray(z), data)
     jax.block_until_ready(z)
     fit_s = time.perf_counter() - t0
-    z = np.asarray(z)
+    z = np.array(z)
+    if kernel.coloured and po.estimate_noise:
+        z[-1] = float(np.clip(z[-1], -10.0, 10.0))
     jac_fn, c = kernel.compiled("jacobian", z, data)
+    compile_s += c
     compile_s += c
     r = np.asarray(kernel.call("residuals", z, data))
     col = per_scale_columns(spec, z, len(z))
@@ -388,7 +447,7 @@ def fit_prediction_error(
     cov_all = covariance(np.vstack([J_eps, J_prior]) if data.n_prior else J_eps, r_eps, variance=1.0, involvement=0.05)
     if not cov_all.full_rank:
         names = [*spec.free_names, *(f"process noise on {s}" for s in pstates),
-                 *(f"measurement noise on {ch}" for ch in batch.channels)][: len(z)]
+                 *(f"measurement noise on {ch}" for ch in batch.channels), "disturbance time constant"][: len(z)]
         messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
                         + ", ".join(names[i] for i in cov_all.unidentifiable))
     scale = np.asarray([spec[n].scale for n in spec.free_names])
@@ -400,8 +459,8 @@ def fit_prediction_error(
         cov = relabelled(cov, values, swapped, spec.free_names)
         values = swapped
     stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
-    q, rv = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
-    process_sd = {s: float(math.sqrt(q[model.state_names.index(s)])) for s in pstates}
+    q, rv, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
+    process_sd = {s: float(v) for s, v in zip(pstates, q)}
     meas_sd = {ch: float(math.sqrt(v)) for ch, v in zip(batch.channels, rv)}
     eps = r_eps.reshape(data.ys.shape)
     mask = batch.mask
@@ -413,7 +472,9 @@ def fit_prediction_error(
     if not valid:
         converged, status = False, "the Kalman filter diverges at the final parameters"
     messages.append("estimated noise: measurement sd " + ", ".join(f"{k} {v:.3g}" for k, v in meas_sd.items())
-                    + "; process sd per √s " + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items()))
+                    + ("; disturbance (Ornstein–Uhlenbeck, added to the rates of " + ", ".join(pstates)
+                       + f", time constant {float(tau):.3g} s) sd " if kernel.coloured else "; process sd per √s ")
+                    + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items()))
     prior_rows = kernel.split(r, data)[1]
     say(f"prediction error: {status} after {int(steps)} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
     return FitResult(
@@ -424,6 +485,7 @@ def fit_prediction_error(
         noise_std=meas_sd, initial_states=tuple(batch.x0), run_names=batch.names, covariance=cov,
         integrator=o.integrator, messages=tuple(messages),
         info={"measurement_sd": meas_sd, "process_sd": process_sd, "process_states": pstates,
+              "disturbance": po.disturbance, "disturbance_tau": float(tau),
               "estimate_noise": po.estimate_noise, "innovation_rms": white, "integrator": o.integrator.describe(),
               "n_residuals": int(mask.sum()) * n_c, "jacobian_rank": cov_all.rank, "n_unknowns": len(z),
               "priors": prior_table(priors, values, stderr, spec.free_names), "prior_source": priors.source,
