@@ -23,7 +23,9 @@ length (the last one is padded and masked), so the simulation is one ``jax.vmap`
 
 **Continuity.** An increasing penalty :math:`\mu \in` ``penalties`` (default 1, 10, 100,
 1000, 10⁴), each stage a Levenberg–Marquardt solve warm-started from the last, drives the defects
-to zero; the penalty is data, not structure, so every stage reuses one compiled solve. Then
+to zero; the penalty is data, not structure, so every stage reuses one compiled solve. With
+``weights="noise"`` the channels are then re-weighted by their residual RMS, as single shooting
+does, and the last stage is solved again (so both minimise the same weighted cost). Then
 (``polish=True``, default) the single-shooting fit is run from the multiple-shooting estimate,
 so the result *is* the single-shooting optimum (its covariance, report and checks), reached
 from a start that single shooting alone may not get to. The check that the multiple-shooting
@@ -200,10 +202,13 @@ def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec,
     ys = np.concatenate([batch.ys, np.zeros((R, n_pad, batch.ys.shape[2]))], axis=1)
     mask = np.concatenate([batch.mask, np.zeros((R, n_pad), dtype=bool)], axis=1)
     idx = np.arange(S)[:, None] * L + np.arange(L + 1)[None, :]
-    # every sample counted once: the last sample of a segment is the first of the next
-    counted = np.ones((S, L + 1), dtype=bool)
-    counted[:-1, -1] = False
-    seg_mask = (mask[:, idx] & counted[None]).reshape(R * S, L + 1)
+    # a segment is active when it starts before the last sample of its run; every sample is counted
+    # once: the last sample of a segment is the first of the next active one
+    active = np.array([[j * L < batch.lengths[i] - 1 for j in range(S)] for i in range(R)], dtype=bool)
+    counted = np.ones((R, S, L + 1), dtype=bool)
+    counted[:, :-1, -1] = ~active[:, 1:]
+    counted &= active[:, :, None]
+    seg_mask = (mask[:, idx] & counted).reshape(R * S, L + 1)
     x_guess = _segment_starts(model, runs, batch.ts, batch.x0, L, S, o.flt)
     x0_idx = tuple(model.state_names.index(s) for s in o.estimate_x0)
     n_x = len(model.state_names)
@@ -212,11 +217,10 @@ def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec,
         rows += [i * S] * len(x0_idx)
         cols += list(x0_idx)
         for j in range(1, S):
-            if j * L < batch.lengths[i] - 1:
+            if active[i, j]:
                 rows += [i * S + j] * n_x
                 cols += list(range(n_x))
-    defect_mask = np.array([[j * L < batch.lengths[i] - 1 for j in range(1, S)] for i in range(R)],
-                           dtype=bool).reshape(R, S - 1)
+    defect_mask = active[:, 1:].reshape(R, S - 1)
     state_scale = x0_scales(model, batch, model.state_names)
     kernel = ShootingKernel(
         spec=spec.structural(),
@@ -305,25 +309,28 @@ def fit_multiple_shooting(
     compile_s += c
     t0 = time.perf_counter()
     stages = []
-    reweight = o.weights == "noise" and not o.channel_scales
+    # the continuity penalty grows stage by stage; then, as single shooting does, the channels are
+    # re-weighted by their residual RMS (now of a continuous trajectory) and the last stage solved again
+    schedule = list(shooting.penalties)
+    if o.weights == "noise" and not o.channel_scales:
+        schedule.append(None)
     spread = channel_spread(batch)
     seg_mask = np.asarray(data.mask)
-    for mu in shooting.penalties:
+    n_def = np.asarray(data.defect_mask).size * len(model.state_names)
+    for mu in schedule:
+        if mu is None:
+            sig = channel_rms(r[:n_data], seg_mask, np.asarray(data.scales))
+            data = data.replace(scales=jnp.asarray(np.maximum(sig, 1e-6 * spread)))
+            mu = shooting.penalties[-1]
         data = data.replace(weight=jnp.asarray(mu))
         z, result, steps, r = solve_fn(jnp.asarray(z), data)
         r = np.asarray(r)
-        defect = np.abs(r[n_data:n_data + np.asarray(data.defect_mask).size * len(model.state_names)]) / mu
+        defect = np.abs(r[n_data:n_data + n_def]) / mu
         stages.append({"penalty": mu, "steps": int(steps), "result": result_message(result),
-                       "max_defect": float(defect.max(initial=0.0)),
-                       "cost": 0.5 * float(r[:n_data] @ r[:n_data])})
-        say(f"multiple shooting: penalty {mu:g}: {stages[-1]['result']} after {int(steps)} steps, largest "
-            f"continuity defect {stages[-1]['max_defect']:.2g} state scales")
-        if reweight:
-            sig = channel_rms(r[:n_data], seg_mask, np.asarray(data.scales))
-            data = data.replace(scales=jnp.asarray(np.maximum(sig, 1e-6 * spread)))
-            reweight = False
-            z, result, steps, r = solve_fn(jnp.asarray(z), data)
-            stages[-1]["steps"] += int(steps)
+                       "max_defect": float(defect.max(initial=0.0)), "cost": 0.5 * float(r[:n_data] @ r[:n_data]),
+                       "weights": "noise" if len(stages) == len(shooting.penalties) else "initial"})
+        say(f"multiple shooting: penalty {mu:g} ({stages[-1]['weights']} weights): {stages[-1]['result']} after "
+            f"{int(steps)} steps, largest continuity defect {stages[-1]['max_defect']:.2g} state scales")
     jax.block_until_ready(z)
     ms_s = time.perf_counter() - t0
     z = np.asarray(z)
