@@ -12,7 +12,9 @@ import pytest
 
 from diffship.data import Run
 from diffship.fit import OutputErrorOptions, fit_output_error
+from diffship.fit import KalmanSmoother, fit_equation_error
 from diffship.fit.prediction_error import PredictionErrorOptions, ekf, fit_prediction_error
+from diffship.preprocess import Filter
 from diffship.integrators import RK4
 from diffship.models import Nomoto1
 from diffship.synthetic import rudder_sequence
@@ -87,7 +89,7 @@ def _nomoto_numpy(seed, duration=90.0, dt=0.1, sigma_w=0.0, tau=8.0):
                 w += -w / tau * h + sigma_w * math.sqrt(2 * h / tau) * rng.normal()
                 psi, r = psi + h * r, r + h * (K * (dk + d0) + w - r) / T
         ys = out + rng.normal(0, [SENSOR["psi"], SENSOR["r"]], out.shape)
-        runs.append(Run(f"z{i}", t, {"psi": ys[:, 0], "r": ys[:, 1], "delta": delta}))
+        runs.append(Run(f"z{i}", t, {"psi": ys[:, 0], "r": ys[:, 1], "delta": delta}, {"r_true": out[:, 1]}))
     return runs
 
 
@@ -131,3 +133,17 @@ def test_pem_given_noise_and_bad_input_errors():
         PredictionErrorOptions(measurement_noise={"psi": -1.0})
     with pytest.raises(Exception, match="not states of model"):
         fit_prediction_error(Nomoto1(), runs, noise=PredictionErrorOptions(process_states=("u",)))
+
+
+def test_ekf_rts_smoother_for_equation_error():
+    runs = _nomoto_numpy(seed=7, sigma_w=0.01)
+    smoothed, info = KalmanSmoother().apply(Nomoto1(**TRUTH), runs)
+    assert abs(info["measurement_sd"]["r"] / SENSOR["r"] - 1) < 0.1, info
+    for run, sm in zip(runs, smoothed):
+        err = sm["r"] - run.metadata["r_true"]
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        assert rms < 0.3 * SENSOR["r"], rms  # the smoother removes most of the gyro noise
+        # and says how well it knows r: the reported sd matches the actual error within a factor 2
+        assert 0.5 < rms / float(np.sqrt(np.mean(sm["sd_r"] ** 2))) < 2.0
+    ee = fit_equation_error(Nomoto1(), smoothed, flt=Filter("none"))
+    assert ee.converged and abs(ee.params["K"] / TRUTH["K"] - 1) < 0.1 and abs(ee.params["T1"] / TRUTH["T1"] - 1) < 0.1
