@@ -147,3 +147,18 @@ def test_ekf_rts_smoother_for_equation_error():
         assert 0.5 < rms / float(np.sqrt(np.mean(sm["sd_r"] ** 2))) < 2.0
     ee = fit_equation_error(Nomoto1(), smoothed, flt=Filter("none"))
     assert ee.converged and abs(ee.params["K"] / TRUTH["K"] - 1) < 0.1 and abs(ee.params["T1"] / TRUTH["T1"] - 1) < 0.1
+
+
+def test_cli_prediction_error(tmp_path, capsys):
+    from diffship.fit.cli import main
+
+    paths = []
+    for run in _nomoto_numpy(seed=1):
+        p = tmp_path / f"{run.name}.csv"
+        run.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    assert main([*paths, "--model", "nomoto1", "--method", "prediction-error", "--init", "K=0.1", "T1=12",
+                 "--quiet", "--json", str(tmp_path / "pe.json")]) == 0
+    text = capsys.readouterr().out
+    assert "prediction_error" in text and "estimated noise: measurement sd psi" in text
+    assert (tmp_path / "pe.json").exists()

@@ -62,3 +62,21 @@ def test_parse_shooting_and_errors():
             parse_shooting(bad)
     with pytest.raises(FitError, match="penalties"):
         ShootingOptions(penalties=(1.0, np.nan))
+
+
+def test_cli_multiple_shooting(tmp_path, capsys):
+    from diffship.fit.cli import main
+
+    paths = []
+    for run in nomoto_runs(Nomoto1(**TRUTH), 2, 60.0, 0.1, noise="realistic", seed=4):
+        p = tmp_path / f"{run.name}.csv"
+        run.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    out = tmp_path / "ms"
+    assert main([*paths, "--model", "nomoto1", "--method", "output-error", "--shooting", "multiple:10",
+                 "--init", "K=0.1", "T1=12", "--quiet", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "multiple shooting: 7 segments of 100 samples" in text
+    assert (out / "fit.png").exists() and (out / "fit.json").exists()
+    assert main([*paths, "--model", "nomoto1", "--shooting", "triple", "--quiet"]) == 2
+    assert "--shooting 'triple'" in capsys.readouterr().err
