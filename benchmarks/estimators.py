@@ -319,8 +319,8 @@ def kvlcc2_convergence(n_starts, seed=0):
     return out
 
 
-def write(out_dir: Path, quick: bool, usv, conv, argv):
-    tag = "_quick" if quick else ""
+def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
+    tag = ("_quick" if quick else "") + tag
     (out_dir / f"estimators{tag}.json").write_text(json.dumps({"usv": usv, "kvlcc2": conv}, indent=1, default=str))
     lines = ["# Estimators for sea data (benchmarks/estimators.py)", "",
              f"Command: `python benchmarks/estimators.py {' '.join(argv)}`; load average at the end "
@@ -363,15 +363,17 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true")
     p.add_argument("--starts", type=int, default=None)
     p.add_argument("--skip", nargs="*", default=[], choices=("usv", "kvlcc2"))
+    p.add_argument("--levels", nargs="*", type=float, default=None, help="disturbance levels (×30/12/40 N, N m)")
+    p.add_argument("--tag", default="", help="suffix of the result files")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    levels = (0.0, 1.0) if args.quick else (0.0, 1.0, 2.0)
+    levels = args.levels if args.levels is not None else ((0.0, 1.0) if args.quick else (0.0, 1.0, 2.0))
     usv = [] if "usv" in args.skip else usv_rows(120.0 if args.quick else 300.0, levels)
     starts = args.starts if args.starts is not None else (6 if args.quick else 50)
     conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(starts)
-    write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:])
+    write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,6 @@
-"""Fits: output error (simulation error) and the equation-error baseline, same result type.
+"""Fits: output error (simulation error; single or multiple shooting), the prediction-error method
+(extended Kalman filter innovations) and the equation-error baseline (optionally on EKF + RTS
+smoothed runs), same result type.
 
 ``python -m diffship.fit`` is the command-line front end (:mod:`diffship.fit.cli`).
 """
