@@ -45,8 +45,16 @@ import numpy as np
 
 import diffship  # noqa: F401  (float64)
 from diffship.data import Run
-from diffship.fit import (KalmanSmoother, OutputErrorOptions, PredictionErrorOptions, ShootingOptions,
-                          fit_equation_error, fit_multiple_shooting, fit_output_error, fit_prediction_error)
+from diffship.fit import (
+    KalmanSmoother,
+    OutputErrorOptions,
+    PredictionErrorOptions,
+    ShootingOptions,
+    fit_equation_error,
+    fit_multiple_shooting,
+    fit_output_error,
+    fit_prediction_error,
+)
 from diffship.metrics import evaluate
 from diffship.models import MMG, Fossen3
 from diffship.preprocess import Filter

@@ -11,12 +11,11 @@ import numpy as np
 import pytest
 
 from diffship.data import Run
-from diffship.fit import OutputErrorOptions, fit_output_error
-from diffship.fit import KalmanSmoother, fit_equation_error
+from diffship.fit import KalmanSmoother, OutputErrorOptions, fit_equation_error, fit_output_error
 from diffship.fit.prediction_error import PredictionErrorOptions, ekf, fit_prediction_error
-from diffship.preprocess import Filter
 from diffship.integrators import RK4
 from diffship.models import Nomoto1
+from diffship.preprocess import Filter
 from diffship.synthetic import rudder_sequence
 
 DEG = math.pi / 180
