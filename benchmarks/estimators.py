@@ -293,7 +293,7 @@ def usv_rows(duration, levels, seed=0):
     return rows
 
 
-def kvlcc2_convergence(n_starts, seed=0):
+def kvlcc2_convergence(n_starts, seed=0, start_seed=None):
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only)."""
     runs = kvlcc2_runs(seed)
     model = MMG()
@@ -303,7 +303,7 @@ def kvlcc2_convergence(n_starts, seed=0):
     truth["delta0"] = 0.0
     o = OutputErrorOptions(reference_priors=False, estimate_x0=("psi", "u", "v", "r"))
     ref = fit_output_error(model, runs, spec=spec0.with_values(truth), options=o)
-    rng = np.random.default_rng(seed + 1)
+    rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr}, "single": [],
            "multiple": []}
     for i in range(n_starts):
@@ -373,6 +373,7 @@ def main(argv=None):
     p.add_argument("--skip", nargs="*", default=[], choices=("usv", "kvlcc2"))
     p.add_argument("--levels", nargs="*", type=float, default=None, help="disturbance levels (×30/12/40 N, N m)")
     p.add_argument("--tag", default="", help="suffix of the result files")
+    p.add_argument("--start-seed", type=int, default=None, help="seed of the random starts (default: data seed + 1)")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
     out = Path(args.out)
@@ -380,7 +381,7 @@ def main(argv=None):
     levels = args.levels if args.levels is not None else ((0.0, 1.0) if args.quick else (0.0, 1.0, 2.0))
     usv = [] if "usv" in args.skip else usv_rows(120.0 if args.quick else 300.0, levels)
     starts = args.starts if args.starts is not None else (6 if args.quick else 50)
-    conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(starts)
+    conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(starts, start_seed=args.start_seed)
     write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
 
