@@ -37,6 +37,9 @@ from ..report import CHANNEL_NAMES, failed_methods, plot_fit, text_report, to_js
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
+from .prediction_error import PredictionErrorOptions, fit_prediction_error
+from .problem import default_channels
+from .shooting import fit_multiple_shooting, parse_shooting
 
 __all__ = ["main", "build_parser"]
 
@@ -51,8 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
     p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
                    help=f"one of: {', '.join(MODELS)} (default nomoto2)")
-    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "both"),
-                   help="(decay1/decay2: the direct free-decay curve fits are python -m diffship.decay)")
+    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "prediction-error", "both"),
+                   help="output-error (simulation error), equation-error (baseline), prediction-error (extended "
+                        "Kalman filter innovations: for data with unmeasured disturbances) or both (EE then OE); decay1/decay2 curve fits: python -m diffship.decay")
     p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
     p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
     p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
@@ -91,6 +95,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     _add_prior_arguments(p)
     _add_vessel_arguments(p)
+    # -- estimators for sea data (issue 13) --
+    p.add_argument("--shooting", default="single", metavar="single|multiple[:SEGMENT_S]",
+                   help="output error by single shooting (default) or multiple shooting with segments of SEGMENT_S "
+                        "seconds (default 20), finished by single shooting")
+    p.add_argument("--disturbance", default="ou", choices=("ou", "white"),
+                   help="prediction-error process noise: Ornstein–Uhlenbeck disturbance (default) or white")
     return p
 
 
@@ -196,6 +206,29 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+def _sea_estimators(args, model, train, spec, init, flt, options, shooting, results, say) -> dict:
+    """Multiple-shooting output error and the prediction-error method (issue 13), started like
+    output error in ``fit_both``: from ``--init`` or the model's values, or the equation-error estimate."""
+    out = {}
+    if shooting is None and args.method != "prediction-error":
+        return out
+    if init:
+        spec = spec.with_values(init)
+    ee = results.get("equation_error")
+    starts = {"the equation-error estimate": {n: ee.params[n] for n in ee.free}} if ee else {}
+    chans = tuple(args.channels) if args.channels else default_channels(model, train)
+    est = model.states_for_channels(chans) if args.x0 == "estimate" else ()
+    opts = dataclasses.replace(options, estimate_x0=est, flt=flt, choose="first" if init else "best")
+    if shooting is not None:
+        out["output_error"] = fit_multiple_shooting(model, train, spec=spec, starts=starts, channels=args.channels,
+                                                    options=opts, shooting=shooting, progress=say)
+    if args.method == "prediction-error":
+        out["prediction_error"] = fit_prediction_error(
+            model, train, spec=spec, starts=starts, channels=args.channels, options=opts,
+            noise=PredictionErrorOptions(disturbance=args.disturbance), progress=say)
+    return out
+
+
 def _fit(args, say) -> int:
     model = get_model(args.model)
     fix = parse_assignments(args.fix, "--fix")
@@ -218,11 +251,15 @@ def _fit(args, say) -> int:
     if not args.skip_sign_check:
         check_rudder_sign(train + list(val), args.rudder_sign)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
-               "equation-error": ("equation_error",)}[args.method]
+               "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
     options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
-    results = fit_both(model, train, spec=spec, methods=methods, init=init or None, flt=flt,
-                       estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
-                       options=options, progress=say)
+    shooting = parse_shooting(args.shooting)
+    multiple = shooting is not None and "output_error" in methods
+    results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
+                       init=init or None, flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (),
+                       channels=args.channels, options=options, progress=say) if methods else {}
+    results.update(_sea_estimators(args, model, train, spec, init, flt, options, shooting if multiple else None,
+                                   results, say))
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = evaluate_all(results, train, val, flt)
     notes = resample_notes(args, model, spec, results, flt, options, say)

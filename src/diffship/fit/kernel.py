@@ -163,16 +163,24 @@ class Kernel(eqx.Module):
 
     def residuals(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, " m"]:
         """Normalised output errors, flattened in (run, sample, channel) order."""
-        sol = self.simulate(z, data)
+        return self.with_prior_rows(self.output_errors(self.simulate(z, data), data), z, data)
+
+    def output_errors(self, sol: Solution, data: KernelData) -> Float[Array, " m_data"]:
+        """The data rows of :meth:`residuals` from a batched simulation (flattened)."""
         err = sol.ys[..., jnp.asarray(self.out_idx)] - data.ys
         err = jnp.where(jnp.asarray(self.angle), wrap_angle(err), err)
         good = (sol.valid & data.mask)[..., None]
         bad = ((~sol.valid) & data.mask)[..., None]
         e = jnp.where(good, err / data.scales, 0.0) + jnp.where(bad, PENALTY, 0.0)
+        return e.reshape(-1)
+
+    def with_prior_rows(self, e: Float[Array, " m_data"], z: Float[Array, " n_z"],
+                        data: KernelData) -> Float[Array, " m"]:
+        """``e`` followed by the prior rows (none when ``data.n_prior == 0``)."""
         if not data.n_prior:
-            return e.reshape(-1)
+            return e
         theta = self.spec.from_z(z[: self.n_theta])
-        return jnp.concatenate([e.reshape(-1), data.prior_w * (theta - data.prior_mean)])
+        return jnp.concatenate([e, data.prior_w * (theta - data.prior_mean)])
 
     @staticmethod
     def split(r, data: KernelData):

@@ -60,7 +60,8 @@ from .priors import Priors, default_priors, prior_arrays, prior_table
 from .problem import Batch, make_batch
 from .result import FitResult
 
-__all__ = ["OutputErrorOptions", "fit_output_error", "channel_spread", "channel_rms", "correlation_time", "x0_scales"]
+__all__ = ["OutputErrorOptions", "channel_rms", "channel_spread", "correlation_time", "fit_output_error", "fit_priors",
+           "x0_scales"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,6 +169,18 @@ def x0_scales(model: AbstractModel, batch: Batch, states: Sequence[str]) -> np.n
     return np.asarray([one(s) for s in states], dtype=np.float64)
 
 
+def fit_priors(model: AbstractModel, spec: ParamSpec, options: OutputErrorOptions) -> tuple[Priors, str]:
+    """The priors of a fit (reference set unless turned off, merged with ``options.priors``) and a
+    one-line note for the report; shared by every estimator built on the kernel."""
+    o = options
+    priors, note = (default_priors(model, spec, o.prior_rel_sd) if o.reference_priors
+                    else (Priors({}, "none"), "priors from the reference set turned off (--no-prior)"))
+    priors = priors.merged(o.priors)
+    if o.priors is not None and len(o.priors):
+        note += f"; {len(o.priors)} prior(s) from {o.priors.source}"
+    return priors, note
+
+
 def fit_output_error(
     model: AbstractModel,
     runs: Sequence[Run],
@@ -217,11 +230,7 @@ def fit_output_error(
     scales = np.asarray([o.channel_scales[c] for c in batch.channels]) if o.channel_scales else spread
     x0_scale = x0_scales(model, batch, o.estimate_x0)
     messages: list[str] = []
-    priors, prior_note = (default_priors(model, spec, o.prior_rel_sd) if o.reference_priors
-                          else (Priors({}, "none"), "priors from the reference set turned off (--no-prior)"))
-    priors = priors.merged(o.priors)
-    if o.priors is not None and len(o.priors):
-        prior_note += f"; {len(o.priors)} prior(s) from {o.priors.source}"
+    priors, prior_note = fit_priors(model, spec, o)
     p_mean, p_w = prior_arrays(priors, spec)
     messages.append(prior_note)
     data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale,

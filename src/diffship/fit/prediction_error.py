@@ -1,0 +1,494 @@
+r"""Prediction-error method: an extended Kalman filter's innovations, minimised by the one LM.
+
+Output error assumes the only noise is on the sensors: the simulated state follows the model
+from the first sample to the last. At sea (wind gusts, waves, current changes) the state also
+receives unmeasured forces, the simulation drifts away from the measured one for reasons no
+parameter can fix, and the output-error estimates are biased. The prediction-error method
+(Ljung 1999, ch. 7; Åström 1980) predicts each sample from the past *measured* samples instead:
+an extended Kalman filter over the model's vector field,
+
+.. math::
+    x_{k+1} = F_k(x_k; \theta) + w_k,\quad w_k \sim \mathcal N(0, Q\,\Delta t_k), \qquad
+    y_k = h(x_k, u_k; \theta) + v_k,\quad v_k \sim \mathcal N(0, R),
+
+with :math:`F_k` one step of the fit's integrator over the sample interval (first-order-hold
+inputs, exactly as in simulation) and :math:`A_k = \partial F_k/\partial x`,
+:math:`H_k = \partial h/\partial x` by ``jax.jacfwd``. The filter (one ``lax.scan`` per run,
+``vmap`` over runs, Joseph-form update) gives the innovations
+:math:`e_k = y_k - h(\hat x_{k|k-1})` and their covariances
+:math:`S_k = H_k P_{k|k-1} H_k^\top + R`. The negative log-likelihood is
+
+.. math::
+    \ell(\theta, Q, R) = \tfrac12 \sum_k \big(\varepsilon_k^\top\varepsilon_k + \log\det S_k\big) + \text{const},
+    \qquad \varepsilon_k = L_k^{-1} e_k,\ S_k = L_k L_k^\top.
+
+**Disturbance model.** With ``disturbance="ou"`` (default) the unmeasured forces are not white:
+each state in ``process_states`` (velocities, yaw rate) gets an extra filter state :math:`w_i`
+added to its rate, :math:`\dot x_i = f_i(x, u) + w_i`, an Ornstein–Uhlenbeck process
+:math:`\dot w = -w/\tau + \sqrt{2/\tau}\,q\,\xi(t)` (stationary standard deviation ``q``
+[state unit/s], one time constant ``τ`` estimated with the noise levels). Wind and wave drift
+forces are coloured like this; a white-noise filter on such data leaves correlated innovations
+and biased estimates (measured on a Nomoto test: 2–4 standard errors off). ``"white"`` is the
+plain white process noise :math:`Q` on those states.
+
+**Least-squares form.** The residual rows are the normalised innovations :math:`\varepsilon_k`
+(``n_c`` per sample). When the noise covariances are estimated, one more row per sample,
+:math:`\rho_k = \sqrt{\log\det S_k - \log\det R_{\min}}`, makes :math:`\tfrac12\lVert r\rVert^2`
+equal to :math:`\ell` up to a constant. The root is always real because the measurement
+variances are parametrised with a floor, :math:`R_c = r_{\min,c}^2 + (r_c e^{\eta_c})^2`, so
+:math:`S_k \succeq R \succeq R_{\min}` and :math:`\det S_k \ge \det R_{\min}` (the floor is
+``noise_floor`` times the channel spread; with a 10⁻⁴ floor the argument is ~18 per channel,
+far from the root's singularity at 0). This keeps the problem a sum of squares, so the same
+Levenberg–Marquardt, parameter scaling, bounds and priors as output error apply unchanged (a
+subclass of :class:`~diffship.fit.kernel.Kernel` that overrides only ``residuals``). With
+given covariances the log-determinant is constant and only :math:`\varepsilon` is used.
+
+Noise parametrisation (diagonal, square-root with floors): process-noise standard deviations
+:math:`q_i = q_{0,i}\sqrt{q_f^2 + \eta_{q,i}^2}` [state unit/√s] on ``process_states`` (default: the
+states of the fitted channels that are not kinematic — x0, y0, psi are integrals of velocities),
+measurement standard deviations :math:`\sqrt{R_c} = \sqrt{r_{\min,c}^2 + (r_{0,c}\eta_{r,c})^2}`
+per fitted channel; the unknowns start at :math:`\eta = 1`. Not a logarithm on purpose: a noise
+level the data cannot tell from zero (no process noise in calm water) has its optimum on the
+floor, which a logarithmic parameter approaches by ever smaller steps towards −∞ (measured: 200
+LM steps without meeting the tolerances on a Nomoto problem); here it is an ordinary smooth
+minimum at :math:`\eta = 0` and the fit converges. Starting values: the
+measurement noise from the sample-to-sample differences of each channel (``std(Δy)/√2``), the
+process noise ``q_start`` times each state's spread per √s.
+
+**Standard errors** are from the innovation rows only, :math:`(J_\varepsilon^\top J_\varepsilon)^{-1}`
+with unit variance (the innovations are normalised by their own predicted covariance), joint
+over parameters and noise levels, and posterior when priors are used. The filter models the
+process noise as white; coloured disturbances (e.g. Ornstein–Uhlenbeck forces) make the
+innovations slightly correlated, which PEM tolerates for open-loop data (Ljung 1999, Thm 8.4:
+the dynamics are still estimated consistently with a wrong noise model) at some cost in efficiency
+and in the honesty of the standard errors — measured in ``benchmarks/estimators.py``.
+
+References:
+    L. Ljung, *System Identification: Theory for the User*, 2nd ed., Prentice Hall 1999.
+    K. J. Åström, "Maximum likelihood and prediction error methods", Automatica 16 (1980).
+    S. Särkkä, *Bayesian Filtering and Smoothing*, Cambridge 2013, §5.2 (extended Kalman filter).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.scipy.linalg as jsl
+import numpy as np
+import optimistix as optx
+from jaxtyping import Array, Bool, Float
+
+from ..data import Run
+from ..errors import FitError
+from ..integrators import AbstractIntegrator
+from ..models import AbstractModel
+from ..params import ParamSpec
+from ..simulate import MAX_ABS
+from ._lm import result_message
+from .covariance import covariance, relabelled
+from .identifiability import per_scale_columns
+from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
+from .output_error import OutputErrorOptions, channel_spread, fit_priors, x0_scales
+from .priors import prior_arrays, prior_table
+from .problem import make_batch
+from .result import FitResult
+
+__all__ = ["PredictionErrorOptions", "PEKernel", "PEData", "FilterPass", "ekf", "fit_prediction_error",
+           "KINEMATIC_STATES"]
+
+#: Process-noise floor relative to its start (:math:`q_f`; module docstring).
+Q_FLOOR = 1e-3
+
+#: States that are integrals of other states (no process noise on them by default).
+KINEMATIC_STATES = ("x0", "y0", "psi")
+
+
+@dataclasses.dataclass(frozen=True)
+class PredictionErrorOptions:
+    """How the prediction-error fit models the noise.
+
+    Attributes:
+        process_states: states that receive process noise (default: see the module docstring).
+        estimate_noise: estimate the noise levels (``True``) or hold them at the given values.
+        process_noise: process-noise standard deviation per state [state unit/√s]; the start
+            (or the fixed value) where given.
+        measurement_noise: measurement standard deviation per channel (model units); the start
+            (or the fixed value) where given.
+        q_start: default process-noise start, as a fraction of each state's spread per √s.
+        p0_rel: initial state standard deviation, as a fraction of each state's spread.
+        noise_floor: measurement standard-deviation floor, as a fraction of the channel spread.
+        disturbance: ``"ou"`` (default): the process noise is an Ornstein–Uhlenbeck disturbance
+            added to the rates of ``process_states`` (extra filter states, time constant
+            estimated with the noise levels; ``process_noise`` is then its stationary standard
+            deviation [state unit/s]); ``"white"``: white noise on those states [state unit/√s].
+        tau: the disturbance time constant's start (or fixed value) [s].
+    """
+
+    process_states: tuple[str, ...] | None = None
+    estimate_noise: bool = True
+    process_noise: Mapping[str, float] | None = None
+    measurement_noise: Mapping[str, float] | None = None
+    q_start: float = 0.01
+    p0_rel: float = 0.1
+    noise_floor: float = 1e-4
+    disturbance: str = "ou"
+    tau: float = 10.0
+
+    def __post_init__(self):
+        for what, d in (("process_noise", self.process_noise), ("measurement_noise", self.measurement_noise)):
+            for k, v in (d or {}).items():
+                if not (math.isfinite(v) and v > 0):
+                    raise FitError(f"prediction error: {what}[{k!r}] must be a positive standard deviation, got {v!r}")
+        if self.disturbance not in ("ou", "white"):
+            raise FitError(f"prediction error: disturbance must be 'ou' or 'white', got {self.disturbance!r}")
+        if not (math.isfinite(self.tau) and self.tau > 0):
+            raise FitError(f"prediction error: the disturbance time constant tau must be positive, got {self.tau!r}")
+        if self.process_states is not None:
+            object.__setattr__(self, "process_states", tuple(self.process_states))
+
+
+class FilterPass(NamedTuple):
+    """One extended-Kalman-filter pass over a run (per sample ``k``).
+
+    Attributes:
+        eps: normalised innovations :math:`L_k^{-1}e_k` ``(N, n_c)`` (0 on masked samples,
+            ``PENALTY`` after a blow-up).
+        logdet: :math:`\\log\\det S_k` ``(N,)`` (0 on masked samples).
+        valid: no blow-up up to sample ``k``.
+        xf, Pf: filtered state and covariance at ``k`` (``keep=True`` only, else empty).
+        xp, Pp: prediction of sample ``k + 1`` from ``k`` and its covariance.
+        A: the transition Jacobian from ``k`` to ``k + 1``.
+    """
+
+    eps: Float[Array, "N n_c"]
+    logdet: Float[Array, " N"]
+    valid: Bool[Array, " N"]
+    xf: Array
+    Pf: Array
+    xp: Array
+    Pp: Array
+    A: Array
+
+
+def ekf(f: Callable, h: Callable, integrator: AbstractIntegrator, angle: tuple[bool, ...],
+        q_var: Float[Array, " n_x"], r_var: Float[Array, " n_c"], ts: Float[Array, " N"], us: Float[Array, "N n_u"],
+        ys: Float[Array, "N n_c"], mask: Bool[Array, " N"], x0: Float[Array, " n_x"], P0: Float[Array, "n_x n_x"],
+        keep: bool = False) -> FilterPass:
+    """The extended Kalman filter over one run (module docstring); pure, forward-differentiable.
+
+    ``f(t, x, u)`` is the vector field, ``h(x, u)`` the fitted channels, ``q_var`` the
+    continuous process-noise intensity per state (variance per second), ``r_var`` the
+    measurement variance per channel; heading innovations (``angle``) are wrapped.
+    """
+    ang = jnp.asarray(angle)
+    n_x = x0.shape[0]
+    eye = jnp.eye(n_x, dtype=x0.dtype)
+    R = jnp.diag(r_var)
+
+    def step(carry, inp):
+        x, P, ok = carry
+        t0, t1, u0, u1, y, m = inp
+        H = jax.jacfwd(h)(x, u0)
+        e = y - h(x, u0)
+        e = jnp.where(ang, wrap_angle(e), e)
+        S = H @ P @ H.T + R
+        L = jnp.linalg.cholesky(0.5 * (S + S.T))
+        eps = jsl.solve_triangular(L, e, lower=True)
+        logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
+        K = jsl.cho_solve((L, True), H @ P).T
+        IKH = eye - K @ H
+        xf = jnp.where(m, x + K @ e, x)
+        Pf = jnp.where(m, IKH @ P @ IKH.T + K @ R @ K.T, P)
+
+        def F(xx):
+            return integrator.interval(f, t0, t1, xx, u0, u1)
+
+        xp = F(xf)
+        A = jax.jacfwd(F)(xf)
+        Pp = A @ Pf @ A.T + jnp.diag(q_var) * (t1 - t0)
+        Pp = 0.5 * (Pp + Pp.T)
+        ok_now = ok & jnp.all(jnp.isfinite(xp)) & jnp.all(jnp.abs(xp) < MAX_ABS) & jnp.all(jnp.isfinite(Pp))
+        eps = jnp.where(ok, jnp.where(m, eps, 0.0), PENALTY)
+        logdet = jnp.where(ok & m, logdet, 0.0)
+        out = (eps, logdet, ok) + ((xf, Pf, xp, Pp, A) if keep else ())
+        return (jnp.where(ok_now, xp, x), jnp.where(ok_now, Pp, P), ok_now), out
+
+    dt_last = ts[-1:] - ts[-2:-1]
+    t1 = jnp.concatenate([ts[1:], ts[-1:] + dt_last])
+    u1 = jnp.concatenate([us[1:], us[-1:]])
+    _, out = jax.lax.scan(step, (x0, P0, jnp.array(True)), (ts, t1, us, u1, ys, mask))
+    empty = jnp.zeros((0,))
+    return FilterPass(*out) if keep else FilterPass(out[0], out[1], out[2], empty, empty, empty, empty, empty)
+
+
+class PEData(KernelData):
+    """:class:`~diffship.fit.kernel.KernelData` plus the noise model (arrays; no recompiles).
+
+    Attributes:
+        q_scale: process-noise standard deviation at ``η_q = 1`` per noisy state [unit/√s].
+        r_scale: measurement standard deviation (above the floor) at ``η_r = 1`` per channel.
+        r_floor: measurement standard-deviation floor per channel.
+        eta_q, eta_r: the noise unknowns used when the noise is not estimated.
+        P0: initial state covariance ``(n_x, n_x)``.
+        tau0: disturbance time constant at ``ζ = 0`` (coloured noise) [s].
+    """
+
+    q_scale: Float[Array, " n_q"]
+    r_scale: Float[Array, " n_c"]
+    r_floor: Float[Array, " n_c"]
+    eta_q: Float[Array, " n_q"]
+    eta_r: Float[Array, " n_c"]
+    P0: Float[Array, "n_x n_x"]
+    tau0: Float[Array, ""]
+
+
+class PEKernel(Kernel):
+    """The one kernel with Kalman-filter innovations as residuals (module docstring).
+
+    Unknowns ``z = (z_θ, η_q, η_r)`` when the noise is estimated, ``z_θ`` otherwise.
+    """
+
+    q_idx: tuple[int, ...] = eqx.field(static=True, default=())
+    estimate_noise: bool = eqx.field(static=True, default=True)
+    coloured: bool = eqx.field(static=True, default=True)
+
+    @property
+    def n_noise(self) -> int:
+        """Number of noise unknowns (0 when the noise is given)."""
+        if not self.estimate_noise:
+            return 0
+        return len(self.q_idx) + len(self.out_idx) + int(self.coloured)
+
+    def noise(self, z: Float[Array, " n_z"], data: PEData):
+        """``(q, r, τ)``: process standard deviation per noisy state (white: [unit/√s]; coloured:
+        the disturbance's stationary sd [unit/s]), measurement variance per channel, and the
+        disturbance time constant [s] (``nan`` for white noise)."""
+        n, n_q, n_c = self.n_theta, len(self.q_idx), len(self.out_idx)
+        if self.estimate_noise:
+            eta_q, eta_r = z[n:n + n_q], z[n + n_q:n + n_q + n_c]
+            zeta = z[n + n_q + n_c] if self.coloured else jnp.zeros(())
+        else:
+            eta_q, eta_r, zeta = data.eta_q, data.eta_r, jnp.zeros(())
+        q = data.q_scale * jnp.sqrt(Q_FLOOR ** 2 + eta_q ** 2)
+        r = data.r_floor ** 2 + (data.r_scale * eta_r) ** 2
+        tau = data.tau0 * jnp.exp(jnp.clip(zeta, -10.0, 10.0)) if self.coloured else jnp.full((), jnp.nan)
+        return q, r, tau
+
+    def filter(self, z: Float[Array, " n_z"], data: PEData, keep: bool = False) -> FilterPass:
+        """The filter over every run (``vmap``) at ``z`` (coloured: states ``(x, w)``)."""
+        model = self.model_at(z, data)
+        q, r, tau = self.noise(z, data)
+        oi = jnp.asarray(self.out_idx)
+        qi = jnp.asarray(self.q_idx, dtype=int)
+        n_x = data.x0.shape[1]
+        if self.coloured:
+            def f(t, xa, u):
+                x, w = xa[:n_x], xa[n_x:]
+                return jnp.concatenate([model.vector_field(t, x, u).at[qi].add(w), -w / tau])
+
+            def h(xa, u):
+                return model.observe(xa[:n_x], u)[oi]
+
+            # white floor on the model states keeps P regular; the disturbance w is OU
+            q_var = jnp.concatenate([jnp.zeros(n_x).at[qi].set((Q_FLOOR * data.q_scale) ** 2), 2 * q ** 2 / tau])
+            P0 = jax.scipy.linalg.block_diag(data.P0, jnp.diag(q ** 2))
+            x0 = jnp.concatenate([data.x0, jnp.zeros((data.x0.shape[0], len(self.q_idx)))], axis=1)
+        else:
+            def f(t, x, u):
+                return model.vector_field(t, x, u)
+
+            def h(x, u):
+                return model.observe(x, u)[oi]
+
+            q_var, P0, x0 = jnp.zeros(n_x).at[qi].set(q ** 2), data.P0, data.x0
+        return jax.vmap(lambda t, u, y, m, x: ekf(f, h, self.integrator, self.angle, q_var, r, t, u, y, m, x, P0,
+                                                  keep))(data.ts, data.us, data.ys, data.mask, x0)
+
+    def residuals(self, z: Float[Array, " n_z"], data: PEData) -> Float[Array, " m"]:
+        fp = self.filter(z, data)
+        rows = [fp.eps.reshape(-1)]
+        if self.estimate_noise:
+            c = fp.logdet - jnp.sum(jnp.log(data.r_floor ** 2))
+            rows.append(jnp.where(data.mask, jnp.sqrt(jnp.maximum(c, 0.0) + 1e-12), 0.0).reshape(-1))
+        return self.with_prior_rows(jnp.concatenate(rows), z, data)
+
+
+def _process_states(model: AbstractModel, channels: Sequence[str], po: PredictionErrorOptions) -> tuple[str, ...]:
+    if po.process_states is not None:
+        bad = [s for s in po.process_states if s not in model.state_names]
+        if bad:
+            raise FitError(f"prediction error: process_states {', '.join(bad)} are not states of model {model.name} "
+                           f"({', '.join(model.state_names)})")
+        return po.process_states
+    out = tuple(s for s in model.states_for_channels(channels) if s not in KINEMATIC_STATES)
+    return out or tuple(s for s in model.state_names if s not in KINEMATIC_STATES)
+
+
+def pe_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, o: OutputErrorOptions,
+               po: PredictionErrorOptions):
+    """``(kernel, data, batch, process_states)`` of the prediction-error problem at the noise starts."""
+    batch = make_batch(model, runs, channels, o.flt)
+    pstates = _process_states(model, batch.channels, po)
+    unknown = [c for c in (po.measurement_noise or {}) if c not in batch.channels]
+    unknown += [s for s in (po.process_noise or {}) if s not in pstates]
+    if unknown:
+        raise FitError(f"prediction error: noise given for {', '.join(unknown)}, which are not fitted channels "
+                       f"({', '.join(batch.channels)}) or noisy states ({', '.join(pstates)})")
+    spread = channel_spread(batch)
+    sx = x0_scales(model, batch, model.state_names)
+    q0 = np.asarray([(po.process_noise or {}).get(s, po.q_start * sx[model.state_names.index(s)]) for s in pstates])
+    r0 = []
+    for j, c in enumerate(batch.channels):
+        d = np.concatenate([np.diff(batch.ys[i, : batch.lengths[i], j]) for i in range(len(runs))])
+        r0.append((po.measurement_noise or {}).get(c, max(float(np.std(d)) / math.sqrt(2.0), 1e-3 * spread[j])))
+    floor = po.noise_floor * spread
+    r_scale = np.sqrt(np.maximum(np.asarray(r0) ** 2 - floor ** 2, (0.1 * floor) ** 2))
+    kernel = PEKernel(
+        spec=spec.structural(),
+        out_idx=tuple(model.output_names.index(c) for c in batch.channels),
+        angle=tuple(c in model.angle_outputs for c in batch.channels),
+        integrator=o.integrator, q_idx=tuple(model.state_names.index(s) for s in pstates),
+        estimate_noise=po.estimate_noise, coloured=po.disturbance == "ou",
+    )
+    base = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, spread)
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(KernelData)}
+    f64 = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    data = PEData(**fields, q_scale=f64(q0), r_scale=f64(r_scale), r_floor=f64(floor), eta_q=f64(np.ones(len(q0))),
+                  eta_r=f64(np.ones(len(r0))), P0=f64(np.diag((po.p0_rel * sx) ** 2)), tau0=f64(po.tau))
+    return kernel, data, batch, pstates
+
+
+def fit_prediction_error(
+    model: AbstractModel,
+    runs: Sequence[Run],
+    *,
+    spec: ParamSpec | None = None,
+    starts: Sequence[Mapping[str, float]] | Mapping[str, Mapping[str, float]] = (),
+    channels: Sequence[str] | None = None,
+    options: OutputErrorOptions = OutputErrorOptions(),
+    noise: PredictionErrorOptions = PredictionErrorOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Fit ``model`` to ``runs`` by the prediction-error method (module docstring).
+
+    ``options`` supplies what output error would use (integrator, filter for the initial
+    states, LM limits, priors); ``noise`` the noise model. Returns a
+    :class:`~diffship.fit.FitResult` (``method="prediction_error"``) whose ``info`` holds the
+    estimated noise levels (``measurement_sd`` per channel, ``process_sd`` per state per √s).
+    """
+    o, po = options, noise
+    say = progress or (lambda s: None)
+    spec = spec or model.spec()
+    model = model.with_params(spec.values())
+    n_p = len(spec.free_names)
+    if n_p == 0:
+        raise FitError("no free parameters: free at least one (remove it from --fix)")
+    kernel, data, batch, pstates = pe_problem(model, runs, spec, channels, o, po)
+    priors, prior_note = fit_priors(model, spec, o)
+    p_mean, p_w = prior_arrays(priors, spec)
+    if np.any(p_w):
+        data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
+    n_noise = kernel.n_noise
+    messages = [prior_note, f"extended Kalman filter: process noise on {', '.join(pstates)}; noise levels "
+                + ("estimated" if po.estimate_noise else "given")]
+    n_c = len(batch.channels)
+    n_eps = int(np.prod(data.ys.shape))
+
+    named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
+    candidates = [("the model's values (with --init)", spec.values())] + [
+        (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named]
+    res_fn, compile_s = kernel.compiled("residuals", np.ones(n_p + n_noise), data)
+    best = None
+    for label, vals in candidates:
+        vals, notes = spec.nudged(vals)
+        messages.extend(f"start '{label}': {n}" for n in notes)
+        try:
+            z = np.concatenate([spec.to_z(vals), np.ones(n_noise)])
+        except Exception as exc:  # start outside bounds
+            messages.append(f"start '{label}' skipped: {exc}")
+            continue
+        r = np.asarray(res_fn(jnp.asarray(z), data))
+        cost = 0.5 * float(np.sum(r * r))
+        if math.isfinite(cost) and not np.any(np.abs(r[:n_eps]) >= PENALTY) and (best is None or cost < best[2]):
+            best = (label, z, cost)
+    if best is None:
+        raise FitError(f"model {model.name}: the Kalman filter diverges from every start ({len(candidates)} tried) on "
+                       f"runs {', '.join(batch.names)}; give a better start with --init NAME=VALUE")
+    label, z, _ = best
+    messages.append(f"started from {label}")
+
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
+    say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
+        f"levels, {len(runs)} runs, {o.integrator.describe()})...")
+    solve_fn, c = kernel.compiled("solve", z, data, **lm)
+    compile_s += c
+    t0 = time.perf_counter()
+    z, result, steps, _ = solve_fn(jnp.asarray(z), data)
+    jax.block_until_ready(z)
+    fit_s = time.perf_counter() - t0
+    z = np.array(z)
+    if kernel.coloured and po.estimate_noise:
+        z[-1] = float(np.clip(z[-1], -10.0, 10.0))
+    jac_fn, c = kernel.compiled("jacobian", z, data)
+    compile_s += c
+    compile_s += c
+    r = np.asarray(kernel.call("residuals", z, data))
+    col = per_scale_columns(spec, z, len(z))
+    J_all = np.asarray(jac_fn(jnp.asarray(z), data)) * col
+    J_eps, J_prior = J_all[:n_eps], kernel.split(J_all, data)[1]
+    r_eps = r[:n_eps]
+    cov_all = covariance(np.vstack([J_eps, J_prior]) if data.n_prior else J_eps, r_eps, variance=1.0, involvement=0.05)
+    if not cov_all.full_rank:
+        names = [*spec.free_names, *(f"process noise on {s}" for s in pstates),
+                 *(f"measurement noise on {ch}" for ch in batch.channels), "disturbance time constant"][: len(z)]
+        messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
+                        + ", ".join(names[i] for i in cov_all.unidentifiable))
+    scale = np.asarray([spec[n].scale for n in spec.free_names])
+    cov = cov_all.matrix[:n_p, :n_p] * np.outer(scale, scale)
+    theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
+    values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
+    swapped = model.canonical(values)
+    if swapped != values:
+        cov = relabelled(cov, values, swapped, spec.free_names)
+        values = swapped
+    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
+    q, rv, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
+    process_sd = {s: float(v) for s, v in zip(pstates, q)}
+    meas_sd = {ch: float(math.sqrt(v)) for ch, v in zip(batch.channels, rv)}
+    eps = r_eps.reshape(data.ys.shape)
+    mask = batch.mask
+    white = {ch: float(np.sqrt(np.mean(eps[..., j][mask] ** 2))) for j, ch in enumerate(batch.channels)}
+    fp = kernel.filter(jnp.asarray(z), data)
+    valid = bool(np.all(np.asarray(fp.valid)[mask]))
+    converged = bool(result == optx.RESULTS.successful)
+    status = "converged" if converged else result_message(result)
+    if not valid:
+        converged, status = False, "the Kalman filter diverges at the final parameters"
+    messages.append("estimated noise: measurement sd " + ", ".join(f"{k} {v:.3g}" for k, v in meas_sd.items())
+                    + ("; disturbance (Ornstein–Uhlenbeck, added to the rates of " + ", ".join(pstates)
+                       + f", time constant {float(tau):.3g} s) sd " if kernel.coloured else "; process sd per √s ")
+                    + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items()))
+    prior_rows = kernel.split(r, data)[1]
+    say(f"prediction error: {status} after {int(steps)} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
+    return FitResult(
+        method="prediction_error", model=model.with_params(values), params=values, stderr=stderr,
+        free=spec.free_names, converged=converged, status=status, iterations=int(steps),
+        cost=0.5 * float(np.sum(kernel.split(r, data)[0] ** 2)), fit_seconds=fit_s, compile_seconds=compile_s,
+        channels=batch.channels,
+        channel_scales={ch: float(s) for ch, s in zip(batch.channels, np.asarray(data.scales))},
+        noise_std=meas_sd, initial_states=tuple(batch.x0), run_names=batch.names, covariance=cov,
+        integrator=o.integrator, messages=tuple(messages),
+        info={"measurement_sd": meas_sd, "process_sd": process_sd, "process_states": pstates,
+              "disturbance": po.disturbance, "disturbance_tau": float(tau),
+              "estimate_noise": po.estimate_noise, "innovation_rms": white, "integrator": o.integrator.describe(),
+              "n_residuals": int(mask.sum()) * n_c, "jacobian_rank": cov_all.rank, "n_unknowns": len(z),
+              "priors": prior_table(priors, values, stderr, spec.free_names), "prior_source": priors.source,
+              "prior_note": prior_note, "prior_cost": 0.5 * float(np.sum(prior_rows ** 2))},
+    )

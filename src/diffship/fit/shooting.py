@@ -1,0 +1,389 @@
+r"""Multiple-shooting output error: short segments with free initial states, continuity as residuals.
+
+Single-shooting output error (:mod:`diffship.fit.output_error`) simulates every run from its
+first sample to its last. From a poor start, a course-unstable ship's simulation runs away
+long before the end of a zigzag and Levenberg–Marquardt stalls in a local minimum. Multiple
+shooting (Bock & Plitt 1984) cuts each run into segments of ``L`` sample intervals, simulates
+every segment from its own initial state :math:`s_{ij}` (run *i*, segment *j*) and asks for
+continuity in the residual rather than by construction:
+
+.. math::
+    \min_{\theta, s}\ \tfrac12 \sum_{ij}\sum_{k}\sum_c
+        \Big(\frac{\hat y_c(t_{ijk}; \theta, s_{ij}) - y_{ijk c}}{s_c}\Big)^2
+    + \tfrac12\,\mu^2 \sum_{i, j}\Big\lVert \frac{x(t_{i,j+1,0}^-; \theta, s_{ij}) - s_{i,j+1}}{\sigma_x}\Big\rVert^2
+
+with :math:`\sigma_x` the spread of the channel each state shows up in (the scale of the
+initial-state unknowns of the one kernel, :func:`~diffship.fit.output_error.x0_scales`). The
+first segment of each run starts, like single shooting, from the measured state plus offsets
+of the estimated states ``estimate_x0``; later segments have every state free, started from
+the filtered measurements at the segment start (:func:`diffship.simulate.initial_state` on
+the run from there on; unmeasured states from the model's rule). All segments have equal
+length (the last one is padded and masked), so the simulation is one ``jax.vmap`` over
+``runs × segments``: the one kernel's simulation with segments in place of runs.
+
+**Continuity.** An increasing penalty :math:`\mu \in` ``penalties`` (default 1, 10, 100,
+1000, 10⁴), each stage a Levenberg–Marquardt solve warm-started from the last, drives the defects
+to zero; the penalty is data, not structure, so every stage reuses one compiled solve. With
+``weights="noise"`` the channels are then re-weighted by their residual RMS, as single shooting
+does, and the last stage is solved again (so both minimise the same weighted cost). Then
+(``polish=True``, default) the single-shooting fit is run from the multiple-shooting estimate,
+so the result *is* the single-shooting optimum (its covariance, report and checks), reached
+from a start that single shooting alone may not get to. The check that the multiple-shooting
+stage ends where single shooting does when the model is right is in
+``tests/fit/test_shooting.py`` (noise-free and noisy data, ``polish=False``).
+
+Everything else is the one kernel's (:class:`~diffship.fit.kernel.Kernel` subclassed): the
+parameter map, bounds and scaling, the prior rows, the Levenberg–Marquardt solve and the
+compile cache. The unknowns are ``(z_θ, s)``; the dense forward-mode Jacobian has one column
+per segment state, so a step costs about ``n_x·segments/(n_θ + n_x0)`` times a single-shooting
+step (the price of robustness; choose segments of a few time constants).
+
+Reference: H. G. Bock and K. J. Plitt, "A multiple shooting algorithm for direct solution of
+optimal control problems", IFAC Proceedings 17(2), 1984; J. Ribeiro et al., "Multiple shooting
+for training neural differential equations on time series", IEEE Control Systems Letters 2021.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int
+
+from ..data import Run
+from ..errors import FitError
+from ..models import AbstractModel
+from ..params import ParamSpec
+from ..simulate import initial_state
+from ._lm import result_message
+from .covariance import covariance
+from .identifiability import per_scale_columns
+from .kernel import PENALTY, Kernel, KernelData, kernel_data
+from .output_error import OutputErrorOptions, channel_rms, channel_spread, fit_output_error, fit_priors, x0_scales
+from .priors import prior_arrays
+from .problem import make_batch
+from .result import FitResult
+
+__all__ = ["ShootingOptions", "ShootingKernel", "ShootingData", "fit_multiple_shooting", "parse_shooting"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ShootingOptions:
+    """How the multiple-shooting stage is run.
+
+    Attributes:
+        segment_s: segment length [s] (converted to samples with the median sample interval).
+        penalties: increasing continuity weights μ, one Levenberg–Marquardt solve each.
+        polish: finish with the single-shooting fit from the multiple-shooting estimate.
+        max_steps: Levenberg–Marquardt steps per penalty stage.
+    """
+
+    segment_s: float = 20.0
+    penalties: tuple[float, ...] = (1.0, 10.0, 100.0, 1e3, 1e4)
+    polish: bool = True
+    max_steps: int = 100
+
+    def __post_init__(self):
+        if not (math.isfinite(self.segment_s) and self.segment_s > 0):
+            raise FitError(f"multiple shooting: the segment length must be a positive number of seconds, "
+                           f"got {self.segment_s!r}")
+        object.__setattr__(self, "penalties", tuple(float(p) for p in self.penalties))
+        if not self.penalties or any(not (p > 0 and math.isfinite(p)) for p in self.penalties):
+            raise FitError(f"multiple shooting: penalties must be positive numbers, got {self.penalties!r}")
+
+
+def parse_shooting(text: str) -> ShootingOptions | None:
+    """``"single"`` → ``None``; ``"multiple"`` or ``"multiple:SEGMENT_S"`` → :class:`ShootingOptions`."""
+    kind, _, arg = text.partition(":")
+    if kind == "single" and not arg:
+        return None
+    if kind != "multiple":
+        raise FitError(f"--shooting {text!r}: use 'single', 'multiple' or 'multiple:SEGMENT_S' (e.g. multiple:20)")
+    if not arg:
+        return ShootingOptions()
+    try:
+        return ShootingOptions(segment_s=float(arg))
+    except ValueError:
+        raise FitError(f"--shooting {text!r}: {arg!r} is not a segment length in seconds") from None
+
+
+class ShootingData(KernelData):
+    """:class:`~diffship.fit.kernel.KernelData` over segments (rows ``run·S + j``) plus the
+    shooting arrays.
+
+    Attributes:
+        free_row, free_col: segment row and state index of each free initial-state unknown.
+        state_scale: scale of each state's unknowns and defects ``(n_x,)``.
+        defect_mask: whether segment ``j + 1`` of run ``i`` exists ``(R, S − 1)``.
+        weight: the continuity weight μ (scalar).
+    """
+
+    free_row: Int[Array, " n_s"]
+    free_col: Int[Array, " n_s"]
+    state_scale: Float[Array, " n_x"]
+    defect_mask: Bool[Array, "R Sm1"]
+    weight: Float[Array, ""]
+
+
+class ShootingKernel(Kernel):
+    """The one kernel with segments in place of runs and continuity defects as residual rows.
+
+    Unknowns ``z = (z_θ, s)`` with ``s`` the free segment initial states in units of
+    ``state_scale``; residual rows: data (segment, sample, channel), then defects (run,
+    segment, state), then priors.
+    """
+
+    n_seg: int = eqx.field(static=True, default=1)
+
+    def initial_states(self, z: Float[Array, " n_z"], data: ShootingData) -> Float[Array, "RS n_x"]:
+        k = self.n_theta + self.n_extra
+        return data.x0.at[data.free_row, data.free_col].add(z[k:] * data.state_scale[data.free_col])
+
+    def residuals(self, z: Float[Array, " n_z"], data: ShootingData) -> Float[Array, " m"]:
+        sol = self.simulate(z, data)
+        e = self.output_errors(sol, data)
+        return self.with_prior_rows(jnp.concatenate([e, self.defects(z, data, sol.xs)]), z, data)
+
+    def defects(self, z: Float[Array, " n_z"], data: ShootingData,
+                xs: Float[Array, "RS L n_x"]) -> Float[Array, " m_d"]:
+        """Weighted continuity defects ``μ (x_end(j) − s(j+1))/σ_x``, flattened."""
+        x0 = self.initial_states(z, data)
+        R = data.defect_mask.shape[0]
+        ends = xs[:, -1].reshape(R, self.n_seg, -1)[:, :-1]
+        starts = x0.reshape(R, self.n_seg, -1)[:, 1:]
+        d = (ends - starts) / data.state_scale * data.weight
+        return jnp.where(data.defect_mask[..., None], d, 0.0).reshape(-1)
+
+
+def _segments(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``a[:, idx]`` reshaped to one row per segment: ``(R, N, ...)`` → ``(R·S, L+1, ...)``."""
+    out = a[:, idx]
+    return out.reshape((-1,) + out.shape[2:])
+
+
+def _segment_starts(model: AbstractModel, runs: Sequence[Run], ts: np.ndarray, x0: np.ndarray, L: int, S: int,
+                    flt) -> np.ndarray:
+    """Initial guess of every segment's state from the filtered measurements at its start."""
+    out = np.repeat(x0[:, None, :], S, axis=1)
+    angles = [(model.state_names.index(n), n) for n in model.angle_outputs if n in model.state_names]
+    for i, run in enumerate(runs):
+        for j in range(1, S):
+            k = j * L
+            if k >= run.n - 2:
+                out[i, j] = out[i, j - 1]
+                continue
+            out[i, j] = initial_state(model, run.slice(float(run.time[k]), None), flt)
+            for col, name in angles:  # align a wrapped heading with the unwrapped run
+                if run.has(name):
+                    ref = np.unwrap(np.asarray(run[name], dtype=np.float64))[k]
+                    out[i, j, col] += 2 * np.pi * np.round((ref - out[i, j, col]) / (2 * np.pi))
+    return out
+
+
+def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, o: OutputErrorOptions,
+                     segment_s: float):
+    """``(kernel, data, batch, info)`` of the multiple-shooting problem (continuity weight 1)."""
+    batch = make_batch(model, runs, channels, o.flt)
+    R, N = batch.ts.shape
+    dts = np.concatenate([np.diff(batch.ts[i, : batch.lengths[i]]) for i in range(R)])
+    dt = float(np.median(dts))
+    L = max(2, int(round(segment_s / dt)))
+    S = max(1, -(-(N - 1) // L))
+    n_pad = S * L + 1 - N
+    last_dt = batch.ts[:, -1:] - batch.ts[:, -2:-1]
+    ts = np.concatenate([batch.ts, batch.ts[:, -1:] + last_dt * np.arange(1, n_pad + 1)], axis=1)
+    us = np.concatenate([batch.us, np.repeat(batch.us[:, -1:], n_pad, axis=1)], axis=1)
+    ys = np.concatenate([batch.ys, np.zeros((R, n_pad, batch.ys.shape[2]))], axis=1)
+    mask = np.concatenate([batch.mask, np.zeros((R, n_pad), dtype=bool)], axis=1)
+    idx = np.arange(S)[:, None] * L + np.arange(L + 1)[None, :]
+    # a segment is active when it starts before the last sample of its run; every sample is counted
+    # once: the last sample of a segment is the first of the next active one
+    active = np.array([[j * L < batch.lengths[i] - 1 for j in range(S)] for i in range(R)], dtype=bool)
+    counted = np.ones((R, S, L + 1), dtype=bool)
+    counted[:, :-1, -1] = ~active[:, 1:]
+    counted &= active[:, :, None]
+    seg_mask = (mask[:, idx] & counted).reshape(R * S, L + 1)
+    x_guess = _segment_starts(model, runs, batch.ts, batch.x0, L, S, o.flt)
+    x0_idx = tuple(model.state_names.index(s) for s in o.estimate_x0)
+    n_x = len(model.state_names)
+    rows, cols = [], []
+    for i in range(R):
+        rows += [i * S] * len(x0_idx)
+        cols += list(x0_idx)
+        for j in range(1, S):
+            if active[i, j]:
+                rows += [i * S + j] * n_x
+                cols += list(range(n_x))
+    defect_mask = active[:, 1:].reshape(R, S - 1)
+    state_scale = x0_scales(model, batch, model.state_names)
+    kernel = ShootingKernel(
+        spec=spec.structural(),
+        out_idx=tuple(model.output_names.index(c) for c in batch.channels),
+        angle=tuple(c in model.angle_outputs for c in batch.channels),
+        x0_idx=x0_idx, integrator=o.integrator, n_seg=S,
+    )
+    base = kernel_data(model, _segments(ts, idx), _segments(us, idx), _segments(ys, idx), seg_mask,
+                       x_guess.reshape(R * S, n_x), channel_spread(batch), x0_scale=state_scale)
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(KernelData)}
+    data = ShootingData(**fields, free_row=jnp.asarray(rows, dtype=jnp.int64),
+                        free_col=jnp.asarray(cols, dtype=jnp.int64),
+                        state_scale=jnp.asarray(state_scale), defect_mask=jnp.asarray(defect_mask),
+                        weight=jnp.asarray(1.0))
+    info = {"segment_samples": L, "segments_per_run": S, "segment_s": L * dt, "n_segment_unknowns": len(rows)}
+    return kernel, data, batch, info
+
+
+def fit_multiple_shooting(
+    model: AbstractModel,
+    runs: Sequence[Run],
+    *,
+    spec: ParamSpec | None = None,
+    starts: Sequence[Mapping[str, float]] | Mapping[str, Mapping[str, float]] = (),
+    channels: Sequence[str] | None = None,
+    options: OutputErrorOptions = OutputErrorOptions(),
+    shooting: ShootingOptions = ShootingOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> FitResult:
+    """Output error by multiple shooting (module docstring); same arguments as
+    :func:`~diffship.fit.fit_output_error` plus ``shooting``. Returns a
+    :class:`~diffship.fit.FitResult` with ``info["shooting"]`` describing the stage."""
+    o = options
+    say = progress or (lambda s: None)
+    spec = spec or model.spec()
+    model = model.with_params(spec.values())
+    n_p = len(spec.free_names)
+    if n_p == 0:
+        raise FitError("no free parameters: free at least one (remove it from --fix)")
+    unknown = [s for s in o.estimate_x0 if s not in model.state_names]
+    if unknown:
+        raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
+                       f"({', '.join(model.state_names)})")
+    kernel, data, batch, info = shooting_problem(model, runs, spec, channels, o, shooting.segment_s)
+    if o.channel_scales:
+        data = data.replace(scales=jnp.asarray([o.channel_scales[c] for c in batch.channels], dtype=jnp.float64))
+    priors, prior_note = fit_priors(model, spec, o)
+    p_mean, p_w = prior_arrays(priors, spec)
+    if np.any(p_w):
+        data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
+    messages = [prior_note, f"multiple shooting: {info['segments_per_run']} segments of {info['segment_samples']} "
+                f"samples ({info['segment_s']:.3g} s) per run, {info['n_segment_unknowns']} segment-state unknowns"]
+    n_s = info["n_segment_unknowns"]
+    n_data = int(np.prod(data.ys.shape))
+
+    # -- start: the lowest finite multiple-shooting cost among the candidates ----------------
+    named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
+    candidates = [("the model's values (with --init)", spec.values())] + [
+        (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named]
+    res_fn, compile_s = kernel.compiled("residuals", np.zeros(n_p + n_s), data)
+    best = None
+    for label, vals in candidates:
+        vals, notes = spec.nudged(vals)
+        messages.extend(f"start '{label}': {n}" for n in notes)
+        try:
+            z = np.concatenate([spec.to_z(vals), np.zeros(n_s)])
+        except Exception as exc:  # start outside bounds
+            messages.append(f"start '{label}' skipped: {exc}")
+            continue
+        r = np.asarray(res_fn(jnp.asarray(z), data))
+        cost = 0.5 * float(np.sum(r * r))
+        if math.isfinite(cost) and not np.any(np.abs(r[:n_data]) >= PENALTY) and (best is None or cost < best[2]):
+            best = (label, z, cost)
+    if best is None:
+        raise FitError(f"model {model.name} diverges within a segment from every start ({len(candidates)} tried) on "
+                       f"runs {', '.join(batch.names)}; use shorter segments (--shooting multiple:SECONDS) or a "
+                       "better start (--init NAME=VALUE)")
+    label, z, _ = best
+    messages.append(f"multiple shooting started from {label}")
+
+    # -- increasing continuity penalty, one LM solve each (one compiled program) ---------------
+    lm = dict(max_steps=shooting.max_steps, rtol=o.rtol, atol=o.atol)
+    say(f"multiple shooting: compiling ({n_p} parameters + {n_s} segment states, {info['segments_per_run']} "
+        f"segments per run, {o.integrator.describe()})...")
+    solve_fn, c = kernel.compiled("solve", z, data, **lm)
+    compile_s += c
+    t0 = time.perf_counter()
+    stages = []
+    # the continuity penalty grows stage by stage; then, as single shooting does, the channels are
+    # re-weighted by their residual RMS (now of a continuous trajectory) and the last stage solved again
+    schedule = list(shooting.penalties)
+    if o.weights == "noise" and not o.channel_scales:
+        schedule.append(None)
+    spread = channel_spread(batch)
+    seg_mask = np.asarray(data.mask)
+    n_def = np.asarray(data.defect_mask).size * len(model.state_names)
+    for mu in schedule:
+        if mu is None:
+            sig = channel_rms(r[:n_data], seg_mask, np.asarray(data.scales))
+            data = data.replace(scales=jnp.asarray(np.maximum(sig, 1e-6 * spread)))
+            mu = shooting.penalties[-1]
+        data = data.replace(weight=jnp.asarray(mu))
+        z, result, steps, r = solve_fn(jnp.asarray(z), data)
+        r = np.asarray(r)
+        defect = np.abs(r[n_data:n_data + n_def]) / mu
+        stages.append({"penalty": mu, "steps": int(steps), "result": result_message(result),
+                       "max_defect": float(defect.max(initial=0.0)), "cost": 0.5 * float(r[:n_data] @ r[:n_data]),
+                       "weights": "noise" if len(stages) == len(shooting.penalties) else "initial"})
+        say(f"multiple shooting: penalty {mu:g} ({stages[-1]['weights']} weights): {stages[-1]['result']} after "
+            f"{int(steps)} steps, largest continuity defect {stages[-1]['max_defect']:.2g} state scales")
+    jax.block_until_ready(z)
+    ms_s = time.perf_counter() - t0
+    z = np.asarray(z)
+    theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
+    values = model.canonical({n: float(theta[i]) for i, n in enumerate(model.param_names)})
+    ms_steps = sum(s["steps"] for s in stages)
+    ms_info = {"segment_s": info["segment_s"], "segments_per_run": info["segments_per_run"],
+               "segment_unknowns": n_s, "stages": stages, "seconds": ms_s, "steps": ms_steps,
+               "params": {n: values[n] for n in spec.free_names}, "polish": shooting.polish}
+    pens = ", ".join(f"{p:g}" for p in shooting.penalties)
+    messages.append(f"multiple shooting: {ms_steps} steps over penalties {pens}; "
+                    f"largest final continuity defect {stages[-1]['max_defect']:.2g} state scales")
+    if shooting.polish:
+        say("multiple shooting: polishing by single shooting from the multiple-shooting estimate...")
+        res = fit_output_error(model, runs, spec=spec.with_values({n: values[n] for n in spec.free_names}),
+                               channels=channels, options=dataclasses.replace(o, warmup=0.0, choose="first"),
+                               progress=progress)
+        return dataclasses.replace(
+            res, iterations=res.iterations + ms_steps, fit_seconds=res.fit_seconds + ms_s,
+            compile_seconds=res.compile_seconds + compile_s, messages=tuple(messages) + res.messages,
+            info={**res.info, "shooting": ms_info})
+    return _unpolished(kernel, data, batch, spec, model, values, z, n_data, ms_info, messages, stages, ms_s, compile_s,
+                       label, o)
+
+
+def _unpolished(kernel, data, batch, spec, model, values, z, n_data, ms_info, messages, stages, ms_s, compile_s,
+                label, o) -> FitResult:
+    """A :class:`FitResult` of the multiple-shooting stage alone (covariance from its Jacobian)."""
+    n_p = len(spec.free_names)
+    r = np.asarray(kernel.call("residuals", z, data))
+    J = np.asarray(kernel.call("jacobian", z, data))
+    J = J * per_scale_columns(spec, z, len(z))
+    r_d, J_d = r[:n_data], J[:n_data]
+    J_rest = J[n_data:]
+    n_res = int(np.asarray(data.mask).sum()) * len(batch.channels)
+    s2 = float(r_d @ r_d) / max(n_res - n_p, 1)
+    # defect and prior rows are constraints/prior information (unit variance); data rows are scaled by σ̂
+    cov_all = covariance(np.vstack([J_d / math.sqrt(s2), J_rest]), r, variance=1.0, involvement=0.05)
+    scale = np.asarray([spec[n].scale for n in spec.free_names])
+    cov = cov_all.matrix[:n_p, :n_p] * np.outer(scale, scale)
+    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
+    conv = all(s["result"] == "converged" for s in stages[-1:])
+    status = "converged" if conv else stages[-1]["result"]
+    scales = np.asarray(data.scales)
+    noise = channel_rms(r_d, np.asarray(data.mask), scales)
+    x0 = np.asarray(kernel.initial_states(jnp.asarray(z), data)).reshape(len(batch.names), kernel.n_seg, -1)[:, 0]
+    return FitResult(
+        method="output_error", model=model.with_params(values), params=values, stderr=stderr, free=spec.free_names,
+        converged=bool(conv), status=status, iterations=ms_info["steps"], cost=0.5 * float(r_d @ r_d),
+        fit_seconds=ms_s, compile_seconds=compile_s, channels=batch.channels,
+        channel_scales={c: float(s) for c, s in zip(batch.channels, scales)},
+        noise_std={c: float(s) for c, s in zip(batch.channels, noise)}, initial_states=tuple(x0),
+        run_names=batch.names, covariance=cov, integrator=o.integrator, messages=tuple(messages),
+        info={"shooting": ms_info, "residual_variance": s2, "n_residuals": n_res, "start": label,
+              "estimate_x0": o.estimate_x0, "weights": o.weights, "integrator": o.integrator.describe()},
+    )

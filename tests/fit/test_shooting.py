@@ -1,0 +1,82 @@
+"""Multiple shooting ends at the single-shooting optimum when the model is right (the stage
+alone, without the single-shooting polish), on noise-free and noisy data; options and errors."""
+
+import numpy as np
+import pytest
+
+from diffship.errors import FitError
+from diffship.fit import OutputErrorOptions, fit_output_error
+from diffship.fit.shooting import ShootingOptions, fit_multiple_shooting, parse_shooting
+from diffship.models import Nomoto1
+from diffship.synthetic import nomoto_runs
+
+TRUTH = dict(K=0.2, T1=8.0, delta0=0.01)
+OPTS = OutputErrorOptions(estimate_x0=("psi", "r"), reference_priors=False)
+
+
+def _spec():
+    return Nomoto1().spec().with_values({"K": 0.1, "T1": 12.0, "delta0": 0.0})
+
+
+def _pair(noise, seed, polish=False):
+    runs = nomoto_runs(Nomoto1(**TRUTH), 2, 60.0, 0.1, noise=noise, seed=seed)
+    ss = fit_output_error(Nomoto1(), runs, spec=_spec(), options=OPTS)
+    ms = fit_multiple_shooting(Nomoto1(), runs, spec=_spec(), options=OPTS,
+                               shooting=ShootingOptions(segment_s=10.0, polish=polish))
+    return ss, ms
+
+
+def test_multiple_shooting_stage_recovers_the_truth_without_noise():
+    ss, ms = _pair("none", 3)
+    assert ms.converged, ms.status
+    for n, v in TRUTH.items():
+        assert abs(ms.params[n] / v - 1) < 1e-6, (n, ms.params[n])
+    st = ms.info["shooting"]
+    assert st["segments_per_run"] == 7 and st["stages"][-1]["max_defect"] < 1e-8
+
+
+def test_multiple_shooting_stage_ends_at_the_single_shooting_optimum_on_noisy_data():
+    ss, ms = _pair("realistic", 4)
+    assert ms.converged and ss.converged
+    for n in TRUTH:
+        # the continuity penalty ends at 1e4: within a small fraction of a standard error
+        assert abs(ms.params[n] - ss.params[n]) < 0.1 * ss.stderr[n], (n, ms.params[n], ss.params[n], ss.stderr[n])
+        # its own standard errors (constrained by the defect rows) are those of single shooting
+        assert abs(ms.stderr[n] / ss.stderr[n] - 1) < 0.15, (n, ms.stderr[n], ss.stderr[n])
+    assert ms.info["shooting"]["stages"][-1]["max_defect"] < 1e-3
+
+
+def test_polish_gives_the_single_shooting_fit():
+    ss, ms = _pair("realistic", 4, polish=True)
+    for n in TRUTH:
+        assert abs(ms.params[n] - ss.params[n]) < 1e-3 * ss.stderr[n]
+    assert ms.info["shooting"]["polish"] and ms.iterations > ss.iterations
+
+
+def test_parse_shooting_and_errors():
+    assert parse_shooting("single") is None
+    assert parse_shooting("multiple").segment_s == 20.0
+    assert parse_shooting("multiple:7.5").segment_s == 7.5
+    for bad in ("double", "multiple:abc", "multiple:-3"):
+        with pytest.raises(FitError, match="--shooting|segment length"):
+            parse_shooting(bad)
+    with pytest.raises(FitError, match="penalties"):
+        ShootingOptions(penalties=(1.0, np.nan))
+
+
+def test_cli_multiple_shooting(tmp_path, capsys):
+    from diffship.fit.cli import main
+
+    paths = []
+    for run in nomoto_runs(Nomoto1(**TRUTH), 2, 60.0, 0.1, noise="realistic", seed=4):
+        p = tmp_path / f"{run.name}.csv"
+        run.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    out = tmp_path / "ms"
+    assert main([*paths, "--model", "nomoto1", "--method", "output-error", "--shooting", "multiple:10",
+                 "--init", "K=0.1", "T1=12", "--quiet", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "multiple shooting: 7 segments of 100 samples" in text
+    assert (out / "fit.png").exists() and (out / "fit.json").exists()
+    assert main([*paths, "--model", "nomoto1", "--shooting", "triple", "--quiet"]) == 2
+    assert "--shooting 'triple'" in capsys.readouterr().err
