@@ -615,8 +615,8 @@ def verdict(rows: list[dict], rp: dict[str, float] | None = None) -> list[str]:
     """The done-when verdict and the diagnosis, from the numbers."""
     L = ["## Verdict (issue 12: no blow-up in a 35° turn, tactical diameter within 5 % of the peer's)", ""]
     dflt = [r for r in rows if r["group"] == "main" and r["free"] == "default" and r["priors"]]
-    for r in dflt:
-        L.append(f"- default free set, default priors, noise {r['noise']}: "
+    for r in dflt + [r for r in rows if r["group"] == "main" and r["free"] == "study" and r["priors"]]:
+        L.append(f"- {r['free']} free set, default priors, noise {r['noise']}: "
                  + ("blows up in the 35° turn" if r["blowup"] else
                     f"TD error {r['turnS_TD_err_pct']:+.1f} % (S) / {r['turnP_TD_err_pct']:+.1f} % (P)")
                  + f" → **{'MET' if _meets(r) else 'NOT MET'}**; admissibility check: "
@@ -627,6 +627,16 @@ def verdict(rows: list[dict], rp: dict[str, float] | None = None) -> list[str]:
     f = clean["fit"]
     z = dict(f["far_from_prior"]).get("Nrrr", math.nan)
     tau = float(np.median(list(f["tau"].values())))
+    if f["params"]["Nrrr"] < 0:
+        return L + ["", "## Why", "",
+                    f"- **No blow-up.** N'_rrr stays negative ({f['params']['Nrrr']:+.4f}: the MMG's damping "
+                    "derivatives are bounded ≤ 0, and with priors the data are weighted by their effective sample "
+                    f"size; residual memory τ ≈ {tau:.0f} samples).",
+                    "- **The remaining tactical-diameter error is structural**: the peer's wake (exp(−4β_P²), "
+                    "drift at −x_G) differs from Yasukawa's C1/C2± wake. The ten-parameter default set cannot absorb "
+                    "it; freeing the wake's manoeuvring correction (the `study` free set of "
+                    "`diffship.studies.kvlcc2`, 33 coefficients under their priors, or `wake C1, C2± free` below) "
+                    "does."]
     L += ["", "## Why", "",
           (f"- **N'_rrr turns positive.** The clean default-prior fit moves N'_rrr from −0.013 to "
           f"{f['params']['Nrrr']:+.4f} ({z:+.1f} prior SDs), so the hull's yaw damping N'_r + 3N'_rrr r'² changes "
