@@ -215,7 +215,11 @@ def simulate(vessel, effects: list[Effect], t: np.ndarray, *, commands: np.ndarr
         a, dz = actual(tt, xz[ns:])
         return np.concatenate([vessel.rhs(tt, xz[:ns], a, extra_force, current), dz])
 
-    x = np.concatenate([vessel.rest_state(u0)] + [e.init(cmd[0]) for e in acts])
+    x0 = vessel.rest_state(u0)
+    if "v" in vessel.states:  # start moving with the water: through-water velocity (u0, 0, 0) at ψ = 0
+        iu = vessel.states.index("u")
+        x0[iu:iu + 2] += current(0.0)[0]
+    x = np.concatenate([x0] + [e.init(cmd[0]) for e in acts])
     # pre-roll with the first command held, current at its t=0 value
     if preroll > 0:
         x = rk4_interval(lambda tt, xz: f(0.0, xz), -preroll, 0.0, x, substeps=int(preroll * 10))
