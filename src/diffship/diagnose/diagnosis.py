@@ -25,7 +25,7 @@ from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .verdict import RankedEffect, rank, verdict_lines
-from .where import GapBudget, WhereAnalysis, gap_budget, noise_floor, where_analysis
+from .where import GapBudget, WhereAnalysis, gap_budget, noise_estimates, where_analysis
 from .which import Search, refit_order
 
 __all__ = ["diagnose", "Diagnosis"]
@@ -38,7 +38,9 @@ SHRINK_DEFINITION = ("(E_before - E_after) / (E_before - E_floor): fraction of t
 class Diagnosis:
     """Everything :func:`diagnose` found (``to_dict()`` gives the JSON).
 
-    E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise).
+    E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise);
+    ``noise_estimate`` says per channel which estimate gave it (white second differences, the
+    coloured-noise structure-function fit, or given by the user) with its fitted correlation.
     ``shrink`` is the fraction of the structural gap ``E_before − 1`` that the ``selected``
     effects remove; ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
     ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
@@ -50,6 +52,7 @@ class Diagnosis:
     model_name: str
     channels: tuple[str, ...]
     noise_floor: dict[str, float]
+    noise_estimate: dict[str, dict]
     where: WhereAnalysis
     gap: GapBudget
     screen: tuple[ScreenResult, ...]
@@ -91,6 +94,7 @@ class Diagnosis:
             "validation_E_before": self.E_before,
             "validation_E_after": self.E_after,
             "noise_floor": self.noise_floor,
+            "noise_estimate": self.noise_estimate,
             "shrink": self.shrink,
             "shrink_definition": SHRINK_DEFINITION,
             "shrink_total_error": self.shrink_total_error,
@@ -143,11 +147,17 @@ def diagnose(
     base = fit.model
     chans = tuple(fit.channels)
     base_spec = spec.with_values({n: fit.params[n] for n in spec.names})
-    floor = dict(o.noise) if o.noise else noise_floor(list(train) + list(val), chans, base.angle_outputs)
+    if o.noise:
+        floor = dict(o.noise)
+        noise_info = {c: {"sigma": floor[c], "method": "given (DiagnoseOptions.noise)"} for c in chans}
+    else:
+        est = noise_estimates(list(train) + list(val), chans, base.angle_outputs)
+        floor = {c: e.sigma for c, e in est.items()}
+        noise_info = {c: dataclasses.asdict(e) for c, e in est.items()}
     scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
 
     # -- which: screen -----------------------------------------------------------------------
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     effs, skipped = library(base, train, o.effect_names)
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
@@ -156,6 +166,7 @@ def diagnose(
     ws = Workspace(base, base_spec, effs, train, chans, scales, x0_train=x0_train, integrator=fit.integrator)
     scr, sinfo = ws.screen()
     timings["screen"] = time.perf_counter() - t0
+    timings["screen_cpu"] = time.process_time() - c0  # CPU time of all threads, compilation included
     validation = Validation(ws, val, floor, chans)
 
     # -- where ---------------------------------------------------------------------------------
@@ -179,7 +190,7 @@ def diagnose(
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o)
     shrink = sel.shrink(before.E)
     return Diagnosis(
-        model_name=model.name, channels=chans, noise_floor=floor, where=where, gap=gap, screen=tuple(scr),
+        model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
