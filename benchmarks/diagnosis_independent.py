@@ -180,7 +180,8 @@ def main(argv=None):
     if a.only:
         keys = a.only.split(",")
         grid = [s for s in grid if any(k in s.name for k in keys)]
-    stem = "diagnosis_independent" + ("_quick" if a.quick else "") + ("_subset" if a.only or a.vessels != "ship,usv" else "")
+    stem = "diagnosis_independent" + ("_quick" if a.quick else "") + ("" if a.vessels == "ship,usv" else "_" + "_".join(vessels)) \
+        + ("_subset" if a.only else "")
     OUT.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     rows = []

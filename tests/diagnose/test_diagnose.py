@@ -64,7 +64,7 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     row = next(r for r in d2["ranking"] if r["effect"] == "actuator_lag")
     assert list(row) == ["effect", "family", "params", "stderr", "validation_gain", "shrink", "validation_E",
                          "train_cost_reduction", "screen_fraction", "orthogonal_fraction", "p_value", "verdict",
-                         "confusable_with", "separating_manoeuvre"]
+                         "confidence", "confusable_with", "separating_manoeuvre"]
     assert list(d2["path"][0])[:4] == ["effect", "E_before", "E_after", "shrink_of_structural_gap"]
     assert "_residuals" not in d2["where"] and set(d2["where"]) >= {"per_channel", "per_phase", "residual_tests"}
     files = write_report(d, tmp_path)  # Markdown, JSON and the five figures

@@ -187,7 +187,8 @@ def diagnose(
     timings["greedy"] = time.perf_counter() - t0
 
     # -- how far and verdicts --------------------------------------------------------------------
-    ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o)
+    ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
+                   sel.rivals, sel.note)
     shrink = sel.shrink(before.E)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),

@@ -36,6 +36,8 @@ class DiagnoseOptions:
         min_shrink: smallest fraction of the structural gap removed.
         confusable_margin: candidates that pass and come within this relative margin of the
             winner's validation error are reported as confusable.
+        tie_share: a passing candidate whose validation error is within this share of the
+            winner's gain is a rival: refitted jointly with the winner to decide, else a tie.
     """
 
     effects: Sequence[str] | str = "all"
@@ -52,6 +54,7 @@ class DiagnoseOptions:
     min_gain: float = 0.05
     min_shrink: float = 0.3
     confusable_margin: float = 0.05
+    tie_share: float = 0.1
 
     def __post_init__(self):
         if self.effects != "all":

@@ -73,6 +73,9 @@ class Selection:
     final: Score
     values: dict[str, float]
     base_values: dict[str, float] | None
+    confidence: str = ""
+    rivals: tuple[str, ...] = ()
+    note: str = ""
 
     def shrink(self, E0: float) -> float:
         """Fraction of the structural gap removed by the selected effects (0 if none)."""
@@ -180,9 +183,10 @@ class Search:
         if not accepted and self.has_gap and o.max_pairs > 0:
             cur = self._pair(singles, by_E) or cur
         if accepted:
-            name, w = accepted[0], singles[accepted[0]]
+            name, conf, rivals, note = self._confidence(singles, accepted, by_E)
+            w = singles[name]
             step = PathStep.between(name, self.base, w.score, E0, w.refit, self.validation.channels)
-            cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values)
+            cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values, conf, rivals, note)
             cands = [n for n in by_E if n != name and singles[n].judgement.gain > 0][:3]
             for _ in range(1, o.greedy_steps):
                 nxt = self._greedy_step(cur, cands)
@@ -190,8 +194,61 @@ class Search:
                     break
                 cur = nxt
             if len(cur.selected) >= 2:
-                cur = self._swap(cur, [n for n in accepted if n not in cur.selected]) or cur
+                sw = self._swap(cur, [n for n in accepted if n not in cur.selected])
+                if sw is not None:
+                    cur = dataclasses.replace(sw, confidence="medium", note="after a swap of confusable effects")
         return cur
+
+    # -- confidence and ties -----------------------------------------------------------------
+    def _significant(self, rf: RefitResult, name: str) -> bool:
+        """Some parameter of ``name`` is relevant and its 95 % interval excludes the null."""
+        e = self.effect(name)
+        return any(abs(rf.values[n] - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
+                   and abs(rf.values[n] - e.null()[n]) > 1.96 * rf.stderr.get(n, math.inf) for n in e.param_names)
+
+    def _confidence(self, singles: dict[str, Candidate], accepted: list[str],
+                    by_E: list[str]) -> tuple[str, str, tuple[str, ...], str]:
+        r"""The first effect, its confidence, unresolved rivals and how it was decided.
+
+        With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the
+        rule and comes within ``tie_share``·Δ_w of it is a **rival**. Each rival is refitted
+        jointly with the winner (an encompassing test): the effect whose term stays significant
+        (relevant and its 95 % interval excluding the null) while the other's does not wins
+        (confidence *medium*); if both stay or both vanish the tie is unresolved (confidence
+        *tie*, and the verdict names the manoeuvre that separates them). Without rivals the
+        confidence is *high* when the runner-up misses ≥ 25 % of Δ_w, else *medium*.
+        """
+        o, E0 = self.options, self.base.E
+        name = accepted[0]
+        span = max(E0 - singles[name].score.E, 1e-12)
+        close = [n for n in accepted[1:] if singles[n].score.E - singles[name].score.E < o.tie_share * span]
+        if not close:
+            second = next((n for n in by_E if n != name), None)
+            margin = (singles[second].score.E - singles[name].score.E) / span if second else 1.0
+            return name, ("high" if margin >= 0.25 else "medium"), (), f"runner-up {second} misses {100 * margin:.0f} % of the gain" if second else ""
+        unresolved, notes = [], []
+        for alt in close:
+            if self.n_params((name, alt)) > P_MAX:
+                unresolved.append(alt)
+                continue
+            try:
+                rf, _ = self._refit([name, alt], [{**singles[name].refit.values, **singles[alt].refit.values}])
+            except FitError:
+                unresolved.append(alt)
+                continue
+            s_w, s_a = self._significant(rf, name), self._significant(rf, alt)
+            self.say(f"  tie {name} vs {alt}: joint refit keeps {name}: {s_w}, {alt}: {s_a}")
+            if s_w and not s_a:
+                notes.append(f"{alt}'s term vanishes once {name} is in")
+            elif s_a and not s_w and name == accepted[0]:
+                notes.append(f"{name}'s term vanishes once {alt} is in")
+                name = alt
+            else:
+                unresolved.append(alt)
+        unresolved = [n for n in unresolved if n != name]
+        if unresolved:
+            return name, "tie", tuple(unresolved), "joint refit cannot separate them"
+        return name, "medium", (), "decided by joint refit: " + "; ".join(notes)
 
     def _pair(self, singles: dict[str, Candidate], by_E: list[str]) -> Selection | None:
         """Two effects refitted jointly: each can fail alone (compensating the other on some runs)
