@@ -9,9 +9,10 @@ selection on the held-out runs), and score
 * **top-1**: the first selected effect is the hidden one (null cases: nothing selected);
 * **top-3**: the hidden effect is among the first three of the ranking (selected first, then by
   validation gain, only candidates with a positive gain);
-* **shrink**: share of the structural validation gap closed,
-  (E_base − E_after) / (E_base − E_truth), with E_truth the truth's own error on the validation
-  runs (pure noise, same normalisation) — the real floor;
+* **shrink**: share of the structural validation gap closed, 1 − S(E_after)/S(E_base) with
+  S(E) = √(E² − E_truth²) (noise and model error add in quadrature), E_truth the truth's own
+  error on the validation runs (pure noise, same normalisation) — the real floor; the CSV also
+  has the linear form (E_base − E_after)/(E_base − E_truth);
 * **null false alarms**; **out of family**: the first selected effect is of the right family;
 * the confusion matrix (true × first selected), in and out of family separately;
 * the CPU time (``time.process_time``, compilation included) of the screen of all candidates.
@@ -68,8 +69,12 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
     d = diagnose(base, train, val, options=options, progress=say)
     cpu, wall = time.process_time() - c0, time.perf_counter() - t0
     E_truth = truth_error(g["val"], d.noise_floor, d.channels)
-    gap = d.E_before - E_truth
-    shrink = (d.E_before - d.E_after) / gap if gap > 0.05 * E_truth else float("nan")
+    # structural gap above the truth's own error, in quadrature (noise and model error are independent)
+    S0 = np.sqrt(max(d.E_before ** 2 - E_truth ** 2, 0.0))
+    S1 = np.sqrt(max(d.E_after ** 2 - E_truth ** 2, 0.0))
+    real_gap = d.E_before > 1.05 * E_truth
+    shrink = 1.0 - S1 / S0 if real_gap else float("nan")
+    shrink_linear = (d.E_before - d.E_after) / (d.E_before - E_truth) if real_gap else float("nan")
     first = d.selected[0] if d.selected else "none"
     ranked = [r.effect for r in d.ranking if r.effect in d.selected or (r.validation_gain or 0) > 0][:3]
     if sc.kind == "none":
@@ -83,7 +88,7 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
     row = next((r for r in d.ranking if r.effect == first), None)
     return {"scenario": sc.name, "vessel": sc.vessel, "kind": sc.kind, "truth": sc.label, "size": sc.size,
             "seed": sc.seed, "selected": "+".join(d.selected) or "none", "first": first, "top1": top1, "top3": top3,
-            "E_base": d.E_before, "E_after": d.E_after, "E_truth": E_truth, "shrink": shrink,
+            "E_base": d.E_before, "E_after": d.E_after, "E_truth": E_truth, "shrink": shrink, "shrink_linear": shrink_linear,
             "confidence": getattr(row, "confidence", "") if row is not None else "",
             "verdict": d.verdict[1], "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
             "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall}

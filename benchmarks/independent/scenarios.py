@@ -5,9 +5,9 @@ A :class:`Scenario` is one truth: a vessel, at most one hidden effect (or none),
 ``label`` is the library effect a correct diagnosis should name (``"none"`` for null cases);
 out-of-family truths (``kind == "out"``) are scored by ``family`` instead.
 
-Runs: the USV gets 4 training and 2 validation runs of open-loop jet commands
+Runs: the USV gets 4 training and 2 validation runs (40 s at 10 Hz) of open-loop jet commands
 (:func:`~.vessels.usv_commands`, different seeds, so validation manoeuvres differ from training);
-the ship gets 4 training and 2 validation zigzags of different amplitudes (closed loop). Noise
+the ship gets 4 training and 2 validation zigzags (70 s) of different amplitudes (closed loop). Noise
 is white Gaussian with this generator's own sensor levels (:data:`NOISE`).
 """
 
@@ -127,7 +127,7 @@ def generate(sc: Scenario, dt: float = 0.1) -> dict:
     runs = []
     if sc.vessel == "usv":
         vessel = USV()
-        t = np.arange(0.0, 60.0, dt)
+        t = np.arange(0.0, 40.0, dt)
         for i in range(6):
             sim = simulate(vessel, effs, t, commands=usv_commands(t, rng), u0=2.0)
             runs.append((f"usv{i}", sim))

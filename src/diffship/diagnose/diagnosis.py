@@ -30,8 +30,8 @@ from .which import Search, refit_order
 
 __all__ = ["diagnose", "Diagnosis"]
 
-SHRINK_DEFINITION = ("(E_before - E_after) / (E_before - E_floor): fraction of the structural "
-                     "(above-noise) validation error removed by the selected effects")
+SHRINK_DEFINITION = ("(S(E_before) - S(E_after)) / S(E_before) with S(E) = sqrt(max(E^2 - 1, 0)): share of the "
+                     "structural (above-noise, RMS) validation error closed by the selected effects")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -41,8 +41,8 @@ class Diagnosis:
     E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise);
     ``noise_estimate`` says per channel which estimate gave it (white second differences, the
     coloured-noise structure-function fit, or given by the user) with its fitted correlation.
-    ``shrink`` is the fraction of the structural gap ``E_before − 1`` that the ``selected``
-    effects remove; ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
+    ``shrink`` is the share of the structural gap :math:`S = \sqrt{E_{before}^2 - 1}` that the
+    ``selected`` effects close (:mod:`.shrink`); ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
     ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
     with the reason; ``final_model`` the base with the selected effects (and refitted base
     parameters); ``eval_before`` / ``eval_after`` the validation evaluations of the base and

@@ -83,6 +83,7 @@ class RefitResult:
     iterations: int
     seconds: float
     ok: bool
+    converged: bool = True
 
 
 class Workspace:
@@ -251,13 +252,15 @@ class Workspace:
 
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
-              max_iter: int = 60, progress: Callable[[str], None] | None = None) -> RefitResult:
+              max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
         Each start is solved by the output-error kernel's Levenberg–Marquardt (the unselected
         effect coordinates have zero Jacobian columns and stay at zero); the start with the
-        lowest cost wins. Standard errors come from :func:`diffship.fit.covariance.covariance`
+        lowest cost wins, and is continued for up to ``rounds`` more solves of ``4·max_iter``
+        steps while it stops at the step cap and still lowers the cost (``converged`` says
+        whether it ended before the cap). Standard errors come from :func:`diffship.fit.covariance.covariance`
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
         """
         t0 = time.perf_counter()
@@ -288,6 +291,21 @@ class Workspace:
         if best is None:
             raise FitError(f"refit with {names}: every start blows up")
         z, r, cost, it, phi0 = best
+        # a refit that stops at the step cap has not converged: continue the best start (same
+        # compiled program) while it still lowers the cost, up to ``rounds`` more times
+        converged = it < 4 * max_iter
+        for _ in range(rounds):
+            if converged:
+                break
+            z1, _, steps, r1 = self.kernel.call("solve", z, self._kd(None, S, phi0), max_steps=4 * max_iter,
+                                                rtol=1e-8, atol=1e-8, ftol=1e-12)
+            r1 = np.asarray(r1)
+            c1 = 0.5 * float(r1 @ r1)
+            if not (math.isfinite(c1) and c1 < cost):
+                break
+            converged = int(steps) < 4 * max_iter or (cost - c1) < 1e-9 * cost
+            z, r, it = np.asarray(z1), r1, it + int(steps)
+            cost = c1
         J = self.jacobian(z, S, phi0)[:, active]
         cov = covariance(J, r, dof=self.train["batch"].n_residuals - len(active)).matrix
         w = self.selection(pn) @ z[self.n_theta:nk]
@@ -300,10 +318,10 @@ class Workspace:
         fixed_out = {n: float(base_phi[self.phi_names.index(n)]) for n in (fixed or {}) if n not in pn}
         ok = bool(np.all(np.abs(r) < PENALTY))
         if progress:
-            progress(f"  refit {'+'.join(names)}: {it} iterations, cost {cost:.6g}, "
+            progress(f"  refit {'+'.join(names)}: {it} iterations{'' if converged else ' (NOT converged)'}, cost {cost:.6g}, "
                      + ", ".join(f"{n}={v:.4g}±{stderr[n]:.2g}" for n, v in values.items()))
         return RefitResult(tuple(names), {**fixed_out, **values}, stderr, base_values, cost, it,
-                           time.perf_counter() - t0, ok)
+                           time.perf_counter() - t0, ok, converged)
 
 
 def _inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:

@@ -78,8 +78,8 @@ class Selection:
     note: str = ""
 
     def shrink(self, E0: float) -> float:
-        """Fraction of the structural gap removed by the selected effects (0 if none)."""
-        return float((E0 - self.final.E) / (E0 - 1.0)) if (E0 > 1.0 and self.selected) else 0.0
+        """Share of the structural gap S(E0) closed by the selected effects (0 if none; :mod:`.shrink`)."""
+        return structural_shrink(E0, E0, self.final.E) if self.selected else 0.0
 
 
 def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:
