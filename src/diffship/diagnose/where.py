@@ -72,6 +72,7 @@ class NoiseEstimate:
     white_sigma: float
     rho: float
     corr_time_s: float
+    note: str = ""
 
 
 WHITE = "white (second differences)"
@@ -128,9 +129,11 @@ def noise_estimates(runs: Sequence[Run], channels: Sequence[str], angles=("psi",
             col, phi = white, 0.0
         coloured = phi >= 0.3 and col > 1.2 * white
         tau = -dt / math.log(phi) if 0 < phi < 1 else 0.0
+        note = (f"noise correlated beyond the {max_lag_s:g} s fitting window (lag-1 correlation at the grid "
+                "limit): sigma is a lower bound" if coloured and phi >= 0.97 else "")
         out[c] = NoiseEstimate(sigma=float(max(col if coloured else white, 1e-9)),
                                method=COLOURED if coloured else WHITE, white_sigma=white, rho=float(phi),
-                               corr_time_s=float(tau))
+                               corr_time_s=float(tau), note=note)
     return out
 
 
