@@ -28,7 +28,7 @@ from .verdict import RankedEffect, rank, verdict_lines
 from .where import GapBudget, WhereAnalysis, gap_budget, noise_estimates, where_analysis
 from .which import Search, refit_order
 
-__all__ = ["diagnose", "Diagnosis"]
+__all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]
 
 SHRINK_DEFINITION = ("(S(E_before) - S(E_after)) / S(E_before) with S(E) = sqrt(max(E^2 - 1, 0)): share of the "
                      "structural (above-noise, RMS) validation error closed by the selected effects")
@@ -105,6 +105,16 @@ class Diagnosis:
         }
 
 
+def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, ...]:
+    """The fit's default channels plus the positions where the model predicts them and every run
+    has them: sensor and kinematic effects (heading bias, current) show mainly in the GNSS
+    track, so a diagnosis without positions cannot see them (the fit's own default leaves
+    positions out for robustness of fits from poor starts)."""
+    chans = default_channels(model, runs)
+    pos = tuple(c for c in ("x0", "y0") if c in model.output_names and c not in chans and all(r.has(c) for r in runs))
+    return tuple(c for c in model.output_names if c in chans or c in pos)
+
+
 def diagnose(
     model: AbstractModel,
     train: Sequence[Run],
@@ -139,7 +149,7 @@ def diagnose(
     spec = spec or model.spec()
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
-        chans0 = o.channels or default_channels(model, train)
+        chans0 = o.channels or diagnosis_channels(model, train)
         fit = fit_output_error(model, train, spec=spec, channels=chans0, progress=say,
                                options=OutputErrorOptions(max_steps=o.fit_steps,
                                                           estimate_x0=model.states_for_channels(chans0)))

@@ -17,7 +17,8 @@ class DiagnoseOptions:
 
     Candidates:
         effects: ``"all"`` or names from :data:`~.effects.EFFECT_NAMES`.
-        channels: channels of the base fit (default: what the model predicts and the runs have).
+        channels: channels of the base fit (default: what the model predicts and the runs have,
+            positions included — :func:`~.diagnosis.diagnosis_channels`).
         noise: per-channel noise floor (known sensor noise); estimated from the data if None.
 
     Effort:

@@ -204,7 +204,8 @@ class Workspace:
 
     # -- screen ----------------------------------------------------------------------------
     def screen(self) -> tuple[list[ScreenResult], dict]:
-        """Score test of every candidate at the base fit (one Jacobian pass per 5 columns)."""
+        """Score test of every candidate at the base fit (one Jacobian pass, then one or two
+        simulations per further effect parameter)."""
         t0 = time.perf_counter()
         z0 = self.z0()
         phi0 = self.phi_null
@@ -212,13 +213,28 @@ class Workspace:
         nk = self.n_theta + P_MAX
         smooth = [n for n in self.phi_names if self.owner[n].smooth_null]
         cols: dict[str, np.ndarray] = {}
-        J_theta = None
-        for k in range(0, max(len(smooth), 1), P_MAX):
-            chunk = smooth[k:k + P_MAX]
-            J = self.jacobian(z0, self.selection(chunk), phi0)
-            J_theta = np.concatenate([J[:, :self.n_theta], J[:, nk:]], axis=1) if J_theta is None else J_theta
-            for j, n in enumerate(chunk):
-                cols[n] = J[:, self.n_theta + j]
+        # one forward-mode Jacobian gives the base columns (θ and initial states) and the first
+        # P_MAX smooth effect columns; the other smooth columns are central differences of the
+        # residual in the same scaled coordinate (one simulation each instead of a whole
+        # Jacobian pass per P_MAX columns: the effects are smooth, most are linear in φ)
+        chunk = smooth[:P_MAX]
+        J = self.jacobian(z0, self.selection(chunk), phi0)
+        J_theta = np.concatenate([J[:, :self.n_theta], J[:, nk:]], axis=1)
+        for j, n in enumerate(chunk):
+            cols[n] = J[:, self.n_theta + j]
+        S0 = self.selection([])
+        for n in smooth[P_MAX:]:
+            i = self.phi_names.index(n)
+            sc = self.phi_scale[i]
+            hp = min(1e-3, (self.hi[i] - phi0[i]) / sc)
+            hm = min(1e-3, (phi0[i] - self.lo[i]) / sc)
+            up = phi0.copy()
+            up[i] += hp * sc
+            dn = phi0.copy()
+            dn[i] -= hm * sc
+            rp = self.residuals(z0, S0, up) if hp > 0 else r0
+            rm = self.residuals(z0, S0, dn) if hm > 0 else r0
+            cols[n] = (rp - rm) / (hp + hm) if hp + hm > 0 else np.zeros_like(r0)
         for n in self.phi_names:
             if n in cols:
                 continue
