@@ -43,7 +43,7 @@ from diffship.diagnose import FAMILY, DiagnoseOptions, diagnose
 from diffship.models import Fossen3, Nomoto1
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import independent  # noqa: E402  (the generator, imported as a top-level package: no diffship inside)
+import independent  # the generator, imported as a top-level package: no diffship inside
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -119,22 +119,22 @@ def summarise(rows) -> list[str]:
     shr_hit = [r["shrink"] for r in inn if np.isfinite(r["shrink"]) and r["top1"]]
     scpu = [r["screen_cpu_s"] for r in rows if r["vessel"] == "usv"]
     lines = [
-        f"- in family: top-1 {pct([r['top1'] for r in inn])} (target ≥ 90 %), top-3 {pct([r['top3'] for r in inn])}; "
-        f"median shrink of the structural gap {np.median(shr) if shr else float('nan'):.2f} over all in-family "
-        f"scenarios, {np.median(shr_hit) if shr_hit else float('nan'):.2f} over the hits (target ≥ 0.9)",
+        (f"- in family: top-1 {pct([r['top1'] for r in inn])} (target ≥ 90 %), top-3 {pct([r['top3'] for r in inn])}; "
+         f"median shrink of the structural gap {np.median(shr) if shr else float('nan'):.2f} over all in-family "
+         f"scenarios, {np.median(shr_hit) if shr_hit else float('nan'):.2f} over the hits (target ≥ 0.9)"),
     ]
     for size in sorted({r["size"] for r in inn}):
         rs = [r for r in inn if r["size"] == size]
         lines.append(f"  - {size}: top-1 {pct([r['top1'] for r in rs])}")
     lines += [
         f"- null cases: false alarms {pct([not r['top1'] for r in none])} (target ≤ 10 %)",
-        f"- out of family: right family first {pct([r['top1'] for r in out])} (target ≥ 60 %), "
-        f"right family in the top 3 {pct([r['top3'] for r in out])}",
+        (f"- out of family: right family first {pct([r['top1'] for r in out])} (target ≥ 60 %), "
+         f"right family in the top 3 {pct([r['top3'] for r in out])}"),
         (f"- screen of {rows[0]['n_candidates'] if rows else 0}–{max((r['n_candidates'] for r in rows), default=0)} candidates, "
          f"fossen3 USV: CPU time median {np.median(scpu):.1f} s, max {np.max(scpu):.1f} s (first call includes compilation; "
          "target ≤ 30 s)") if scpu else "- screen CPU time: no USV scenario run",
-        f"- whole diagnosis (base fit, screen, refits, greedy path): wall median {np.median([r['wall_s'] for r in rows]):.0f} s, "
-        f"max {max(r['wall_s'] for r in rows):.0f} s; CPU median {np.median([r['cpu_s'] for r in rows]):.0f} s",
+        (f"- whole diagnosis (base fit, screen, refits, greedy path): wall median {np.median([r['wall_s'] for r in rows]):.0f} s, "
+         f"max {max(r['wall_s'] for r in rows):.0f} s; CPU median {np.median([r['cpu_s'] for r in rows]):.0f} s"),
     ]
     return lines
 
@@ -203,12 +203,13 @@ def main(argv=None):
     summ = summarise(rows)
     figure(rows, OUT / f"{stem}_confusion.png")
     md = [f"# Gap diagnosis on independent data ({'quick' if a.quick else 'full'})", "",
-          f"Command: `python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
-          f"{' --only ' + a.only if a.only else ''}`; {len(rows)} scenarios, wall time {time.perf_counter() - t0:.0f} s "
-          "on a shared 2-core CPU (timings disturbed by other jobs).", "",
-          "Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
-          "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
-          "fitted from their defaults on 4 training runs; selection on 2 held-out runs.", "", *summ, "",
+          (f"Command: `python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
+           f"{' --vessels ' + a.vessels if a.vessels != 'ship,usv' else ''}{' --only ' + a.only if a.only else ''}`; "
+           f"{len(rows)} scenarios, wall time {time.perf_counter() - t0:.0f} s "
+           "on a shared 2-core CPU (timings disturbed by other jobs)."), "",
+          ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
+           "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
+           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "",
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",

@@ -34,8 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["Effect", "Lag", "Delay", "RateLimit", "ConstantForce", "Damping", "Wave", "Current",
-           "SensorBias"]
+__all__ = ["ConstantForce", "Current", "Damping", "Delay", "Effect", "Lag", "RateLimit", "SensorBias", "Wave"]
 
 
 @dataclasses.dataclass
@@ -177,7 +176,7 @@ class Damping(Effect):
         self.hook = "force"
 
     def force(self, t, psi, nu_r):
-        u, v, r = nu_r
+        _, v, r = nu_r
         Y = self.Yvr * abs(v) * r + self.Yrr * abs(r) * r + self.Yvvv * v ** 3
         N = self.Nvv * abs(v) * v + self.Nvr * abs(v) * r + self.Nrrr * r ** 3 + self.Nrr * abs(r) * r
         return np.array([0.0, Y, N])

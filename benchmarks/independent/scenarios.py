@@ -20,7 +20,7 @@ import numpy as np
 from . import effects as fx
 from .vessels import DEG, USV, Ship, Zigzag, simulate, usv_commands
 
-__all__ = ["Scenario", "scenarios", "generate", "NOISE", "SIZES"]
+__all__ = ["NOISE", "SIZES", "Scenario", "generate", "scenarios"]
 
 #: Sensor noise (one standard deviation): GNSS position, log/GNSS velocity, compass, gyro.
 NOISE = {"usv": {"x0": 0.4, "y0": 0.4, "psi": 0.4 * DEG, "u": 0.04, "v": 0.04, "r": 0.15 * DEG},

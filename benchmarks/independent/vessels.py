@@ -201,6 +201,9 @@ def simulate(vessel, effects: list[Effect], t: np.ndarray, *, commands: np.ndarr
     ns = len(vessel.states)
     sizes = [e.n_states(ni) for e in acts]
 
+    def held(a):
+        return lambda _t: a
+
     def actual(tt, z):
         fn, off, dz = cmd_fn, 0, []
         a = fn(tt)
@@ -208,7 +211,7 @@ def simulate(vessel, effects: list[Effect], t: np.ndarray, *, commands: np.ndarr
             a, d = e.actual(tt, z[off:off + k], fn)
             dz.append(d)
             off += k
-            fn = (lambda aa: (lambda _t: aa))(a)
+            fn = held(a)  # the next actuator effect acts on this one's output (at the same time)
         return a, (np.concatenate(dz) if dz else np.zeros(0))
 
     def f(tt, xz):

@@ -41,7 +41,7 @@ class Diagnosis:
     E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise);
     ``noise_estimate`` says per channel which estimate gave it (white second differences, the
     coloured-noise structure-function fit, or given by the user) with its fitted correlation.
-    ``shrink`` is the share of the structural gap :math:`S = \sqrt{E_{before}^2 - 1}` that the
+    ``shrink`` is the share of the structural gap S = √(E_before² − 1) that the
     ``selected`` effects close (:mod:`.shrink`); ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
     ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
     with the reason; ``final_model`` the base with the selected effects (and refitted base
