@@ -212,11 +212,14 @@ class Search:
 
         With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the
         rule and comes within ``tie_share``·Δ_w of it is a **rival**. Each rival is refitted
-        jointly with the winner (an encompassing test): the effect whose term stays significant
-        (relevant and its 95 % interval excluding the null) while the other's does not wins
-        (confidence *medium*); if both stay or both vanish the tie is unresolved (confidence
-        *tie*, and the verdict names the manoeuvre that separates them). Without rivals the
-        confidence is *high* when the runner-up misses ≥ 25 % of Δ_w, else *medium*.
+        jointly with the winner (an encompassing test): when the winner's term stays significant
+        (relevant, 95 % interval excluding the null) and the rival's does not, the rival is
+        ruled out (confidence *medium*); otherwise — both stay, both vanish, or only the rival
+        stays, which contradicts the validation ranking (nearly collinear effects such as a delay
+        and a lag trade off in a joint fit) — the tie is unresolved: the validation winner stays
+        first with confidence *tie*, and the verdict names the manoeuvre that separates them.
+        Without rivals the confidence is *high* when the runner-up misses ≥ 25 % of Δ_w, else
+        *medium*.
         """
         o, E0 = self.options, self.base.E
         name = accepted[0]
@@ -240,12 +243,8 @@ class Search:
             self.say(f"  tie {name} vs {alt}: joint refit keeps {name}: {s_w}, {alt}: {s_a}")
             if s_w and not s_a:
                 notes.append(f"{alt}'s term vanishes once {name} is in")
-            elif s_a and not s_w and name == accepted[0]:
-                notes.append(f"{name}'s term vanishes once {alt} is in")
-                name = alt
-            else:
+            else:  # both stay, both vanish, or the joint fit contradicts the validation ranking
                 unresolved.append(alt)
-        unresolved = [n for n in unresolved if n != name]
         if unresolved:
             return name, "tie", tuple(unresolved), "joint refit cannot separate them"
         return name, "medium", (), "decided by joint refit: " + "; ".join(notes)
