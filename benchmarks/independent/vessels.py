@@ -12,8 +12,10 @@ with the velocity through the water :math:`\nu_r = \nu - (R^\top v_c, 0)` and
 r(v^b_{c,y}, -v^b_{c,x}) + R^\top\dot v_c` (Fossen 2021, §10.3, eqs. 10.7–10.10: rigid-body terms
 in the inertial velocity, hydrodynamic terms in the relative one). Diagonal added mass, CG at the
 origin; :math:`C_{RB}(\nu)\nu = (-m v r,\ m u r,\ 0)`,
-:math:`C_A(\nu)\nu = (-Y_{\dot v} v r,\ X_{\dot u} u r,\ (Y_{\dot v} - X_{\dot u}) u v)` (Munk
-moment), :math:`D(\nu)\nu = -(X_u u + X_{|u|u}|u|u,\ Y_v v + Y_{|v|v}|v|v,\ N_v v + N_r r +
+:math:`C_A(\nu)\nu = (Y_{\dot v} v r,\ -X_{\dot u} u r,\ (X_{\dot u} - Y_{\dot v}) u v)` (Fossen 2021
+eq. 6.43 with diagonal added mass; the last entry is the Munk moment; C_RB and C_A are
+skew-symmetric, so without damping and forcing the kinetic energy ½νᵀMν is conserved — the
+generator's test checks this), :math:`D(\nu)\nu = -(X_u u + X_{|u|u}|u|u,\ Y_v v + Y_{|v|v}|v|v,\ N_v v + N_r r +
 N_{|r|r}|r|r)`.
 
 **Ship** (first-order Nomoto, states ψ, r; rudder δ [rad], starboard positive):
@@ -73,7 +75,7 @@ class USV:
         MA = np.array([-self.Xudot, -self.Yvdot, -self.Nrdot])
         MRB = np.array([self.m, self.m, self.Iz])
         crb = np.array([-self.m * v * r, self.m * u * r, 0.0])
-        ca = np.array([-self.Yvdot * vr * r, self.Xudot * ur * r, (self.Yvdot - self.Xudot) * ur * vr])
+        ca = np.array([self.Yvdot * vr * r, -self.Xudot * ur * r, (self.Xudot - self.Yvdot) * ur * vr])
         d = -np.array([self.Xu * ur + self.Xuu * abs(ur) * ur,
                        self.Yv * vr + self.Yvv * abs(vr) * vr,
                        self.Nv * vr + self.Nr * r + self.Nrr * abs(r) * r])

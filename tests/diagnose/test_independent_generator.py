@@ -102,3 +102,23 @@ def test_ship_zigzag_reverses_at_the_switch_heading(label):
     k = int(np.argmax(np.diff(np.abs(d)) < -1e-9))  # the first sample where the rudder comes back
     assert k > 0 and abs(d[k]) == pytest.approx(20 * np.pi / 180)
     assert abs(abs(psi[k]) - 20 * np.pi / 180) < 0.5 * np.pi / 180  # the helmsman reversed at ±20° heading
+
+
+def test_usv_coriolis_conserves_kinetic_energy():
+    """C_RB(ν) and C_A(ν) are skew-symmetric: with no damping and no forcing the kinetic
+    energy ½νᵀMν of the generator's USV stays constant (a sign error in the added-mass
+    Coriolis terms breaks this)."""
+    fx, vs = _gen()
+    usv = vs.USV(Xu=0.0, Yv=0.0, Nv=0.0, Nr=0.0, Xuu=0.0, Yvv=0.0, Nrr=0.0)
+    t = np.arange(0.0, 30.0, 0.1)
+    x = np.array([0.0, 0.0, 0.0, 2.0, 0.4, 0.15])
+    for k in range(t.size - 1):
+        x = vs.rk4_interval(lambda tt, xx: usv.rhs(tt, xx, np.zeros(3), lambda *a: np.zeros(3),
+                                                    lambda tt: (np.zeros(2), np.zeros(2))), t[k], t[k + 1], x)
+
+    def energy(x):
+        u, v, r = x[3:]
+        return 0.5 * ((usv.m - usv.Xudot) * u ** 2 + (usv.m - usv.Yvdot) * v ** 2 + (usv.Iz - usv.Nrdot) * r ** 2)
+
+    assert energy(x) == pytest.approx(energy(np.array([0, 0, 0, 2.0, 0.4, 0.15])), rel=1e-6)
+    assert abs(x[4] - 0.4) > 0.01  # the motion did change (energy moved between DOFs)
