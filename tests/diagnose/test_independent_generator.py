@@ -122,3 +122,18 @@ def test_usv_coriolis_conserves_kinetic_energy():
 
     assert energy(x) == pytest.approx(energy(np.array([0, 0, 0, 2.0, 0.4, 0.15])), rel=1e-6)
     assert abs(x[4] - 0.4) > 0.01  # the motion did change (energy moved between DOFs)
+
+
+def test_usv_added_mass_terms_match_the_textbook_component_form():
+    """Without damping or forcing: (m − X_u̇)u̇ = (m − Y_v̇)vr, (m − Y_v̇)v̇ = −(m − X_u̇)ur and
+    (I_z − N_ṙ)ṙ = (Y_v̇ − X_u̇)uv (the Munk moment turns the hull broadside: negative for u, v > 0
+    when |Y_v̇| > |X_u̇|). Energy conservation alone does not fix these signs."""
+    fx, vs = _gen()
+    usv = vs.USV(Xu=0.0, Yv=0.0, Nv=0.0, Nr=0.0, Xuu=0.0, Yvv=0.0, Nrr=0.0)
+    u, v, r = 2.0, 0.4, 0.15
+    d = usv.rhs(0.0, np.array([0.0, 0.0, 0.0, u, v, r]), np.zeros(3), lambda *a: np.zeros(3),
+                lambda tt: (np.zeros(2), np.zeros(2)))
+    m, Xa, Ya, Na = usv.m, usv.Xudot, usv.Yvdot, usv.Nrdot
+    np.testing.assert_allclose(d[3:], [(m - Ya) * v * r / (m - Xa), -(m - Xa) * u * r / (m - Ya),
+                                       (Ya - Xa) * u * v / (usv.Iz - Na)], rtol=1e-12)
+    assert d[5] < 0
