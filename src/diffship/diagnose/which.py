@@ -8,7 +8,7 @@ validation runs (:mod:`.shrink`).
 
 **Acceptance rule** for an effect (all must hold):
 
-* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.2; E normalised by the noise
+* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.1; E normalised by the noise
   floor, so :math:`E_{floor} = 1`);
 * validation error drops by at least ``min_gain`` (5 %) **and** by more than the noise-level
   threshold ``max(0.1, 2·SE)`` in normalised units (SE of the mean per-run gain, with four or
