@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 
 from ..data import Run
-from ..errors import DataError
+from ..errors import DataError, FitError
 from ..fit import FitResult, OutputErrorOptions, fit_output_error
 from ..fit.problem import default_channels
 from ..metrics import Evaluation
@@ -182,6 +182,19 @@ def diagnose(
     # -- where ---------------------------------------------------------------------------------
     t0 = time.perf_counter()
     before = validation.base()
+    null_base = None
+    if not fit.converged:
+        # a base fit stopped early would let every refit (which also moves θ) take credit for
+        # finishing it: the reference is the base refitted with the same procedure, no effect
+        say(f"the base fit did not converge ({fit.status}); continuing it with the refit procedure")
+        try:
+            rf0 = ws.refit([], [{}], max_iter=o.max_iter, progress=say)
+            if rf0.ok and rf0.train_cost < sinfo["train_cost"]:
+                before = validation.refit(rf0)
+                sinfo["train_cost"] = rf0.train_cost
+                null_base = rf0.base_values
+        except FitError as exc:
+            say(f"  continuing the base fit failed: {exc}")
     where = where_analysis(base, val, before.evaluation, floor, chans)
     timings["where"] = time.perf_counter() - t0
     gap = gap_budget(fit, before.E)
@@ -189,6 +202,7 @@ def diagnose(
 
     # -- which: refit, validate, select --------------------------------------------------------
     search = Search(ws, validation, before, o, say)
+    search.null_base = null_base
     t0 = time.perf_counter()
     singles = search.singles(refit_order(scr, o))
     timings["refits"] = time.perf_counter() - t0

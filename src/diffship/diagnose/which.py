@@ -107,6 +107,7 @@ class Search:
         self.base = base
         self.options = options
         self.say = say
+        self.null_base: dict[str, float] | None = None  # set when the base fit was continued
         self.has_gap = base.E >= options.gap_gate
 
     def effect(self, name: str) -> Effect:
@@ -332,7 +333,8 @@ class Search:
     def final_model(self, sel: Selection) -> Augmented:
         """The base model with the selected effects at their fitted values (and the refitted base)."""
         if not sel.selected:
-            return Augmented(self.ws.base, [])
+            nb = self.null_base  # the base fit continued by the refit procedure
+            return Augmented(self.ws.base.with_params(nb) if nb else self.ws.base, [])
         base: AbstractModel = self.ws.base
         m = Augmented(base.with_params(sel.base_values), [e for e in self.ws.effects if e.name in sel.selected])
         return m.with_params({n: v for n, v in sel.values.items() if n in m.param_names})
