@@ -184,7 +184,7 @@ def main(argv=None):
         grid = independent.scenarios(vessels, sizes=("weak", "strong"), seeds=(1, 2), nulls=2)
     if a.only:
         keys = a.only.split(",")
-        grid = [s for s in grid if any(k in s.name for k in keys)]
+        grid = list(dict.fromkeys(s for k in keys for s in grid if k in s.name))  # in the order asked
     stem = "diagnosis_independent" + ("_quick" if a.quick else "") + ("" if a.vessels == "ship,usv" else "_" + "_".join(vessels)) \
         + ("_subset" if a.only else "")
     OUT.mkdir(exist_ok=True)
