@@ -17,6 +17,14 @@ validation runs (:mod:`.shrink`).
   excludes the null;
 * to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
 
+**Confidence.** The first selected effect states how sure it is (:meth:`Search._confidence`):
+*high* when the runner-up misses ≥ 25 % of its validation gain, *medium* otherwise or when a
+close rival is ruled out by a joint refit, *tie* when a rival within ``tie_share`` of its gain
+cannot be ruled out — the verdict then names the manoeuvre that separates the two.
+
+**Base reference.** When the base fit stopped before converging, it is continued by the same
+refit procedure with no effect, and that is the reference every candidate is judged against.
+
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
 against the previous step. When no single effect passes, up to ``max_pairs`` pairs of the best
