@@ -50,6 +50,13 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     lag = next(r for r in d.ranking if r.effect == "actuator_lag")
     assert lag.params["T_act"] == pytest.approx(2.5, rel=0.1)
     assert lag.verdict == "attributed"
+    # every verdict states its confidence; a tie would name the separating experiment
+    assert lag.confidence.split()[0] in ("high", "medium", "tie")
+    assert "confidence:" in d.verdict[1]
+    if lag.confidence.startswith("tie"):
+        assert "separate with" in lag.confidence
+    # the noise floor says how it was estimated (white noise here)
+    assert {v["method"] for v in d.to_dict()["noise_estimate"].values()} == {"white (second differences)"}
     # the recovered base parameters are the truth's once the effect is in
     fp = d.final_model.param_values()
     assert fp["K"] == pytest.approx(0.2, rel=0.05) and fp["T1"] == pytest.approx(8.0, rel=0.1)
