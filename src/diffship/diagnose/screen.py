@@ -135,6 +135,7 @@ class Workspace:
         batch = make_batch(self.model, runs, self.channels)
         self.x0_scale = x0_scales(base, batch, [base.state_names[i] for i in self.x0_idx])
         self.train = self._data(runs, x0_train, batch)
+        self.base_cost = math.inf  # the base fit's training cost, set by the screen
 
     def _data(self, runs, x0_base=None, batch=None) -> dict:
         b = batch if batch is not None else make_batch(self.model, runs, self.channels)
@@ -262,6 +263,7 @@ class Workspace:
             out.append(ScreenResult(e.name, e.param_names, T, float(stats.chi2.sf(T, len(e.param_names))),
                                     ss / float(r0 @ r0), o, not e.smooth_null))
         out.sort(key=lambda s: -s.predicted_fraction)
+        self.base_cost = 0.5 * float(r0 @ r0)
         info = {"seconds": time.perf_counter() - t0, "inflation": kappa, "train_cost": 0.5 * float(r0 @ r0),
                 "residual_variance": s2, "n_residuals": m}
         return out, info
@@ -274,9 +276,9 @@ class Workspace:
 
         Each start is solved by the output-error kernel's Levenberg–Marquardt (the unselected
         effect coordinates have zero Jacobian columns and stay at zero); the start with the
-        lowest cost wins, and is continued for up to ``rounds`` more solves of ``4·max_iter``
-        steps while it stops at the step cap and still lowers the cost (``converged`` says
-        whether it ended before the cap). Standard errors come from :func:`diffship.fit.covariance.covariance`
+        lowest cost wins, and — when it already removes half the base training cost — is
+        continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
+        step cap and still lowers the cost (``converged`` says whether it ended before the cap). Standard errors come from :func:`diffship.fit.covariance.covariance`
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
         """
         t0 = time.perf_counter()
@@ -310,7 +312,10 @@ class Workspace:
         # a refit that stops at the step cap has not converged: continue the best start (same
         # compiled program) while it still lowers the cost, up to ``rounds`` more times
         converged = it < 4 * max_iter
-        for _ in range(rounds):
+        # only a refit that already explains most of the training cost is worth finishing (a
+        # wrong candidate far from the data crawls; its verdict does not depend on the last digits)
+        promising = cost < 0.5 * self.base_cost
+        for _ in range(rounds if promising else 0):
             if converged:
                 break
             z1, _, steps, r1 = self.kernel.call("solve", z, self._kd(None, S, phi0), max_steps=4 * max_iter,
