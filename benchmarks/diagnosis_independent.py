@@ -186,7 +186,7 @@ def main(argv=None):
         keys = a.only.split(",")
         grid = list(dict.fromkeys(s for k in keys for s in grid if k in s.name))  # in the order asked
     stem = "diagnosis_independent" + ("_quick" if a.quick else "") + ("" if a.vessels == "ship,usv" else "_" + "_".join(vessels)) \
-        + ("_subset" if a.only else "")
+        + ("_" + "_".join(k.replace("-", "") for k in a.only.split(",")) if a.only else "")
     OUT.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     rows = []
