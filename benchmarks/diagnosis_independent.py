@@ -170,13 +170,59 @@ def figure(rows, path):
     plt.close(fig)
 
 
+def _typed(r: dict) -> dict:
+    out = {}
+    for k, v in r.items():
+        if v in ("True", "False"):
+            out[k] = v == "True"
+        else:
+            try:
+                out[k] = float(v) if k not in ("seed",) else int(v)
+            except ValueError:
+                out[k] = v
+    return out
+
+
+def write_md(rows, stem: str, command: str, wall: float):
+    summ = summarise(rows)
+    figure(rows, OUT / f"{stem}_confusion.png")
+    md = [f"# Gap diagnosis on independent data ({stem})", "",
+          (f"Command: `{command}`; {len(rows)} scenarios"
+           + (f", wall time {wall:.0f} s" if np.isfinite(wall) else "")
+           + " on a shared 2-core CPU (timings disturbed by other jobs)."), "",
+          ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
+           "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
+           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "",
+          "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
+          *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
+          f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
+          "| scenario | selected | top-1 | top-3 | E base | E after | E truth | shrink | confidence | screen CPU s |",
+          "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
+                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} |")
+    md += ["", "## Verdicts (which)", ""] + [f"- {r['scenario']}: {r['verdict']}" for r in rows]
+    (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="strong sizes, one seed, one null per vessel")
     p.add_argument("--only", default="", help="run only scenarios whose name contains this text (comma-separated)")
     p.add_argument("--vessels", default="ship,usv")
     p.add_argument("--verbose", action="store_true")
+    p.add_argument("--merge", nargs="+", default=None,
+                   help="write diagnosis_independent.md from these result CSVs (runs done separately) and stop")
     a = p.parse_args(argv)
+    if a.merge:
+        rows = []
+        for f in a.merge:
+            with open(f, newline="") as fh:
+                rows += [_typed(r) for r in csv.DictReader(fh)]
+        write_md(rows, "diagnosis_independent", "python benchmarks/diagnosis_independent.py --merge "
+                 + " ".join(Path(f).name for f in a.merge), float("nan"))
+        print("\n".join(summarise(rows)))
+        return
     vessels = tuple(a.vessels.split(","))
     if a.quick:
         grid = independent.scenarios(vessels, sizes=("strong",), seeds=(1,), nulls=1)
@@ -200,28 +246,10 @@ def main(argv=None):
         print(f"[{time.perf_counter() - t0:6.0f} s] {r['scenario']:34s} → {r['selected']:28s} top1={r['top1']!s:5s} "
               f"E {r['E_base']:.2f}→{r['E_after']:.2f} (truth {r['E_truth']:.2f}) shrink {r['shrink']:.2f} "
               f"[{r['confidence']}] screen {r['screen_cpu_s']:.1f} s CPU", flush=True)
-    summ = summarise(rows)
-    figure(rows, OUT / f"{stem}_confusion.png")
-    md = [f"# Gap diagnosis on independent data ({'quick' if a.quick else 'full'})", "",
-          (f"Command: `python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
-           f"{' --vessels ' + a.vessels if a.vessels != 'ship,usv' else ''}{' --only ' + a.only if a.only else ''}`; "
-           f"{len(rows)} scenarios, wall time {time.perf_counter() - t0:.0f} s "
-           "on a shared 2-core CPU (timings disturbed by other jobs)."), "",
-          ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
-           "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
-           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "",
-          "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
-          *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
-          f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
-          "| scenario | selected | top-1 | top-3 | E base | E after | E truth | shrink | confidence | screen CPU s |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
-                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} |")
-    md += ["", "## Verdicts (which)", ""] + [f"- {r['scenario']}: {r['verdict']}" for r in rows]
-    (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
-    print("\n".join(summ))
-
+    write_md(rows, stem, (f"python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
+                          f"{' --vessels ' + a.vessels if a.vessels != 'ship,usv' else ''}"
+                          f"{' --only ' + a.only if a.only else ''}"), time.perf_counter() - t0)
+    print("\n".join(summarise(rows)))
 
 if __name__ == "__main__":
     main()
