@@ -20,7 +20,7 @@ OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 #: top-level keys of the JSON contract (``Diagnosis.to_dict()``)
 JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
-             "noise_floor", "shrink", "shrink_definition", "shrink_total_error", "base_params", "final_params",
+             "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "final_params",
              "not_applicable", "timings_s"]
 
 
@@ -50,6 +50,13 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     lag = next(r for r in d.ranking if r.effect == "actuator_lag")
     assert lag.params["T_act"] == pytest.approx(2.5, rel=0.1)
     assert lag.verdict == "attributed"
+    # every verdict states its confidence; a tie would name the separating experiment
+    assert lag.confidence.split()[0] in ("high", "medium", "tie")
+    assert "confidence:" in d.verdict[1]
+    if lag.confidence.startswith("tie"):
+        assert "separate with" in lag.confidence
+    # the noise floor says how it was estimated (white noise here)
+    assert {v["method"] for v in d.to_dict()["noise_estimate"].values()} == {"white (second differences)"}
     # the recovered base parameters are the truth's once the effect is in
     fp = d.final_model.param_values()
     assert fp["K"] == pytest.approx(0.2, rel=0.05) and fp["T1"] == pytest.approx(8.0, rel=0.1)
@@ -64,7 +71,7 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     row = next(r for r in d2["ranking"] if r["effect"] == "actuator_lag")
     assert list(row) == ["effect", "family", "params", "stderr", "validation_gain", "shrink", "validation_E",
                          "train_cost_reduction", "screen_fraction", "orthogonal_fraction", "p_value", "verdict",
-                         "confusable_with", "separating_manoeuvre"]
+                         "confidence", "confusable_with", "separating_manoeuvre"]
     assert list(d2["path"][0])[:4] == ["effect", "E_before", "E_after", "shrink_of_structural_gap"]
     assert "_residuals" not in d2["where"] and set(d2["where"]) >= {"per_channel", "per_phase", "residual_tests"}
     files = write_report(d, tmp_path)  # Markdown, JSON and the five figures

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 
 from ..data import Run
-from ..errors import DataError
+from ..errors import DataError, FitError
 from ..fit import FitResult, OutputErrorOptions, fit_output_error
 from ..fit.problem import default_channels
 from ..metrics import Evaluation
@@ -25,22 +25,24 @@ from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .verdict import RankedEffect, rank, verdict_lines
-from .where import GapBudget, WhereAnalysis, gap_budget, noise_floor, where_analysis
+from .where import GapBudget, WhereAnalysis, gap_budget, noise_estimates, where_analysis
 from .which import Search, refit_order
 
-__all__ = ["diagnose", "Diagnosis"]
+__all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]
 
-SHRINK_DEFINITION = ("(E_before - E_after) / (E_before - E_floor): fraction of the structural "
-                     "(above-noise) validation error removed by the selected effects")
+SHRINK_DEFINITION = ("(S(E_before) - S(E_after)) / S(E_before) with S(E) = sqrt(max(E^2 - 1, 0)): share of the "
+                     "structural (above-noise, RMS) validation error closed by the selected effects")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Diagnosis:
     """Everything :func:`diagnose` found (``to_dict()`` gives the JSON).
 
-    E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise).
-    ``shrink`` is the fraction of the structural gap ``E_before − 1`` that the ``selected``
-    effects remove; ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
+    E values are validation errors normalised by the per-channel ``noise_floor`` (1 = noise);
+    ``noise_estimate`` says per channel which estimate gave it (white second differences, the
+    coloured-noise structure-function fit, or given by the user) with its fitted correlation.
+    ``shrink`` is the share of the structural gap S = √(E_before² − 1) that the
+    ``selected`` effects close (:mod:`.shrink`); ``path`` the greedy steps; ``ranking`` every candidate with its verdict;
     ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
     with the reason; ``final_model`` the base with the selected effects (and refitted base
     parameters); ``eval_before`` / ``eval_after`` the validation evaluations of the base and
@@ -50,6 +52,7 @@ class Diagnosis:
     model_name: str
     channels: tuple[str, ...]
     noise_floor: dict[str, float]
+    noise_estimate: dict[str, dict]
     where: WhereAnalysis
     gap: GapBudget
     screen: tuple[ScreenResult, ...]
@@ -91,6 +94,7 @@ class Diagnosis:
             "validation_E_before": self.E_before,
             "validation_E_after": self.E_after,
             "noise_floor": self.noise_floor,
+            "noise_estimate": self.noise_estimate,
             "shrink": self.shrink,
             "shrink_definition": SHRINK_DEFINITION,
             "shrink_total_error": self.shrink_total_error,
@@ -99,6 +103,16 @@ class Diagnosis:
             "not_applicable": self.skipped,
             "timings_s": self.timings,
         }
+
+
+def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, ...]:
+    """The fit's default channels plus the positions where the model predicts them and every run
+    has them: sensor and kinematic effects (heading bias, current) show mainly in the GNSS
+    track, so a diagnosis without positions cannot see them (the fit's own default leaves
+    positions out for robustness of fits from poor starts)."""
+    chans = default_channels(model, runs)
+    pos = tuple(c for c in ("x0", "y0") if c in model.output_names and c not in chans and all(r.has(c) for r in runs))
+    return tuple(c for c in model.output_names if c in chans or c in pos)
 
 
 def diagnose(
@@ -135,7 +149,7 @@ def diagnose(
     spec = spec or model.spec()
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
-        chans0 = o.channels or default_channels(model, train)
+        chans0 = o.channels or diagnosis_channels(model, train)
         fit = fit_output_error(model, train, spec=spec, channels=chans0, progress=say,
                                options=OutputErrorOptions(max_steps=o.fit_steps,
                                                           estimate_x0=model.states_for_channels(chans0)))
@@ -143,11 +157,17 @@ def diagnose(
     base = fit.model
     chans = tuple(fit.channels)
     base_spec = spec.with_values({n: fit.params[n] for n in spec.names})
-    floor = dict(o.noise) if o.noise else noise_floor(list(train) + list(val), chans, base.angle_outputs)
+    if o.noise:
+        floor = dict(o.noise)
+        noise_info = {c: {"sigma": floor[c], "method": "given (DiagnoseOptions.noise)"} for c in chans}
+    else:
+        est = noise_estimates(list(train) + list(val), chans, base.angle_outputs)
+        floor = {c: e.sigma for c, e in est.items()}
+        noise_info = {c: dataclasses.asdict(e) for c, e in est.items()}
     scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
 
     # -- which: screen -----------------------------------------------------------------------
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     effs, skipped = library(base, train, o.effect_names)
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
@@ -156,11 +176,25 @@ def diagnose(
     ws = Workspace(base, base_spec, effs, train, chans, scales, x0_train=x0_train, integrator=fit.integrator)
     scr, sinfo = ws.screen()
     timings["screen"] = time.perf_counter() - t0
+    timings["screen_cpu"] = time.process_time() - c0  # CPU time of all threads, compilation included
     validation = Validation(ws, val, floor, chans)
 
     # -- where ---------------------------------------------------------------------------------
     t0 = time.perf_counter()
     before = validation.base()
+    null_base = None
+    if not fit.converged:
+        # a base fit stopped early would let every refit (which also moves θ) take credit for
+        # finishing it: the reference is the base refitted with the same procedure, no effect
+        say(f"the base fit did not converge ({fit.status}); continuing it with the refit procedure")
+        try:
+            rf0 = ws.refit([], [{}], max_iter=o.max_iter, progress=say)
+            if rf0.ok and rf0.train_cost < sinfo["train_cost"]:
+                before = validation.refit(rf0)
+                sinfo["train_cost"] = rf0.train_cost
+                null_base = rf0.base_values
+        except FitError as exc:
+            say(f"  continuing the base fit failed: {exc}")
     where = where_analysis(base, val, before.evaluation, floor, chans)
     timings["where"] = time.perf_counter() - t0
     gap = gap_budget(fit, before.E)
@@ -168,6 +202,7 @@ def diagnose(
 
     # -- which: refit, validate, select --------------------------------------------------------
     search = Search(ws, validation, before, o, say)
+    search.null_base = null_base
     t0 = time.perf_counter()
     singles = search.singles(refit_order(scr, o))
     timings["refits"] = time.perf_counter() - t0
@@ -176,10 +211,11 @@ def diagnose(
     timings["greedy"] = time.perf_counter() - t0
 
     # -- how far and verdicts --------------------------------------------------------------------
-    ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o)
+    ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
+                   sel.rivals, sel.note)
     shrink = sel.shrink(before.E)
     return Diagnosis(
-        model_name=model.name, channels=chans, noise_floor=floor, where=where, gap=gap, screen=tuple(scr),
+        model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),

@@ -26,6 +26,9 @@ def to_markdown(d) -> str:
     L += ["## Where", "", "| channel | RMSE before | RMSE after | noise floor | share of error |", "|---|---|---|---|---|"]
     for c, v in d.where.per_channel.items():
         L.append(f"| {c} | {d.rmse_before[c]:.4g} | {d.rmse_after[c]:.4g} | {v['noise_floor']:.3g} | {100 * v['share']:.0f} % |")
+    L += ["", "Noise floor per channel: " + "; ".join(
+        f"{c}: {v['sigma']:.3g} ({v['method']}" + (f", lag-1 correlation {v['rho']:.2f}" if "rho" in v else "") + (f"; {v['note']}" if v.get("note") else "") + ")"
+        for c, v in getattr(d, "noise_estimate", {}).items())]
     L += ["", "| phase | time share | E |", "|---|---|---|"]
     for p, v in d.where.per_phase.items():
         L.append(f"| {p} | {100 * v['fraction_of_time']:.0f} % | {v['E']:.3g} |")

@@ -42,6 +42,7 @@ class RankedEffect:
     orthogonal_fraction: float | None = None
     p_value: float | None = None
     verdict: str
+    confidence: str | None = None
     confusable_with: tuple[str, ...] | None = None
     separating_manoeuvre: str | None = None
 
@@ -75,9 +76,12 @@ def _verdict(s: ScreenResult, c: Candidate, e: Effect, selected: Sequence[str], 
 
 def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects: Sequence[Effect],
          selected: Sequence[str], train_cost: float, skipped: dict[str, str],
-         options: DiagnoseOptions) -> tuple[RankedEffect, ...]:
+         options: DiagnoseOptions, confidence: str = "", rivals: Sequence[str] = (),
+         note: str = "") -> tuple[RankedEffect, ...]:
     """Every screened candidate with its verdict: selected first, then by validation gain; the
-    effects that do not apply last. ``train_cost``: the base fit's cost on the training runs."""
+    effects that do not apply last. ``train_cost``: the base fit's cost on the training runs;
+    ``confidence``, ``rivals``, ``note``: how sure the first selected effect is
+    (:meth:`~.which.Search._confidence`)."""
     by_name = {e.name: e for e in effects}
     winner = singles[selected[0]] if selected else None
     rows = []
@@ -95,12 +99,21 @@ def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects:
             rows.append(RankedEffect(**common, params={}, stderr={}, verdict=verdict))
             continue
         rf = c.refit
+        conf = None
+        if selected and n == selected[0]:
+            conf = confidence or "medium"
+            if rivals:
+                conf = f"tie with {', '.join(rivals)} ({note}): separate with {e.separating}"
+            elif note:
+                conf = f"{conf} ({note})"
+        elif n in rivals:
+            conf = f"tie with {selected[0]}: separate with {e.separating}"
         rows.append(RankedEffect(
             **common, params={k: rf.values[k] for k in e.param_names},
             stderr={k: rf.stderr.get(k, float("nan")) for k in e.param_names},
             validation_gain=float(c.judgement.gain), shrink=float(c.judgement.shrink), validation_E=float(c.score.E),
             train_cost_reduction=1 - rf.train_cost / train_cost,
-            verdict=_verdict(s, c, e, selected, winner, train_cost, options)))
+            verdict=_verdict(s, c, e, selected, winner, train_cost, options), confidence=conf))
     rows.sort(key=lambda r: (0 if r.effect in selected else 1, -r.validation_gain))
     rows += [RankedEffect(effect=n, family=FAMILY[n], params={}, verdict=f"not applicable: {why}")
              for n, why in skipped.items()]
@@ -137,7 +150,7 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
         w = selected[0]
         conf = [x.effect for x in ranking if x.verdict.startswith("confusable")]
         rej = [x.effect for x in ranking if x.verdict.startswith("rejected on validation")]
-        which = (f"Which: {w} ({format_params(r[w].params, r[w].stderr)})"
+        which = (f"Which: {w} ({format_params(r[w].params, r[w].stderr)}; confidence: {r[w].confidence})"
                  + (" then " + ", ".join(selected[1:]) if len(selected) > 1 else "")
                  + (f"; confusable: {', '.join(conf)}" if conf else "")
                  + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")

@@ -8,7 +8,7 @@ validation runs (:mod:`.shrink`).
 
 **Acceptance rule** for an effect (all must hold):
 
-* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.2; E normalised by the noise
+* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.1; E normalised by the noise
   floor, so :math:`E_{floor} = 1`);
 * validation error drops by at least ``min_gain`` (5 %) **and** by more than the noise-level
   threshold ``max(0.1, 2·SE)`` in normalised units (SE of the mean per-run gain, with four or
@@ -16,6 +16,14 @@ validation runs (:mod:`.shrink`).
 * at least one effect parameter is relevant (|φ̂ − φ₀| ≥ MIN_RELEVANT) and its 95 % interval
   excludes the null;
 * to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
+
+**Confidence.** The first selected effect states how sure it is (:meth:`Search._confidence`):
+*high* when the runner-up misses ≥ 25 % of its validation gain, *medium* otherwise or when a
+close rival is ruled out by a joint refit, *tie* when a rival within ``tie_share`` of its gain
+cannot be ruled out — the verdict then names the manoeuvre that separates the two.
+
+**Base reference.** When the base fit stopped before converging, it is continued by the same
+refit procedure with no effect, and that is the reference every candidate is judged against.
 
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
@@ -73,10 +81,13 @@ class Selection:
     final: Score
     values: dict[str, float]
     base_values: dict[str, float] | None
+    confidence: str = ""
+    rivals: tuple[str, ...] = ()
+    note: str = ""
 
     def shrink(self, E0: float) -> float:
-        """Fraction of the structural gap removed by the selected effects (0 if none)."""
-        return float((E0 - self.final.E) / (E0 - 1.0)) if (E0 > 1.0 and self.selected) else 0.0
+        """Share of the structural gap S(E0) closed by the selected effects (0 if none; :mod:`.shrink`)."""
+        return structural_shrink(E0, E0, self.final.E) if self.selected else 0.0
 
 
 def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:
@@ -104,6 +115,7 @@ class Search:
         self.base = base
         self.options = options
         self.say = say
+        self.null_base: dict[str, float] | None = None  # set when the base fit was continued
         self.has_gap = base.E >= options.gap_gate
 
     def effect(self, name: str) -> Effect:
@@ -180,9 +192,10 @@ class Search:
         if not accepted and self.has_gap and o.max_pairs > 0:
             cur = self._pair(singles, by_E) or cur
         if accepted:
-            name, w = accepted[0], singles[accepted[0]]
+            name, conf, rivals, note = self._confidence(singles, accepted, by_E)
+            w = singles[name]
             step = PathStep.between(name, self.base, w.score, E0, w.refit, self.validation.channels)
-            cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values)
+            cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values, conf, rivals, note)
             cands = [n for n in by_E if n != name and singles[n].judgement.gain > 0][:3]
             for _ in range(1, o.greedy_steps):
                 nxt = self._greedy_step(cur, cands)
@@ -190,8 +203,60 @@ class Search:
                     break
                 cur = nxt
             if len(cur.selected) >= 2:
-                cur = self._swap(cur, [n for n in accepted if n not in cur.selected]) or cur
+                sw = self._swap(cur, [n for n in accepted if n not in cur.selected])
+                if sw is not None:
+                    cur = dataclasses.replace(sw, confidence="medium", note="after a swap of confusable effects")
         return cur
+
+    # -- confidence and ties -----------------------------------------------------------------
+    def _significant(self, rf: RefitResult, name: str) -> bool:
+        """Some parameter of ``name`` is relevant and its 95 % interval excludes the null."""
+        e = self.effect(name)
+        return any(abs(rf.values[n] - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
+                   and abs(rf.values[n] - e.null()[n]) > 1.96 * rf.stderr.get(n, math.inf) for n in e.param_names)
+
+    def _confidence(self, singles: dict[str, Candidate], accepted: list[str],
+                    by_E: list[str]) -> tuple[str, str, tuple[str, ...], str]:
+        r"""The first effect, its confidence, unresolved rivals and how it was decided.
+
+        With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the
+        rule and comes within ``tie_share``·Δ_w of it is a **rival**. Each rival is refitted
+        jointly with the winner (an encompassing test): when the winner's term stays significant
+        (relevant, 95 % interval excluding the null) and the rival's does not, the rival is
+        ruled out (confidence *medium*); otherwise — both stay, both vanish, or only the rival
+        stays, which contradicts the validation ranking (nearly collinear effects such as a delay
+        and a lag trade off in a joint fit) — the tie is unresolved: the validation winner stays
+        first with confidence *tie*, and the verdict names the manoeuvre that separates them.
+        Without rivals the confidence is *high* when the runner-up misses ≥ 25 % of Δ_w, else
+        *medium*.
+        """
+        o, E0 = self.options, self.base.E
+        name = accepted[0]
+        span = max(E0 - singles[name].score.E, 1e-12)
+        close = [n for n in accepted[1:] if singles[n].score.E - singles[name].score.E < o.tie_share * span]
+        if not close:
+            second = next((n for n in by_E if n != name), None)
+            margin = (singles[second].score.E - singles[name].score.E) / span if second else 1.0
+            return name, ("high" if margin >= 0.25 else "medium"), (), f"runner-up {second} misses {100 * margin:.0f} % of the gain" if second else ""
+        unresolved, notes = [], []
+        for alt in close:
+            if self.n_params((name, alt)) > P_MAX:
+                unresolved.append(alt)
+                continue
+            try:
+                rf, _ = self._refit([name, alt], [{**singles[name].refit.values, **singles[alt].refit.values}])
+            except FitError:
+                unresolved.append(alt)
+                continue
+            s_w, s_a = self._significant(rf, name), self._significant(rf, alt)
+            self.say(f"  tie {name} vs {alt}: joint refit keeps {name}: {s_w}, {alt}: {s_a}")
+            if s_w and not s_a:
+                notes.append(f"{alt}'s term vanishes once {name} is in")
+            else:  # both stay, both vanish, or the joint fit contradicts the validation ranking
+                unresolved.append(alt)
+        if unresolved:
+            return name, "tie", tuple(unresolved), "joint refit cannot separate them"
+        return name, "medium", (), "decided by joint refit: " + "; ".join(notes)
 
     def _pair(self, singles: dict[str, Candidate], by_E: list[str]) -> Selection | None:
         """Two effects refitted jointly: each can fail alone (compensating the other on some runs)
@@ -276,7 +341,8 @@ class Search:
     def final_model(self, sel: Selection) -> Augmented:
         """The base model with the selected effects at their fitted values (and the refitted base)."""
         if not sel.selected:
-            return Augmented(self.ws.base, [])
+            nb = self.null_base  # the base fit continued by the refit procedure
+            return Augmented(self.ws.base.with_params(nb) if nb else self.ws.base, [])
         base: AbstractModel = self.ws.base
         m = Augmented(base.with_params(sel.base_values), [e for e in self.ws.effects if e.name in sel.selected])
         return m.with_params({n: v for n, v in sel.values.items() if n in m.param_names})
