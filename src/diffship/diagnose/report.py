@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data import CHANNEL_UNITS
 from .verdict import format_params
 
 __all__ = ["to_markdown", "plot_all", "write_json", "write_report"]
@@ -23,13 +24,17 @@ def to_markdown(d) -> str:
     L += ["## Gap budget (validation, normalised by the noise floor)", "",
           "| total E | noise | parameter | structural |", "|---|---|---|---|",
           f"| {d.gap.E_total:.3g} | {d.gap.E_noise:.3g} | {d.gap.E_param:.3g} | {d.gap.E_struct:.3g} |", ""]
-    L += ["## Where", "", "| channel | RMSE before | RMSE after | noise floor | share of error |", "|---|---|---|---|---|"]
+    L += ["## Where", "", "| channel [unit] | RMSE before | RMSE after | noise floor | share of error |", "|---|---|---|---|---|"]
     for c, v in d.where.per_channel.items():
-        L.append(f"| {c} | {d.rmse_before[c]:.4g} | {d.rmse_after[c]:.4g} | {v['noise_floor']:.3g} | {100 * v['share']:.0f} % |")
+        u, k = CHANNEL_UNITS.get(c, ("SI", 1.0))
+        L.append(f"| {c} [{u}] | {k * d.rmse_before[c]:.4g} | {k * d.rmse_after[c]:.4g} | {k * v['noise_floor']:.3g} | "
+                 f"{100 * v['share']:.0f} % |")
     L += ["", "Noise floor per channel: " + "; ".join(
-        f"{c}: {v['sigma']:.3g} ({v['method']}" + (f", lag-1 correlation {v['rho']:.2f}" if "rho" in v else "") + (f"; {v['note']}" if v.get("note") else "") + ")"
+        f"{c}: {CHANNEL_UNITS.get(c, ('SI', 1.0))[1] * v['sigma']:.3g} {CHANNEL_UNITS.get(c, ('SI', 1.0))[0]} ({v['method']}"
+        + (f", lag-1 correlation {v['rho']:.2f}" if "rho" in v else "") + (f"; {v['note']}" if v.get("note") else "") + ")"
         for c, v in getattr(d, "noise_estimate", {}).items())]
-    L += ["", "| phase | time share | E |", "|---|---|---|"]
+    L += ["", "E: RMS error over the noise floor (dimensionless); parameters in SI units, angles in rad.", "",
+          "| phase | time share | E |", "|---|---|---|"]
     for p, v in d.where.per_phase.items():
         L.append(f"| {p} | {100 * v['fraction_of_time']:.0f} % | {v['E']:.3g} |")
     L += ["", "| run | E |", "|---|---|"] + [f"| {k} | {v['E']:.3g} |" for k, v in d.where.per_run.items()]
