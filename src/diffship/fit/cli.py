@@ -355,7 +355,9 @@ def check_channels(model, runs, channels=None) -> None:
     Needed: every model input (``model.input_names``), the surge speed ``u`` where it is a
     state (a manoeuvring model cannot start without its speed), and the ``--channels`` asked for.
     """
-    need = list(model.input_names) + (["u"] if "u" in model.state_names else []) + list(channels or ())
+    optional = getattr(model, "INPUT_DEFAULTS", {}) or {}  # inputs a run may omit (e.g. free decay: zero force)
+    need = ([n for n in model.input_names if n not in optional] + (["u"] if "u" in model.state_names else [])
+            + list(channels or ()))
     problems = []
     for run in runs:
         missing = [c for c in dict.fromkeys(need) if not run.has(c)]
