@@ -12,26 +12,31 @@ from diffship.models import Nomoto1
 from diffship.synthetic import nomoto_runs
 runs = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=30.0, dt=0.1, noise="none")
 res = fit_output_error(Nomoto1(), runs, options=OutputErrorOptions(weights="spread"))
-print(cache.cache_dir(), compiled.loaded(), res.compile_seconds, res.converged)
+e = compiled.exported()
+print(cache.cache_dir(), compiled.loaded(), res.compile_seconds, res.converged, e["saved"], e["loaded"],
+      res.params["K"])
 """
 
 
 def _run(env):
     out = subprocess.run([sys.executable, "-c", CODE], capture_output=True, text=True, env=env, check=True)
-    d, loaded, compile_s, ok = out.stdout.split()
-    return d, int(loaded), float(compile_s), ok == "True"
+    d, loaded, compile_s, ok, saved, exp_loaded, k = out.stdout.split()
+    return d, int(loaded), float(compile_s), ok == "True", int(saved), int(exp_loaded), float(k)
 
 
 def test_second_process_loads_instead_of_compiling(tmp_path):
     env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(tmp_path / "jax")}
-    d1, loaded1, c1, ok1 = _run(env)
-    d2, loaded2, c2, ok2 = _run(env)
+    d1, loaded1, c1, ok1, saved1, exp1, k1 = _run(env)
+    d2, loaded2, c2, ok2, saved2, exp2, k2 = _run(env)
     assert ok1 and ok2 and d1 == d2 == str(tmp_path / "jax")
     assert loaded1 == 0 and loaded2 >= 2, (loaded1, loaded2)
-    assert any((tmp_path / "jax").iterdir())
+    # the second process neither traces (StableHLO from the export store) nor compiles (XLA cache)
+    assert saved1 >= 2 and exp1 == 0 and saved2 == 0 and exp2 == saved1, (saved1, exp1, saved2, exp2)
+    assert k1 == k2 and abs(k1 - 0.2) < 2e-4  # the loaded programs reach the same optimum, near the truth
+    assert any((tmp_path / "jax" / "exported").iterdir())
 
 
 def test_cache_can_be_switched_off(tmp_path):
     env = {**os.environ, "DIFFSHIP_CACHE_DIR": "off"}
-    d, loaded, _, ok = _run(env)
-    assert d == "None" and loaded == 0 and ok
+    d, loaded, _, ok, saved, exp, _ = _run(env)
+    assert d == "None" and loaded == 0 and ok and saved == exp == 0

@@ -6,31 +6,133 @@ time here, once per *structure*: the function's static owner (a hashable
 :class:`equinox.Module` whose fields are all static, e.g. the output-error kernel), the method
 name, the pytree structure of the arguments and their shapes and dtypes. New data of the same
 shape, new starts and new parameter values reuse the compiled program. Compile time is measured
-and returned separately so reports can tell compiling from fitting; a program found in the
-persistent cache (:mod:`diffship.cache`) is loaded instead of compiled, and :func:`loaded`
-counts those.
+and returned separately so reports can tell compiling from fitting.
+
+**Between processes** two stores work together when the persistent cache is on
+(:mod:`diffship.cache`):
+
+1. the program's StableHLO, exported with :func:`jax.export.export` and serialised to
+   ``<cache folder>/exported/<key>.bin``, so that a new process does not trace the Python
+   (diffrax's and optimistix's loops) again: tracing and lowering the output-error solve takes
+   about 0.6 s, deserialising it about 0.02 s;
+2. JAX's persistent compilation cache, which turns the StableHLO into machine code without
+   running XLA again (:func:`loaded` counts those programs).
+
+The export key is a hash of everything the program depends on: the owner's and arguments'
+structure as :func:`equinox.tree_pformat` prints it (static fields included, arrays as shapes
+and dtypes), the method name and static keywords, the float64 flag, the backend, the versions
+of jax/jaxlib/diffrax/optimistix/equinox/lineax and the bytes of every diffship source file
+(so an edited diffship never loads a stale program). Programs whose outputs are not plain
+arrays and containers, or that hold host callbacks, are not exported (they are traced as
+before, and still reach JAX's persistent cache when they can).
 """
 
 from __future__ import annotations
 
+import hashlib
+import importlib.metadata
+import os
 import time
 from collections.abc import Callable, Hashable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
+import equinox as eqx
 import jax
 import numpy as np
 
 from . import cache
 
-__all__ = ["compiled", "cache_size", "clear", "loaded"]
+__all__ = ["cache_size", "clear", "compiled", "compiled_many", "exported", "loaded"]
 
 _CACHE: dict[Hashable, Callable] = {}
 _LOADED: list[int] = [0]
+_EXPORTED = {"loaded": 0, "saved": 0}
+_SOURCE: list[str] = []
 
 
 def _signature(args: tuple) -> tuple:
     leaves, treedef = jax.tree_util.tree_flatten(args)
     return treedef, tuple((np.shape(x), str(getattr(x, "dtype", type(x).__name__))) for x in leaves)
+
+
+def _source_hash() -> str:
+    """Hash of the installed diffship sources and of the libraries a program is built from."""
+    if not _SOURCE:
+        h = hashlib.sha256()
+        for lib in ("jax", "jaxlib", "diffrax", "optimistix", "equinox", "lineax"):
+            try:
+                h.update(f"{lib}={importlib.metadata.version(lib)};".encode())
+            except importlib.metadata.PackageNotFoundError:
+                h.update(f"{lib}=?;".encode())
+        root = Path(__file__).parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+        _SOURCE.append(h.hexdigest())
+    return _SOURCE[0]
+
+
+def _export_key(owner: Hashable, name: str, args: tuple, static: dict) -> str:
+    text = "\n".join([
+        _source_hash(), name, repr(sorted(static.items())), str(jax.config.jax_enable_x64), jax.default_backend(),
+        eqx.tree_pformat(owner, short_arrays=True), eqx.tree_pformat(args, short_arrays=True),
+        repr([(np.shape(x), str(getattr(x, "dtype", ""))) for x in jax.tree_util.tree_leaves(args)]),
+    ])
+    return hashlib.sha256(text.encode()).hexdigest()[:40]
+
+
+def _exported(owner: Hashable, name: str, method: Callable, args: tuple, static: dict):
+    """The program's :class:`jax.export.Exported` (loaded from the cache folder, or exported and
+    saved now); ``None`` where exporting does not apply (cache off, non-array arguments, host
+    callbacks)."""
+    folder = cache.cache_dir()
+    leaves, treedef = jax.tree_util.tree_flatten(args)
+    if folder is None or not all(isinstance(x, (jax.Array, np.ndarray)) for x in leaves):
+        return None
+    path = folder / "exported" / f"{_export_key(owner, name, args, static)}.bin"
+    if path.is_file():
+        try:
+            exp = jax.export.deserialize(bytearray(path.read_bytes()))
+            _EXPORTED["loaded"] += 1
+            return exp
+        except Exception:  # a damaged or foreign file: export again
+            pass
+
+    def flat(*lv):
+        return method(*jax.tree_util.tree_unflatten(treedef, lv), **static)
+    try:
+        exp = jax.export.export(jax.jit(flat))(*leaves)
+    except Exception:  # e.g. host callbacks: not exportable
+        return None
+    try:
+        blob = exp.serialize()
+    except Exception:  # outputs with custom pytree nodes: use the export in this process only
+        return exp
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_bytes(blob)
+        tmp.replace(path)  # atomic: a concurrent process never reads half a file
+        _EXPORTED["saved"] += 1
+        return jax.export.deserialize(blob)  # compile what the next process will compile
+    except OSError:
+        return exp
+
+
+def _lowered(owner: Hashable, name: str, args: tuple, static: dict):
+    """``(lowered program, wrap)``: ``wrap(compiled)`` is the function to call with ``args``."""
+    method = getattr(owner, name)
+    exp = _exported(owner, name, method, args, static)
+    if exp is None:
+        return jax.jit(lambda *a: method(*a, **static)).lower(*args), lambda program: program
+    lowered = jax.jit(exp.call).lower(*jax.tree_util.tree_leaves(args))
+    return lowered, lambda program: (lambda *a: program(*jax.tree_util.tree_leaves(a)))
+
+
+def _key(owner, name, args, static):
+    return (owner, name, _signature(args), tuple(sorted(static.items())))
 
 
 def compiled(owner: Hashable, name: str, args: tuple, **static: Any) -> tuple[Callable, float]:
@@ -39,22 +141,49 @@ def compiled(owner: Hashable, name: str, args: tuple, **static: Any) -> tuple[Ca
     Returns the compiled function (call it with arguments of the same structure and shapes) and
     the seconds spent compiling (0.0 when it came from the cache).
     """
-    key = (owner, name, _signature(args), tuple(sorted(static.items())))
-    fn = _CACHE.get(key)
-    if fn is not None:
-        return fn, 0.0
+    fns, seconds = compiled_many([(owner, name, args, static)])
+    return fns[0], seconds
+
+
+def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[list[Callable], float]:
+    """Several programs at once: each ``(owner, name, args, static)`` as in :func:`compiled`.
+
+    Tracing is Python and runs one program after the other; XLA's compilation releases the
+    interpreter, so the programs not yet compiled are compiled in parallel threads (one per
+    core). A fit that needs its residuals, its warm-up solve and its full solve from an empty
+    cache waits for the slowest of them instead of their sum. Returns the functions, in order,
+    and the wall seconds spent (0.0 when all came from this process's cache).
+    """
     t0 = time.perf_counter()
     hits = cache.hits()
-    method = getattr(owner, name)
-    fn = jax.jit(lambda *a: method(*a, **static)).lower(*args).compile()
-    _LOADED[0] += int(cache.hits() > hits)  # this program came from the persistent cache
-    _CACHE[key] = fn
-    return fn, time.perf_counter() - t0
+    keys = [_key(*r) for r in requests]
+    todo = {}
+    for k, (owner, name, args, static) in zip(keys, requests):
+        if k not in _CACHE and k not in todo:
+            todo[k] = _lowered(owner, name, args, static)
+    if not todo:
+        return [_CACHE[k] for k in keys], 0.0
+    items = list(todo.items())
+    workers = min(len(items), os.cpu_count() or 1)
+    if workers > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            programs = list(pool.map(lambda item: item[1][0].compile(), items))
+    else:
+        programs = [lowered.compile() for _, (lowered, _) in items]
+    for (k, (_, wrap)), program in zip(items, programs):
+        _CACHE[k] = wrap(program)
+    _LOADED[0] += min(cache.hits() - hits, len(items))  # programs that came from the persistent cache
+    return [_CACHE[k] for k in keys], time.perf_counter() - t0
 
 
 def loaded() -> int:
     """Programs that came from the persistent cache (:mod:`diffship.cache`) instead of the compiler."""
     return _LOADED[0]
+
+
+def exported() -> dict[str, int]:
+    """Programs whose StableHLO was loaded from / saved to the export store in this process."""
+    return dict(_EXPORTED)
 
 
 def cache_size() -> int:

@@ -23,7 +23,7 @@ from .data import Run
 from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
 from .preprocess import Filter
-from .simulate import initial_state, model_inputs, simulate
+from .simulate import Solution, initial_state, model_inputs, simulate
 
 __all__ = ["Evaluation", "evaluate", "simulate_run", "rmse", "nrmse_fit"]
 
@@ -72,14 +72,16 @@ class _Simulator(eqx.Module):
     integrator: AbstractIntegrator = eqx.field(static=True)
 
     def run(self, model, ts, us, x0):
-        return simulate(model, ts, us, x0, self.integrator)
+        # plain arrays out (not a Solution): the form diffship.compiled exports between processes
+        sol = simulate(model, ts, us, x0, self.integrator)
+        return sol.ts, sol.xs, sol.ys, sol.valid
 
 
 def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
     """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
     args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
     fn, _ = compiled(_Simulator(integrator), "run", args)
-    return fn(*args)
+    return Solution(*fn(*args))
 
 
 def evaluate(

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy import signal
 
 from .errors import DataError
 
@@ -106,6 +105,8 @@ def auto_cutoff(y: np.ndarray, dt: float, *, snr: float = 100.0, lo: float = 0.0
     nyq = 0.5 / dt
     if n < 32 or not np.any(y != y[0]):
         return hi * nyq
+    from scipy import signal  # imported here: scipy.signal costs 0.5 s of every process's start
+
     f, P = signal.welch(signal.detrend(y), fs=1.0 / dt, nperseg=min(256, n))
     tail = f > 0.6 * nyq
     floor = float(np.median(P[tail])) if np.any(tail) else 0.0
@@ -122,6 +123,7 @@ def smooth_and_derivative(t: np.ndarray, y: np.ndarray, flt: Filter = Filter(), 
     y = np.asarray(y, dtype=np.float64)
     if flt.kind == "none":
         return y.copy(), np.gradient(y, t)
+    from scipy import signal  # see auto_cutoff
     dt = _uniform_dt(t, what)
     n = y.size
     if flt.kind == "butter":

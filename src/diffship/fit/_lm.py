@@ -9,7 +9,9 @@ equations
 
 .. math::  (J^\top J + \lambda I)\,\delta = -J^\top r
 
-by Cholesky for every trial step size of the classical trust-region search. This module plugs
+by Cholesky for every trial step size of the classical trust-region search. The state keeps
+``J`` of the last accepted point, so a caller gets the Jacobian at the solution from the solve
+itself (the covariance needs it) instead of compiling a second program that forms it again. This module plugs
 such a descent into optimistix's Gauss–Newton framework (composition, as optimistix's own
 solvers are built), so termination, step acceptance and results are optimistix's.
 
@@ -35,6 +37,7 @@ def rms_norm(x):
 
 
 class _State(eqx.Module):
+    jac: Float[Array, "m n"]
     jtj: Float[Array, "n n"]
     jtr: Float[Array, " n"]
     cost: Float[Array, ""]
@@ -47,15 +50,17 @@ class MaterialisedDampedNewton(optx.AbstractDescent):
 
     def init(self, y, f_info_struct):
         n = y.size
+        m = f_info_struct.residual.size
         inf = jnp.array(jnp.inf, y.dtype)
-        return _State(jnp.zeros((n, n), y.dtype), jnp.zeros((n,), y.dtype), inf, inf, jnp.array(0))
+        return _State(jnp.zeros((m, n), y.dtype), jnp.zeros((n, n), y.dtype), jnp.zeros((n,), y.dtype), inf, inf,
+                      jnp.array(0))
 
     def query(self, y, f_info, state):
         n = y.size
         jac = jax.vmap(f_info.jac.mv, out_axes=1)(jnp.eye(n, dtype=y.dtype))
         r = f_info.residual
         cost = 0.5 * jnp.sum(r * r)
-        return _State(jac.T @ jac, jac.T @ r, cost, state.cost, state.accepted + 1)
+        return _State(jac, jac.T @ jac, jac.T @ r, cost, state.cost, state.accepted + 1)
 
     def step(self, step_size, state):
         eps = jnp.finfo(state.jtr.dtype).eps

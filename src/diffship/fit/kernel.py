@@ -45,7 +45,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
-from ..compiled import compiled
+from ..compiled import compiled_many
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
@@ -56,6 +56,9 @@ __all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "wrap_angle"]
 
 #: Normalised residual assigned to every sample after a simulation blew up.
 PENALTY = 1e3
+
+#: Tree structure of an optimistix result (to rebuild one from its integer code).
+_RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)
 
 def wrap_angle(e):
     """Angle difference wrapped to (−π, π]."""
@@ -193,22 +196,49 @@ class Kernel(eqx.Module):
         return jax.jacfwd(self.residuals)(z, data)
 
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
-              ftol: float = 1e-9):
-        """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``."""
+              ftol: float = 1e-9, jacobian: bool = False):
+        """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``, and with
+        ``jacobian=True`` also the Jacobian :meth:`jacobian` at ``z`` (the one the last accepted
+        step formed: no second forward-mode pass, no second compiled program)."""
         solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol)
         sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
                                  throw=False)
-        return sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data)
+        out = (sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data))
+        return (*out, sol.state.descent_state.jac) if jacobian else out
+
+    def solve_coded(self, z0: Float[Array, " n_z"], data: KernelData, **lm):
+        """:meth:`solve` with the optimistix result as its integer code (plain arrays out: the
+        form :mod:`diffship.compiled` can export and reload in a new process without tracing)."""
+        z, result, *rest = self.solve(z0, data, **lm)
+        return z, jax.tree_util.tree_leaves(result)[0], *rest
 
     # -- compiled entry points (NumPy in, NumPy out) ----------------------------------------
     def compiled(self, name: str, z, data: KernelData, **static):
         """``(compiled function, compile seconds)`` of one of the methods above."""
-        return compiled(self, name, (jnp.asarray(z, dtype=jnp.float64), data), **static)
+        fns, seconds = self.compiled_many([(name, z, data, static)])
+        return fns[0], seconds
+
+    def compiled_many(self, requests):
+        """Several of the methods above compiled at once (in parallel where XLA has to compile:
+        :func:`diffship.compiled.compiled_many`): ``requests`` is a list of
+        ``(name, z, data, static keywords)``; returns ``(functions, compile seconds)``."""
+        fns, seconds = compiled_many([
+            (self, "solve_coded" if name == "solve" else name, (jnp.asarray(z, dtype=jnp.float64), data), static)
+            for name, z, data, static in requests])
+        return [_with_result(fn) if name == "solve" else fn for fn, (name, *_) in zip(fns, requests)], seconds
 
     def call(self, name: str, z, data: KernelData, **static):
         """Run a compiled method; returns its output (JAX arrays)."""
         fn, _ = self.compiled(name, z, data, **static)
         return fn(jnp.asarray(z, dtype=jnp.float64), data)
+
+
+def _with_result(fn):
+    """The compiled :meth:`Kernel.solve_coded` returning an optimistix result again."""
+    def solve(z0, d):
+        z, code, *rest = fn(z0, d)
+        return z, jax.tree_util.tree_unflatten(_RESULT_TREE, [code]), *rest
+    return solve
 
 
 def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None,

@@ -242,7 +242,17 @@ def fit_output_error(
     candidates = [("the model's values (with --init)", spec.values())] + [
         (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named
     ]
-    res_fn, compile_s = kernel.compiled("residuals", np.zeros(n_p + n_x0), data)
+    # -- every program this fit needs, compiled at once (in parallel from an empty cache) ----
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
+    n_full = batch.ts.shape[1]
+    n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
+    z_shape = np.zeros(n_p + n_x0)
+    say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
+        f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
+    # the full-horizon solve also returns the Jacobian at its solution (for the covariance)
+    (res_fn, solve_fn, *solve_w), compile_s = kernel.compiled_many(
+        [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})]
+        + ([("solve", z_shape, data.head(n_warm), lm)] if n_warm else []))
     best = None
     for label, vals in candidates:
         vals, notes = spec.nudged(vals)
@@ -270,19 +280,13 @@ def fit_output_error(
     messages.append(f"started from {label}")
 
     # -- Levenberg–Marquardt -------------------------------------------------------------
-    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
-    n_full = batch.ts.shape[1]
-    n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
-    say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
-        f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
-    solve_fn, c = kernel.compiled("solve", z, data, **lm)
-    compile_s += c
-    passes, steps_per_pass = [], []
+    passes, steps_per_pass, last_jac = [], [], []
     noise_pass = o.weights == "noise" and not o.channel_scales
     def run_solve(fn, z, d):
-        z, result, steps, r = fn(jnp.asarray(z), d)
+        z, result, steps, r, *jac = fn(jnp.asarray(z), d)
         passes.append(result)
         steps_per_pass.append(int(steps))
+        last_jac[:] = jac
         return z, np.asarray(kernel.split(np.asarray(r), d)[0])
 
     taus: list[np.ndarray] = []
@@ -291,11 +295,7 @@ def fit_output_error(
         # Growing horizon: converge on the first part of every run (cheap steps, and a short
         # horizon keeps LM out of the local minima of long simulations), then the whole runs.
         data_w = data.head(n_warm)
-        t_c = time.perf_counter()
-        solve_w, c = kernel.compiled("solve", z, data_w, **lm)
-        compile_s += c
-        t0 += time.perf_counter() - t_c
-        zw, rw = run_solve(solve_w, z, data_w)
+        zw, rw = run_solve(solve_w[0], z, data_w)
         r_full = kernel.split(np.asarray(res_fn(zw, data)), data)[0]
         if not np.any(np.abs(r_full) >= PENALTY):
             z = zw
@@ -323,14 +323,12 @@ def fit_output_error(
     fit_s = time.perf_counter() - t0
     iterations = sum(steps_per_pass)
 
-    # -- covariance from the final Jacobian ----------------------------------------------
-    jac_fn, c = kernel.compiled("jacobian", z, data)
-    compile_s += c
+    # -- covariance from the final Jacobian (formed by the last accepted LM step) ---------
     z = np.asarray(z)
     # Jacobian with respect to θ/scale (not the bounded fit variable z: a parameter drifting
     # towards a log-mapped bound would otherwise hide the directions the data cannot see)
     col = per_scale_columns(spec, z, n_p + n_x0)
-    J, J_prior = kernel.split(np.asarray(jac_fn(z, data)) * col, data)
+    J, J_prior = kernel.split(np.asarray(last_jac[0]) * col, data)
     # coloured residuals get the HAC sandwich; noise on measured inputs is propagated (errors in variables)
     meat, sigma_u, c = measured_input_meat(kernel, z, data, J, batch.mask, model.input_names)
     compile_s += c
