@@ -367,6 +367,10 @@ def main(argv=None) -> int:
                          "compiled once into --cache-dir and loaded with casadi.external")
     ap.add_argument("--cache-dir", default=None, metavar="DIR", help="folder of the compiled code (--mode cache)")
     ap.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
+    ap.add_argument("--starts", default=None, metavar="FILE.npy",
+                    help="solve from each row of this (B, n_z) array of scaled starts instead of --init's start, "
+                         "and write the final costs to --costs (a batch of fits, looped)")
+    ap.add_argument("--costs", default=None, metavar="FILE.npy", help="where --starts writes the final costs")
     args = ap.parse_args(argv)
     t_import = time.perf_counter() - T_START
     init = {k: float(v) for k, v in (a.split("=", 1) for a in args.init)}
@@ -374,6 +378,10 @@ def main(argv=None) -> int:
     prob = load_problem(args.runs, init)
     t_load = time.perf_counter() - t
     peer = CasadiFossen3(prob, mode=args.mode, cache_dir=args.cache_dir)
+    if args.starts:
+        costs = np.array([solve_lm(peer, z)["cost"] for z in np.load(args.starts)])
+        np.save(args.costs, costs)
+        return 0
     z0 = prob.to_z(dict(zip(PARAM_NAMES, prob.theta0)))  # the spec's values with --init
     sol = solve_lm(peer, z0)
     params = prob.params(sol["z"])

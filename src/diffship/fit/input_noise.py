@@ -122,6 +122,18 @@ def input_noise_meat(kernel: Kernel, z, data: KernelData, J, scale: np.ndarray, 
     return np.asarray(fn(*args)), c
 
 
+def meat_request(kernel: Kernel, data: KernelData, n_rows: int, n_z: int) -> tuple | None:
+    """The compile request ``(owner, name, args, static)`` of the program
+    :func:`measured_input_meat` will run for ``data`` (``n_rows`` data rows, ``n_z`` unknowns),
+    or ``None`` where every input looks noise-free: lets a fit compile it beside its solve."""
+    mask = np.asarray(data.mask, dtype=bool)
+    scale, corr = input_noise(np.asarray(data.us), mask)
+    if not np.any(np.sqrt(np.mean(scale[mask] ** 2, axis=0)) > 0):
+        return None
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    return InputSensitivity(kernel), "meat", (f(np.zeros(n_z)), data, f(np.zeros((n_rows, n_z))), f(scale), f(corr)), {}
+
+
 def measured_input_meat(kernel: Kernel, z, data: KernelData, J, mask, names) -> tuple[np.ndarray | None, dict, float]:
     """``(Ω_u or None, {input: RMS σ̂}, compile seconds)`` with the noise estimated from the
     measured inputs of ``data`` (``None`` where every input looks noise-free)."""

@@ -38,6 +38,9 @@ All compiled programs come from the one cache, :func:`diffship.compiled.compiled
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -212,19 +215,42 @@ class Kernel(eqx.Module):
         z, result, *rest = self.solve(z0, data, **lm)
         return z, jax.tree_util.tree_leaves(result)[0], *rest
 
+    def solve_many(self, z0s: Float[Array, "B n_z"], data: KernelData, *, workers: int | None = None, **lm):
+        """Levenberg–Marquardt from each of ``B`` starts (multi-start, or bootstrap resamples that
+        share ``data``'s shapes): ``[(z, result, steps, residuals), ...]`` in start order.
+
+        Each start runs the one-start compiled :meth:`solve` (the program ``fit_output_error``
+        uses), spread over ``workers`` threads (default: one per core). XLA releases the
+        interpreter while a program runs, so the fits run in parallel. On a CPU this beats
+        ``jax.vmap`` of the solve, which runs every fit in lockstep until the slowest has
+        converged and evaluates both branches of every step (``benchmarks/cold_start.py``).
+        """
+        fn, _ = self.compiled("solve", np.asarray(z0s)[0], data, **lm)
+        starts = [jnp.asarray(z, dtype=jnp.float64) for z in np.asarray(z0s)]
+        workers = min(len(starts), workers or os.cpu_count() or 1)
+
+        def one(z0):
+            return jax.block_until_ready(fn(z0, data))
+        if workers <= 1:
+            return [one(z0) for z0 in starts]
+        with ThreadPoolExecutor(workers) as pool:
+            return list(pool.map(one, starts))
+
     # -- compiled entry points (NumPy in, NumPy out) ----------------------------------------
     def compiled(self, name: str, z, data: KernelData, **static):
         """``(compiled function, compile seconds)`` of one of the methods above."""
         fns, seconds = self.compiled_many([(name, z, data, static)])
         return fns[0], seconds
 
-    def compiled_many(self, requests):
+    def compiled_many(self, requests, extra=()):
         """Several of the methods above compiled at once (in parallel where XLA has to compile:
         :func:`diffship.compiled.compiled_many`): ``requests`` is a list of
-        ``(name, z, data, static keywords)``; returns ``(functions, compile seconds)``."""
+        ``(name, z, data, static keywords)``; ``extra`` further programs of other owners, as
+        ``(owner, name, args, static)``, compiled in the same batch (fetch them later with
+        :func:`diffship.compiled.compiled`, at no cost). Returns ``(functions, compile seconds)``."""
         fns, seconds = compiled_many([
             (self, "solve_coded" if name == "solve" else name, (jnp.asarray(z, dtype=jnp.float64), data), static)
-            for name, z, data, static in requests])
+            for name, z, data, static in requests] + list(extra))
         return [_with_result(fn) if name == "solve" else fn for fn, (name, *_) in zip(fns, requests)], seconds
 
     def call(self, name: str, z, data: KernelData, **static):

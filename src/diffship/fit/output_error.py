@@ -54,7 +54,7 @@ from ..preprocess import Filter
 from ._lm import result_message
 from .covariance import covariance, relabelled
 from .identifiability import identifiability, per_scale_columns
-from .input_noise import measured_input_meat
+from .input_noise import meat_request, measured_input_meat
 from .kernel import PENALTY, Kernel, kernel_data
 from .priors import Priors, default_priors, prior_arrays, prior_table
 from .problem import Batch, make_batch
@@ -250,9 +250,11 @@ def fit_output_error(
     say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
         f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
     # the full-horizon solve also returns the Jacobian at its solution (for the covariance)
+    # (and the input-noise covariance term's program, where the measured inputs are noisy)
+    meat = meat_request(kernel, data, int(batch.mask.size) * len(batch.channels), n_p + n_x0)
     (res_fn, solve_fn, *solve_w), compile_s = kernel.compiled_many(
         [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})]
-        + ([("solve", z_shape, data.head(n_warm), lm)] if n_warm else []))
+        + ([("solve", z_shape, data.head(n_warm), lm)] if n_warm else []), extra=[meat] if meat else [])
     best = None
     for label, vals in candidates:
         vals, notes = spec.nudged(vals)
