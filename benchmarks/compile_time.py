@@ -4,7 +4,8 @@ For each model (nomoto2, fossen3, fossen6, vmm_simple, vmm_abkowitz, mmg, decay2
 runs are written to CSV (each model's own reference values, small sensor noise; see
 :func:`write_data`), then, ``--repeats`` times:
 
-1. ``python -m diffship.fit RUN.csv ... --model M --quiet --json F`` in a new process with
+1. ``python -m diffship.fit RUN.csv ... --model M [--vessel REF] --quiet --json F`` (``REF`` the model's
+   reference vessel, whose particulars made the data) in a new process with
    ``DIFFSHIP_CACHE_DIR`` a fresh empty folder (**cold**: every program compiled);
 2. the same command with the same folder (**cached**: a new process that loads the programs).
 
@@ -94,7 +95,11 @@ def write_data(name: str, folder: Path, input_noise: bool = False) -> list[Path]
 
 def one_process(model: str, files: list[Path], cache: Path, out_json: Path, src: str | None = None) -> dict:
     env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(cache), "PYTHONPATH": src or os.environ.get("PYTHONPATH", "src")}
-    cmd = [sys.executable, "-m", "diffship.fit", *map(str, files), "--model", model, "--quiet", "--json", str(out_json)]
+    from diffship.models import get_model
+
+    vessel = type(get_model(model)).REFERENCE_VESSEL  # the data are the reference vessel's (write_data)
+    cmd = [sys.executable, "-m", "diffship.fit", *map(str, files), "--model", model, "--quiet", "--json", str(out_json),
+           *(["--vessel", vessel] if vessel else [])]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0

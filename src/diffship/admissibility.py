@@ -29,10 +29,12 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import compiled
 from .data import Run
 from .errors import ModelError
 from .manoeuvres.drive import pull_out, turning_circle, zigzag
@@ -122,6 +124,38 @@ def _merge(a: dict, b: dict) -> dict:
     return out
 
 
+class _Linearised(eqx.Module):
+    """Compile-cache owner of the admissibility checks' derivatives of the vector field (the
+    model, states and inputs are arguments, so a new fit reuses the programs, and a new process
+    loads them: :mod:`diffship.compiled`)."""
+
+    vel: tuple[int, ...] = eqx.field(static=True)  # indices of the velocity states checked
+    i: int = eqx.field(static=True, default=0)  # the state whose self-damping is blamed
+
+    def diagonals(self, model, xs, u):
+        """``∂ν̇_i/∂ν_i`` of every velocity state at every row of ``xs``."""
+        def diag(xi):
+            jac = jax.jacfwd(lambda y: model.vector_field(0.0, y, u))(xi)
+            return jnp.stack([jac[k, k] for k in self.vel])
+        return jax.vmap(diag)(xs)
+
+    def damping_gradient(self, model, theta, x, u):
+        """Gradient of ``∂ν̇_i/∂ν_i`` at ``x`` with respect to every parameter."""
+        def d_of(th):
+            m = model.with_params(th)
+            return jax.jacfwd(lambda y: m.vector_field(0.0, y, u))(x)[self.i, self.i]
+        return jax.grad(d_of)(theta)
+
+    def jacobian(self, model, x, u):
+        """State Jacobian of the vector field at ``x``."""
+        return jax.jacfwd(lambda y: model.vector_field(0.0, y, u))(x)
+
+
+def _call(owner, name, *args):
+    fn, _ = compiled(owner, name, tuple(args))
+    return np.asarray(fn(*args))
+
+
 def _self_damping(model: AbstractModel, box: dict[str, tuple[float, float]], u_const: np.ndarray,
                   n_grid: int) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """Largest ∂ν̇_i/∂ν_i over the grid, and the state where it occurs."""
@@ -132,13 +166,8 @@ def _self_damping(model: AbstractModel, box: dict[str, tuple[float, float]], u_c
     x = np.zeros((grid.shape[0], len(states)))
     for j, s in enumerate(vel):
         x[:, states.index(s)] = grid[:, j]
-    u = jnp.asarray(u_const)
-
-    def diag(xi):
-        jac = jax.jacfwd(lambda y: model.vector_field(0.0, y, u))(xi)
-        return jnp.stack([jac[states.index(s), states.index(s)] for s in vel])
-
-    d = np.asarray(jax.jit(jax.vmap(diag))(jnp.asarray(x)))
+    owner = _Linearised(vel=tuple(states.index(s) for s in vel))
+    d = _call(owner, "diagonals", model, jnp.asarray(x), jnp.asarray(u_const, dtype=jnp.float64))
     worst = {s: float(np.nanmax(d[:, j])) for j, s in enumerate(vel)}
     where = {s: x[int(np.nanargmax(d[:, j]))] for j, s in enumerate(vel)}
     return worst, where
@@ -148,15 +177,10 @@ def _blame(model: AbstractModel, reference: AbstractModel | None, state: str, x:
            free: Sequence[str]) -> tuple[str, ...]:
     """Free parameters whose change (from the reference, or from zero) raised ∂ν̇/∂ν most at ``x``."""
     names = model.param_names
-    i = model.state_names.index(state)
-    u = jnp.asarray(u_const)
-
-    def d_of(theta):
-        m = model.with_params(theta)
-        return jax.jacfwd(lambda y: m.vector_field(0.0, y, u))(jnp.asarray(x))[i, i]
-
     theta = model.theta()
-    g = np.asarray(jax.grad(d_of)(theta))
+    owner = _Linearised(vel=(), i=model.state_names.index(state))
+    g = _call(owner, "damping_gradient", model, jnp.asarray(theta, dtype=jnp.float64),
+              jnp.asarray(x, dtype=jnp.float64), jnp.asarray(u_const, dtype=jnp.float64))
     base = np.asarray(reference.theta()) if reference is not None else np.zeros_like(g)
     contrib = g * (np.asarray(theta) - base)
     idx = [k for k in np.argsort(-contrib) if names[k] in free and contrib[k] > 0]
@@ -169,7 +193,7 @@ def _lateral_roots(model: AbstractModel, u0: float, u_const: np.ndarray) -> np.n
         return None
     x = np.zeros(len(states))
     x[states.index("u")] = u0
-    jac = np.asarray(jax.jacfwd(lambda y: model.vector_field(0.0, y, jnp.asarray(u_const)))(jnp.asarray(x)))
+    jac = _call(_Linearised(vel=()), "jacobian", model, jnp.asarray(x), jnp.asarray(u_const, dtype=jnp.float64))
     k = [states.index("v"), states.index("r")]
     return np.linalg.eigvals(jac[np.ix_(k, k)])
 

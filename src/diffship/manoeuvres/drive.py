@@ -43,6 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..compiled import compiled
 from ..data import Run
 from ..errors import ModelError
 from ..integrators import AbstractIntegrator, Diffrax
@@ -165,6 +166,20 @@ def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Arr
     return xs, ds, valid
 
 
+class _Manoeuvre(eqx.Module):
+    """Compile-cache owner of one closed-loop manoeuvre program (:func:`closed_loop` and the
+    outputs): compiled once per structure and kept between processes (:mod:`diffship.compiled`)."""
+
+    delta_index: int = eqx.field(static=True)
+    integrator: AbstractIntegrator = eqx.field(static=True)
+
+    def run(self, model, law, ts, x0, u_const, rudder_rate, max_rudder, delta_start):
+        xs, ds, valid = closed_loop(model, law, ts, x0, u_const, self.delta_index, rudder_rate, max_rudder,
+                                    delta_start, self.integrator)
+        us = jnp.broadcast_to(u_const, (ts.shape[0], u_const.shape[0])).at[:, self.delta_index].set(ds)
+        return xs, ds, valid, jax.vmap(model.observe)(xs, us)
+
+
 def _x0_vector(model: AbstractModel, initial) -> np.ndarray:
     if isinstance(initial, Mapping):
         unknown = set(initial) - set(model.state_names)
@@ -185,13 +200,13 @@ def _run_manoeuvre(model, law, *, initial, inputs, duration, dt, rudder_rate_deg
     rudder_rate_deg_s, rate_source = helm_rate(model, rudder_rate_deg_s=rudder_rate_deg_s, scale=scale)
     x0 = _x0_vector(model, initial)
     ts = np.arange(0.0, duration + 0.5 * dt, dt)
-    xs, ds, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(x0), jnp.asarray(u_const), d_idx,
-                                jnp.asarray(math.radians(rudder_rate_deg_s)), jnp.asarray(math.radians(max_rudder_deg)),
-                                jnp.asarray(0.0), integrator)
-    xs, ds, valid = np.asarray(xs), np.asarray(ds), np.asarray(valid)
+    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    args = (model, law, f(ts), f(x0), f(u_const), f(math.radians(rudder_rate_deg_s)), f(math.radians(max_rudder_deg)),
+            f(0.0))
+    fn, _ = compiled(_Manoeuvre(d_idx, integrator), "run", args)
+    xs, ds, valid, ys = (np.asarray(a) for a in fn(*args))
     us = np.repeat(u_const[None], len(ts), axis=0)
     us[:, d_idx] = ds
-    ys = np.asarray(jax.vmap(model.observe)(jnp.asarray(xs), jnp.asarray(us)))
     channels = {c: ys[:, j] for j, c in enumerate(model.output_names)}
     for j, n in enumerate(model.input_names):
         channels[n] = us[:, j]
