@@ -39,7 +39,7 @@ from ..manoeuvres import ScheduleLaw, ZigzagLaw, closed_loop
 from ..models import AbstractModel
 from ..simulate import simulate
 
-__all__ = ["draw_parameters", "fly_draws", "simulate_draws", "manoeuvre_law"]
+__all__ = ["draw_parameters", "fly_draws", "manoeuvre_law", "simulate_draws"]
 
 
 def draw_parameters(model: AbstractModel, names: Sequence[str], mean: np.ndarray, cov: np.ndarray, n: int,
