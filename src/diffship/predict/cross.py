@@ -60,6 +60,7 @@ __all__ = [
     "RunType",
     "classify_run",
     "cross_validate",
+    "train_types_json",
 ]
 
 KINDS = ("zigzag", "turning_circle", "pull_out", "spiral", "other")
@@ -81,6 +82,22 @@ class RunType:
     side: float = 0.0
     levels_deg: tuple[float, ...] = ()
     reason: str = ""
+
+    def as_json(self) -> dict:
+        def num(v):
+            return None if not math.isfinite(v) else float(v)
+
+        return {"kind": self.kind, "label": self.label, "rudder_deg": num(self.rudder_deg),
+                "switch_deg": num(self.switch_deg), "side": self.side, "levels_deg": list(self.levels_deg),
+                "reason": self.reason}
+
+    @classmethod
+    def from_json(cls, d: dict) -> RunType:
+        def num(v):
+            return math.nan if v is None else float(v)
+
+        return cls(str(d["kind"]), num(d.get("rudder_deg")), num(d.get("switch_deg")), float(d.get("side", 0.0)),
+                   tuple(d.get("levels_deg", ())), str(d.get("reason", "")))
 
     @property
     def label(self) -> str:
@@ -171,6 +188,11 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
                            f"{len(long)} rudder steps of ≥ {spiral_hold_s:g} s in a staircase")
     return RunType("other", math.nan, math.nan, side, levels,
                    f"rudder levels {', '.join(f'{lv:+.3g}' for lv in levels)}° fit no standard manoeuvre")
+
+
+def train_types_json(runs: Sequence[Run]) -> list[dict]:
+    """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``)."""
+    return [{"run": r.name, **classify_run(r).as_json()} for r in runs]
 
 
 # ----------------------------------------------------------------------------------------

@@ -59,8 +59,7 @@ def cross_json(cv: CrossValidation) -> dict:
         return None if v is None or not math.isfinite(v) else float(v)
 
     def rtype(t):
-        return {"kind": t.kind, "label": t.label, "rudder_deg": num(t.rudder_deg), "switch_deg": num(t.switch_deg),
-                "side": t.side, "reason": t.reason}
+        return t.as_json()
 
     return {
         "train_types": sorted(set(cv.train_kinds)), "train_runs": [dict(run=n, **rtype(t))
