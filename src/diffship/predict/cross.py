@@ -10,7 +10,9 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
 
    * **zigzag**: ≥ 2 non-zero plateaus alternating in sign with equal magnitudes (±20 %); the
      rudder angle is their median magnitude, the switch heading the median heading change
-     (since the first rudder order) at which the rudder left each plateau;
+     (since the first rudder order) at which the rudder left each plateau, taken as the rudder
+     angle when within max(1°, 10 %) of it (the heading is read a sample or an autopilot delay
+     late), else rounded to 0.5°;
    * **turning circle**: one non-zero level held to the end of the record;
    * **pull-out**: one non-zero level, then back to zero for the rest of the record;
    * **spiral**: ≥ 3 distinct non-zero levels, each held at least ``spiral_hold_s``, in a
@@ -127,6 +129,16 @@ def _plateaus(t: np.ndarray, d_deg: np.ndarray, tol: float, hold_s: float) -> li
     return out
 
 
+def _ramp_start(raw: np.ndarray, a: int, b: int, level: float) -> int:
+    """Last sample of the plateau ``a..b`` (at ``level``) before the raw rudder signal leaves it for
+    good: three samples in a row beyond max(0.2°, 5 × its scatter on the plateau)."""
+    thr = max(0.2, 5.0 * float(np.std(raw[a:b + 1] - level)) if b > a + 2 else 0.2)
+    far = np.abs(raw[a:] - level) > thr
+    run3 = far[:-2] & far[1:-1] & far[2:] if far.size > 2 else far
+    hits = np.nonzero(run3)[0]
+    return a + max(int(hits[0]) - 1, 0) if hits.size else b
+
+
 def _round(x: float) -> float:
     return float(round(x)) if abs(x - round(x)) < 0.3 else round(x, 1)
 
@@ -140,12 +152,13 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
     if not run.has("delta"):
         return RunType("other", reason="no rudder channel 'delta'")
     t = np.asarray(run.time, dtype=np.float64)
-    d = np.degrees(np.asarray(run["delta"], dtype=np.float64))
+    raw = d = np.degrees(np.asarray(run["delta"], dtype=np.float64))
     k = max(1, round(1.0 / run.dt))
     if k > 1:  # 1 s moving average against sensor noise
         d = np.convolve(np.concatenate([np.full(k // 2, d[0]), d, np.full(k - 1 - k // 2, d[-1])]), np.ones(k) / k,
                         "valid")
-    base = float(np.median(d[: max(2, k)]))
+    base = float(np.median(d[: max(2, k)]))  # a trim angle on the approach; a first step is not one
+    base = base if abs(base) < 3.0 else 0.0
     amp = float(np.max(np.abs(d - base)))
     if amp < 0.5:
         return RunType("other", reason="the rudder never moves by more than 0.5°")
@@ -168,9 +181,14 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
             return RunType("zigzag", _round(float(np.median(mags))), math.nan, side, levels,
                            "alternating rudder of equal magnitude (no heading to read the switch angle)")
         psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
-        h = np.abs(np.degrees(psi[[b for _, b, _ in nz[:-1]]] - psi[i0]))
-        return RunType("zigzag", _round(float(np.median(mags))), _round(float(np.median(h))), side, levels,
-                       f"{len(nz)} rudder plateaus alternating in sign, |δ| {mags.min():.3g}–{mags.max():.3g}°")
+        h = np.abs(np.degrees(psi[[_ramp_start(raw, a, b, lv + base) for a, b, lv in nz[:-1]]] - psi[i0]))
+        rudder, sw = _round(float(np.median(mags))), float(np.median(h))
+        # the heading is read when the rudder leaves its plateau, a sample or an autopilot delay after
+        # the switch: within max(1°, 10 %) of the rudder angle it is the standard rudder/rudder zigzag
+        sw = rudder if abs(sw - rudder) <= max(1.0, 0.1 * rudder) else round(2.0 * sw) / 2.0
+        return RunType("zigzag", rudder, sw, side, levels,
+                       f"{len(nz)} rudder plateaus alternating in sign, |δ| {mags.min():.3g}–{mags.max():.3g}°, "
+                       f"heading change at the reversals {np.min(h):.3g}–{np.max(h):.3g}°")
     if len(nz) == 1:
         a, b, lv = nz[0]
         if b >= len(t) - 1 - k:
@@ -327,7 +345,7 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
     if "delta" not in model.input_names:
         raise ModelError(f"model {model.name} has no rudder input 'delta': manoeuvre types cannot be compared")
     ttypes = tuple(t if isinstance(t, RunType) else classify_run(t) for t in train)
-    tnames = tuple(getattr(t, "name", t.label) for t in train)
+    tnames = tuple(t.label if isinstance(t, RunType) else t.name for t in train)
     trained = {t.kind for t in ttypes}
     length = length or (float(model.L) if hasattr(model, "L") else None)
     draws = np.zeros((0, len(names)))
@@ -381,8 +399,11 @@ def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, lengt
             except (ModelError, DataError):
                 failed += 1
     out = []
+    lacking = [k for k in measured if k not in predicted]  # e.g. a track from a heading-only model
     for k, mv in measured.items():
-        pv = predicted.get(k, math.nan)
+        if k in lacking:
+            continue
+        pv = predicted[k]
         v = np.asarray([s.get(k, math.nan) for s in samp], dtype=np.float64)
         v = v[np.isfinite(v)]
         iv = ((float(np.percentile(v, 2.5)), float(np.percentile(v, 97.5)))
@@ -391,4 +412,6 @@ def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, lengt
         err = pv - mv
         rel = err / abs(mv) if math.isfinite(mv) and mv != 0 else math.nan
         out.append(MetricCheck(k, unit, float(mv), float(pv), iv, float(err), float(rel), _flag(unit, mv, pv, iv)))
-    return RunCheck(run.name, rt, tuple(out), len(samp), failed, pred, run)
+    note = (f"model {model.name} does not predict {', '.join(lacking)} (outputs {', '.join(model.output_names)})"
+            if lacking else "")
+    return RunCheck(run.name, rt, tuple(out), len(samp), failed, pred, run, note)
