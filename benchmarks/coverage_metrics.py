@@ -48,7 +48,22 @@ import numpy as np
 if __name__ == "__main__":
     sys.path[0] = str(Path(__file__).resolve().parents[1])
 
-from benchmarks.coverage import DEG, RHO, SUB, U0, VMM_FIXED, VMM_TRUE, L, measured_runs, vmm_rhs
+from benchmarks.coverage import (
+    DEG,
+    RHO,
+    SUB,
+    U0,
+    USV_FIXED,
+    USV_TRUE,
+    VMM_FIXED,
+    VMM_TRUE,
+    L,
+    measured_runs,
+    rk4,
+    usv_rhs,
+    usv_runs_true,
+    vmm_rhs,
+)
 
 RATE = 2.3 * DEG  # steering gear [rad/s]
 T0 = -VMM_TRUE["X0"] * 0.5 * RHO * L**2 * U0**2 / VMM_FIXED["XT"]  # thrust at U0 on a straight course
@@ -165,10 +180,88 @@ def fit_and_predict(runs, samples, seed, tmp):
     return res, pred, t_fit, t_pred
 
 
+# ---------------------------------------------------------------- USV: steady turning radius
+#: steady turns of the USV: (jet thrust [N], nozzle angle [deg]); inside the training envelope
+USV_TURNS = ((4000.0, 15.0), (2500.0, -10.0))
+USV_TURN_S, USV_DT = 300.0, 0.5
+
+
+def usv_tau(thrust, nozzle_deg):
+    a = nozzle_deg * DEG
+    return np.array([thrust * np.cos(a), thrust * np.sin(a), -3.82 * thrust * np.sin(a)])
+
+
+def steady_radius(xs):
+    """Steady turning radius [m] = speed over ground / |yaw rate|, averaged over the last 10 % of the record."""
+    tail = xs[-max(2, len(xs) // 10):]
+    return float(np.mean(np.hypot(tail[:, 3], tail[:, 4]) / np.abs(tail[:, 5])))
+
+
+def usv_truth_radius(thrust, nozzle_deg, h=0.05):
+    """The NumPy truth's steady turning radius from u = 2 m/s at constant thrust and nozzle angle."""
+    n = round(USV_TURN_S / h) + 1
+    tau = np.repeat(usv_tau(thrust, nozzle_deg)[None], n, axis=0)
+    return steady_radius(rk4(usv_rhs, np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0]), tau, h, {**USV_TRUE, **USV_FIXED}))
+
+
+def usv_fit_and_predict(runs, samples, seed):
+    """fossen3 fitted as in ``coverage.py``; the steady radius of each turn with vmapped draws."""
+    from diffship.fit import OutputErrorOptions, fit_output_error
+    from diffship.models import get_model
+    from diffship.predict.sampling import draw_parameters, simulate_draws
+
+    model = get_model("fossen3")
+    spec = model.spec().fix({k: v for k, v in USV_FIXED.items() if k in model.param_names})
+    spec = spec.with_values({n: USV_TRUE[n] * (0.8 if i % 2 else 1.2) for i, n in enumerate(spec.free_names)})
+    opts = OutputErrorOptions(estimate_x0=("psi", "u", "v", "r"), reference_priors=False)
+    t0 = time.perf_counter()
+    res = fit_output_error(model, runs, spec=spec, channels=("psi", "u", "v", "r"), options=opts)
+    t_fit = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    names = tuple(res.free)
+    mean = np.asarray([res.params[n] for n in names])
+    draws = draw_parameters(res.model, names, mean, np.asarray(res.covariance), samples, seed)
+    ts = np.arange(0.0, USV_TURN_S + 0.5 * USV_DT, USV_DT)
+    x0 = np.array([0.0, 0.0, 0.0, 2.0, 0.0, 0.0])
+    out = {}
+    for thrust, nozzle in USV_TURNS:
+        us = np.repeat(usv_tau(thrust, nozzle)[None], ts.size, axis=0)
+        ys, ok = simulate_draws(res.model, names, np.vstack([mean[None], draws]), ts, us, x0, res.integrator)
+        radii = np.array([steady_radius(y) for y in ys[1:][ok[1:]]])
+        out[f"R_{thrust / 1000:g}kN_{nozzle:+g}deg"] = (steady_radius(ys[0]), *np.percentile(radii, [2.5, 97.5]),
+                                                         int(ok[1:].sum()), int((~ok[1:]).sum()))
+    return res, out, t_fit, time.perf_counter() - t0
+
+
+def run_usv(seeds, samples):
+    """Rows of the USV case (one per seed and turn)."""
+    truth = {f"R_{T / 1000:g}kN_{a:+g}deg": usv_truth_radius(T, a) for T, a in USV_TURNS}
+    print("usv truth: " + ", ".join(f"{k} {v:.4g} m" for k, v in truth.items()), flush=True)
+    train = usv_runs_true()
+    rows = []
+    for s in range(seeds):
+        runs, _ = measured_runs("usv", train, 3000 + s)
+        res, out, t_fit, t_pred = usv_fit_and_predict(runs, samples, s)
+        pcov = np.mean([abs(res.params[n] - USV_TRUE[n]) <= 1.96 * res.stderr[n] for n in res.free])
+        for k, (pred, lo, hi, used, failed) in out.items():
+            tv = truth[k]
+            rows.append({"seed": s, "manoeuvre": "usv_steady_turn", "metric": k, "unit": "m", "truth": tv,
+                         "predicted": pred, "lo": lo, "hi": hi, "covered": bool(lo <= tv <= hi),
+                         "below": bool(tv < lo), "above": bool(tv > hi), "truth_same_conventions": tv,
+                         "covered_same_conventions": bool(lo <= tv <= hi), "draws_used": used, "draws_failed": failed,
+                         "converged": res.converged, "param_coverage": pcov, "fit_s": t_fit, "predict_s": t_pred})
+        print(f"usv seed {s}: fit {t_fit:.1f} s, predict {t_pred:.1f} s, converged {res.converged}, param cov "
+              f"{pcov:.0%}; " + "; ".join(f"{r['metric']} {r['predicted']:.4g} [{r['lo']:.4g}, {r['hi']:.4g}] "
+                                          f"{'ok' if r['covered'] else 'MISS'}" for r in rows[-len(out):]), flush=True)
+    return rows, truth
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--samples", type=int, default=400)
+    ap.add_argument("--cases", nargs="*", default=["vmm", "usv"], help="vmm (zigzag fit -> IMO metrics), usv "
+                    "(thrust/nozzle fit -> steady turning radius)")
     ap.add_argument("--quick", action="store_true", help="3 seeds, 100 draws, files *_quick")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
@@ -177,6 +270,22 @@ def main(argv=None):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     load0, cpu0, t_all = os.getloadavg(), time.process_time(), time.perf_counter()
+    rows, truth, conv = [], {}, {}
+    dt_pred = L / U0 / 50.0
+    lag = dt_pred * math.floor(0.1 * 35.0 / (RATE / DEG * dt_pred) + 1e-9)
+    if "vmm" in args.cases:
+        rows, truth, conv = run_vmm(seeds, samples, dt_pred, lag)
+    usv_rows, usv_truth = run_usv(seeds, samples) if "usv" in args.cases else ([], {})
+    with open(out / f"coverage_metrics{tag}.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list((rows or usv_rows)[0]))
+        w.writeheader()
+        w.writerows(rows + usv_rows)
+    write_report(out / f"coverage_metrics{tag}.md", rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, seeds,
+                 samples, load0, time.perf_counter() - t_all, time.process_time() - cpu0)
+
+
+def run_vmm(seeds, samples, dt_pred, lag):
+    """Rows of the VMM case (one per seed and metric), the IMO truth and the same-conventions truth."""
     t0 = time.perf_counter()
     truth = {("turning_35", k): v for k, v in truth_turning().items()}
     truth[("zigzag_20_20", "first_overshoot")] = truth_overshoot(20.0)
@@ -184,8 +293,6 @@ def main(argv=None):
     # the same truth under the conventions of the prediction (a diagnostic, not the target): the
     # autopilot sampled at the prediction's step L/V/50 and the turn measured from diffship's
     # execute point (last sample with |δ| ≤ 10 % of the order: 3 steps after the order here)
-    dt_pred = L / U0 / 50.0
-    lag = dt_pred * math.floor(0.1 * 35.0 / (RATE / DEG * dt_pred) + 1e-9)
     conv = {("turning_35", k): v for k, v in truth_turning(lag_s=lag).items()}
     conv[("zigzag_20_20", "first_overshoot")] = truth_overshoot(20.0, sample_dt=dt_pred)
     conv[("zigzag_10_10", "first_overshoot")] = truth_overshoot(10.0, sample_dt=dt_pred)
@@ -215,48 +322,70 @@ def main(argv=None):
                   f"{pcov:.0%}; " + "; ".join(f"{r['manoeuvre']} {r['metric']} {r['predicted']:.4g} "
                                               f"[{r['lo']:.4g}, {r['hi']:.4g}] {'ok' if r['covered'] else 'MISS'}"
                                               for r in rows[-len(METRICS):]), flush=True)
-    with open(out / f"coverage_metrics{tag}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    write_report(out / f"coverage_metrics{tag}.md", rows, truth, conv, dt_pred, lag, seeds, samples, load0,
-                 time.perf_counter() - t_all, time.process_time() - cpu0)
+    return rows, truth, conv
 
 
-def write_report(path, rows, truth, conv, dt_pred, lag, seeds, samples, load0, wall_s, cpu_s):
+def write_report(path, rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, seeds, samples, load0, wall_s, cpu_s):
     lines = [f"# Coverage of 95 % intervals on predicted manoeuvre metrics ({seeds} seeds, {samples} draws)", "",
-             ("Generated by `benchmarks/coverage_metrics.py` (see its docstring). Fit: `vmm_simple`, 12 free "
-             "derivatives, on two noisy zigzags (10/10 stbd, 20/20 port) of the plain-NumPy truth; predicted by "
-             "`diffship.predict.predict` with vmapped Monte-Carlo draws from the fit's covariance; the TRUE metric by "
-             "the NumPy truth's own manoeuvre driver and metric code. Coverage = share of seeds whose 95 % interval "
-             "(2.5–97.5 percentiles of the draws) contains the true metric; target 90–99 %."),
+             ("Generated by `benchmarks/coverage_metrics.py` (see its docstring). Truth: plain-NumPy simulators "
+              "(those of `coverage.py`) with their own manoeuvre driver and metric code; diffship fits noisy "
+              "measured inputs and outputs and predicts with vmapped Monte-Carlo draws from the fit's covariance. "
+              "Coverage = share of seeds whose 95 % interval (2.5–97.5 percentiles of the draws) contains the TRUE "
+              "metric; target 90–99 %."),
              (f"Machine: 2 shared CPUs (other sessions running), load {load0[0]:.2f} at start, "
-             f"{os.getloadavg()[0]:.2f} at end; wall {wall_s / 60:.1f} min, CPU {cpu_s / 60:.1f} min of this process."),
-             "", ("| manoeuvre | metric | truth (IMO) | median predicted | median interval width | coverage of the "
-             "IMO truth | truth below / above | truth, prediction's conventions | coverage of it | draws used "
-             "(failed) |"), "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for key, metric, unit in METRICS:
-        rr = [r for r in rows if r["manoeuvre"] == key and r["metric"] == metric]
-        cov = np.mean([r["covered"] for r in rr])
-        cov2 = np.mean([r["covered_same_conventions"] for r in rr])
-        lines.append(f"| {key} | {metric} [{unit}] | {truth[(key, metric)]:.4g} | "
-                     f"{np.median([r['predicted'] for r in rr]):.4g} | {np.median([r['hi'] - r['lo'] for r in rr]):.3g} | "
-                     f"**{cov:.0%}** ({sum(r['covered'] for r in rr)}/{len(rr)}) | "
-                     f"{sum(r['below'] for r in rr)} / {sum(r['above'] for r in rr)} | {conv[(key, metric)]:.4g} | "
-                     f"**{cov2:.0%}** | {np.median([r['draws_used'] for r in rr]):.0f} "
-                     f"({sum(r['draws_failed'] for r in rr)}) |")
-    first = [r for r in rows if r["metric"] == METRICS[0][1]]
-    lines += ["", (f"Parameter coverage in the same fits (|θ̂ − θ| ≤ 1.96·SE over the 12 free derivatives and all "
-              f"seeds): {np.mean([r['param_coverage'] for r in first]):.1%}; converged "
-              f"{np.mean([r['converged'] for r in first]):.0%}; median fit {np.median([r['fit_s'] for r in first]):.1f} s, "
-              f"median prediction with intervals {np.median([r['predict_s'] for r in first]):.1f} s (3 manoeuvres × "
-              f"{samples} draws)."),
-              "", (f"\"Prediction's conventions\": the same NumPy truth flown with the autopilot looking at the "
-              f"heading only every {dt_pred:.4g} s (the prediction's sample step L/V/50) and the turn measured from "
-              f"{lag:.3g} s after the rudder order (diffship's `first_execute`: the last sample with |δ| ≤ 10 % of "
-              "the order, as the metric code places the execute). The difference between the two truths is a "
-              "bias of the prediction's simulation and metric conventions, not of the parameters, and the "
-              "intervals (parameter uncertainty) do not contain it.")]
+              f"{os.getloadavg()[0]:.2f} at end; wall {wall_s / 60:.1f} min, CPU {cpu_s / 60:.1f} min of this "
+              "process (both cases).")]
+    if rows:
+        lines += ["", "## vmm: zigzag fit → 35° turning circle and zigzags (`diffship.predict.predict`)", "",
+                  ("Fit: `vmm_simple`, 12 free derivatives, on two noisy zigzags (10/10 stbd, 20/20 port, 300 s at "
+                   "2 Hz) of the NumPy truth."), "",
+                  ("| manoeuvre | metric | truth (IMO) | median predicted | median interval width | coverage of the "
+                   "IMO truth | truth below / above | truth, prediction's conventions | coverage of it | draws used "
+                   "(failed) |"), "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for key, metric, unit in METRICS:
+            rr = [r for r in rows if r["manoeuvre"] == key and r["metric"] == metric]
+            cov = np.mean([r["covered"] for r in rr])
+            cov2 = np.mean([r["covered_same_conventions"] for r in rr])
+            lines.append(f"| {key} | {metric} [{unit}] | {truth[(key, metric)]:.4g} | "
+                         f"{np.median([r['predicted'] for r in rr]):.4g} | "
+                         f"{np.median([r['hi'] - r['lo'] for r in rr]):.3g} | "
+                         f"**{cov:.0%}** ({sum(r['covered'] for r in rr)}/{len(rr)}) | "
+                         f"{sum(r['below'] for r in rr)} / {sum(r['above'] for r in rr)} | {conv[(key, metric)]:.4g} | "
+                         f"**{cov2:.0%}** | {np.median([r['draws_used'] for r in rr]):.0f} "
+                         f"({sum(r['draws_failed'] for r in rr)}) |")
+        first = [r for r in rows if r["metric"] == METRICS[0][1]]
+        lines += ["", (f"Parameter coverage in the same fits (|θ̂ − θ| ≤ 1.96·SE over the 12 free derivatives and all "
+                       f"seeds): {np.mean([r['param_coverage'] for r in first]):.1%}; converged "
+                       f"{np.mean([r['converged'] for r in first]):.0%}; median fit "
+                       f"{np.median([r['fit_s'] for r in first]):.1f} s, median prediction with intervals "
+                       f"{np.median([r['predict_s'] for r in first]):.1f} s (3 manoeuvres × {samples} draws)."),
+                  "", (f"\"Prediction's conventions\": the same NumPy truth flown with the autopilot looking at the "
+                       f"heading only every {dt_pred:.4g} s (the prediction's sample step L/V/50) and the turn measured "
+                       f"from {lag:.3g} s after the rudder order (diffship's `first_execute`: the last sample with "
+                       "|δ| ≤ 10 % of the order, as the metric code places the execute). The difference between the "
+                       "two truths is a bias of the prediction's simulation and metric conventions, not of the "
+                       "parameters, and the intervals (parameter uncertainty) do not contain it.")]
+    if usv_rows:
+        lines += ["", "## usv: thrust/nozzle fit → steady turning radius (`diffship.predict.sampling`)", "",
+                  ("Fit: `fossen3`, 10 free parameters, on the three noisy thrust-step / nozzle-zigzag runs of "
+                   "`coverage.py` (200 s at 10 Hz). Metric: steady turning radius R = |V|/|r| after "
+                   f"{USV_TURN_S:g} s at constant jet thrust and nozzle angle from u = 2 m/s (inside the training "
+                   f"envelope), open-loop simulations of the draws vmapped at {USV_DT:g} s; the truth's R from the "
+                   "NumPy simulator (RK4, 0.05 s)."), "",
+                  ("| steady turn | truth R [m] | median predicted | median interval width | coverage | truth below / "
+                   "above | draws used (failed) |"), "|---|---:|---:|---:|---:|---:|---:|"]
+        for k, tv in usv_truth.items():
+            rr = [r for r in usv_rows if r["metric"] == k]
+            lines.append(f"| {k} | {tv:.4g} | {np.median([r['predicted'] for r in rr]):.4g} | "
+                         f"{np.median([r['hi'] - r['lo'] for r in rr]):.3g} | **{np.mean([r['covered'] for r in rr]):.0%}**"
+                         f" ({sum(r['covered'] for r in rr)}/{len(rr)}) | {sum(r['below'] for r in rr)} / "
+                         f"{sum(r['above'] for r in rr)} | {np.median([r['draws_used'] for r in rr]):.0f} "
+                         f"({sum(r['draws_failed'] for r in rr)}) |")
+        first = usv_rows[:: len(usv_truth)]
+        lines += ["", (f"Parameter coverage in the same fits: {np.mean([r['param_coverage'] for r in first]):.1%}; "
+                       f"converged {np.mean([r['converged'] for r in first]):.0%}; median fit "
+                       f"{np.median([r['fit_s'] for r in first]):.1f} s, median prediction "
+                       f"{np.median([r['predict_s'] for r in first]):.2f} s ({len(usv_truth)} turns × {samples} draws).")]
     Path(path).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
