@@ -152,3 +152,22 @@ def test_command_lines_report_cross_manoeuvre(runs, tmp_path):
     got = pdoc["cross_manoeuvre"]["heldout"][0]["metrics"]["r_steady"]
     assert (got["measured"], got["predicted"]) == pytest.approx((r_ss["measured"], r_ss["predicted"]), rel=1e-9)
     assert (pout / "cross_manoeuvre.png").exists()
+
+
+def test_classify_the_real_kvlcc2_zigzags():
+    """The 13 HSVA free-running zigzags (SIMMAN 2008, ../shared/data): type, rudder and switch angles
+    and first side read from the records agree with the test names (autopilot delays make the
+    heading at the reversals 0.2–2° larger than the switch angle)."""
+    from diffship.data import kvlcc2_runs
+    from diffship.errors import DataError
+
+    try:
+        runs = kvlcc2_runs()
+    except (DataError, FileNotFoundError, OSError) as exc:
+        pytest.skip(f"KVLCC2 HSVA data not available (../shared/data/kvlcc2_hsva): {exc}")
+    assert len(runs) == 13
+    for r in runs:
+        rt = classify_run(r)
+        m = r.metadata
+        want = ("zigzag", m["rudder_angle_deg"], m["switch_heading_deg"], 1.0 if m["first_rudder"] == "starboard" else -1.0)
+        assert (rt.kind, rt.rudder_deg, rt.switch_deg, rt.side) == want, (r.name, rt)

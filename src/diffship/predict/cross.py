@@ -10,9 +10,11 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
 
    * **zigzag**: ≥ 2 non-zero plateaus alternating in sign with equal magnitudes (±20 %); the
      rudder angle is their median magnitude, the switch heading the median heading change
-     (since the first rudder order) at which the rudder left each plateau, taken as the rudder
-     angle when within max(1°, 10 %) of it (the heading is read a sample or an autopilot delay
-     late), else rounded to 0.5°;
+     (since the first rudder order) at which the rudder left each plateau; both snapped to the
+     standard angles (rudder 5, 10, ..., 35° within max(1°, 10 %); switch: the largest of 1, 5,
+     10, ..., 35° not above the observed heading change, within 2.5°, since the heading is read a
+     sample or an autopilot delay late), else rounded to 0.5°; the side from the first execute
+     (:func:`diffship.manoeuvres.first_execute`);
    * **turning circle**: one non-zero level held to the end of the record;
    * **pull-out**: one non-zero level, then back to zero for the rest of the record;
    * **spiral**: ≥ 3 distinct non-zero levels, each held at least ``spiral_hold_s``, in a
@@ -139,6 +141,16 @@ def _ramp_start(raw: np.ndarray, a: int, b: int, level: float) -> int:
     return a + max(int(hits[0]) - 1, 0) if hits.size else b
 
 
+_RUDDERS = (5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
+_SWITCHES = (1.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
+
+
+def _standard(x: float, values: tuple[float, ...], rel: float) -> float:
+    """The nearest standard angle when within max(1°, rel·x), else ``x`` rounded to 0.5°."""
+    best = min(values, key=lambda v: abs(v - x))
+    return best if abs(best - x) <= max(1.0, rel * x) else round(2.0 * x) / 2.0
+
+
 def _round(x: float) -> float:
     return float(round(x)) if abs(x - round(x)) < 0.3 else round(x, 1)
 
@@ -174,18 +186,20 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
     alternating = len(nz) >= 2 and all(np.sign(nz[i][2]) != np.sign(nz[i + 1][2]) for i in range(len(nz) - 1))
     if alternating and mags.max() <= 1.2 * mags.min():
         try:
-            i0, _ = first_execute(run)
+            i0, execute_side = first_execute(run)
         except DataError:
-            i0 = 0
+            i0, execute_side = 0, side
         if not run.has("psi"):
             return RunType("zigzag", _round(float(np.median(mags))), math.nan, side, levels,
                            "alternating rudder of equal magnitude (no heading to read the switch angle)")
         psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
         h = np.abs(np.degrees(psi[[_ramp_start(raw, a, b, lv + base) for a, b, lv in nz[:-1]]] - psi[i0]))
-        rudder, sw = _round(float(np.median(mags))), float(np.median(h))
-        # the heading is read when the rudder leaves its plateau, a sample or an autopilot delay after
-        # the switch: within max(1°, 10 %) of the rudder angle it is the standard rudder/rudder zigzag
-        sw = rudder if abs(sw - rudder) <= max(1.0, 0.1 * rudder) else round(2.0 * sw) / 2.0
+        rudder, sw = _standard(float(np.median(mags)), _RUDDERS, 0.1), float(np.median(h))
+        # the heading is read when the rudder leaves its plateau, a sample or an autopilot delay
+        # after the switch: the largest standard switch angle not above it, within 2.5°
+        std = [a for a in _SWITCHES if a <= sw + 0.3 and sw - a <= 2.5]
+        sw = max(std) if std else round(2.0 * sw) / 2.0
+        side = execute_side
         return RunType("zigzag", rudder, sw, side, levels,
                        f"{len(nz)} rudder plateaus alternating in sign, |δ| {mags.min():.3g}–{mags.max():.3g}°, "
                        f"heading change at the reversals {np.min(h):.3g}–{np.max(h):.3g}°")
