@@ -26,7 +26,13 @@ Why Monte Carlo and not the delta method: the metrics are non-smooth functions o
 loosely determined, so the metric is visibly nonlinear over the interval; vmapping all draws in one
 compiled closed-loop program makes 400 draws cost about as much as a few looped ones.
 
-    PYTHONPATH=src python benchmarks/coverage_metrics.py [--seeds 50] [--samples 400] [--quick]
+Second case, ``usv`` (no rudder, so no IMO manoeuvre): the 3-DOF USV of ``coverage.py`` fitted on its
+three thrust-step / nozzle-zigzag runs (10 free parameters, its noise); metric: the steady turning
+radius R = |V|/|r| at two constant thrust / nozzle settings inside the training envelope, the draws
+simulated open loop, vmapped (:func:`diffship.predict.sampling.simulate_draws`); the truth's R
+from the NumPy simulator.
+
+    PYTHONPATH=src python benchmarks/coverage_metrics.py [--seeds 50] [--samples 400] [--cases vmm usv] [--quick]
 
 Writes ``benchmarks/results/coverage_metrics.md`` and ``coverage_metrics.csv`` (``--quick``: 3 seeds,
 100 draws, ``*_quick``).
@@ -159,7 +165,7 @@ def truth_training_runs(dt=0.5, duration=300.0):
 
 
 # ---------------------------------------------------------------- diffship side
-def fit_and_predict(runs, samples, seed, tmp):
+def fit_and_predict(runs, samples, seed, tmp, duration=None):
     from diffship.fit import OutputErrorOptions, fit_output_error
     from diffship.fitfile import save_fit
     from diffship.models import get_model
@@ -175,7 +181,7 @@ def fit_and_predict(runs, samples, seed, tmp):
     path = save_fit(res, Path(tmp) / f"fit_{seed}.json", runs, registry="vmm_simple")
     t0 = time.perf_counter()
     pred = predict(path, ["turning:35", "zigzag:20/20", "zigzag:10/10"], speed=U0, inputs={"thrust": T0},
-                   helm_rate_deg_s=RATE / DEG, samples=samples, seed=seed)
+                   helm_rate_deg_s=RATE / DEG, samples=samples, seed=seed, duration=duration)
     t_pred = time.perf_counter() - t0
     return res, pred, t_fit, t_pred
 
@@ -263,18 +269,20 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="*", default=["vmm", "usv"], help="vmm (zigzag fit -> IMO metrics), usv "
                     "(thrust/nozzle fit -> steady turning radius)")
     ap.add_argument("--quick", action="store_true", help="3 seeds, 100 draws, files *_quick")
+    ap.add_argument("--fine", action="store_true", help="diagnostic: predict at the step L/V/200 instead of L/V/50 "
+                    "(predict(duration=5 L/V): dt = duration/1000), files *_fine")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
     seeds, samples = (3, 100) if args.quick else (args.seeds, args.samples)
-    tag = "_quick" if args.quick else ""
+    tag = ("_quick" if args.quick else "") + ("_fine" if args.fine else "")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     load0, cpu0, t_all = os.getloadavg(), time.process_time(), time.perf_counter()
     rows, truth, conv = [], {}, {}
-    dt_pred = L / U0 / 50.0
+    dt_pred = L / U0 / (200.0 if args.fine else 50.0)
     lag = dt_pred * math.floor(0.1 * 35.0 / (RATE / DEG * dt_pred) + 1e-9)
     if "vmm" in args.cases:
-        rows, truth, conv = run_vmm(seeds, samples, dt_pred, lag)
+        rows, truth, conv = run_vmm(seeds, samples, dt_pred, lag, duration=5 * L / U0 if args.fine else None)
     usv_rows, usv_truth = run_usv(seeds, samples) if "usv" in args.cases else ([], {})
     with open(out / f"coverage_metrics{tag}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list((rows or usv_rows)[0]))
@@ -284,7 +292,7 @@ def main(argv=None):
                  samples, load0, time.perf_counter() - t_all, time.process_time() - cpu0)
 
 
-def run_vmm(seeds, samples, dt_pred, lag):
+def run_vmm(seeds, samples, dt_pred, lag, duration=None):
     """Rows of the VMM case (one per seed and metric), the IMO truth and the same-conventions truth."""
     t0 = time.perf_counter()
     truth = {("turning_35", k): v for k, v in truth_turning().items()}
@@ -304,7 +312,8 @@ def run_vmm(seeds, samples, dt_pred, lag):
     with tempfile.TemporaryDirectory() as tmp:
         for s in range(seeds):
             runs, _ = measured_runs("vmm", train, 2000 + s)
-            res, pred, t_fit, t_pred = fit_and_predict(runs, samples, s, tmp)
+            res, pred, t_fit, t_pred = fit_and_predict(runs, samples, s, tmp, duration)
+            assert abs(pred.condition.dt - dt_pred) < 1e-9, (pred.condition.dt, dt_pred)
             by = {m.spec.key: m for m in pred.manoeuvres}
             pcov = np.mean([abs(res.params[n] - VMM_TRUE[n]) <= 1.96 * res.stderr[n] for n in FREE])
             for (key, metric, unit) in METRICS:
@@ -360,7 +369,7 @@ def write_report(path, rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, see
                        f"{np.median([r['fit_s'] for r in first]):.1f} s, median prediction with intervals "
                        f"{np.median([r['predict_s'] for r in first]):.1f} s (3 manoeuvres × {samples} draws)."),
                   "", (f"\"Prediction's conventions\": the same NumPy truth flown with the autopilot looking at the "
-                       f"heading only every {dt_pred:.4g} s (the prediction's sample step L/V/50) and the turn measured "
+                       f"heading only every {dt_pred:.4g} s (the prediction's sample step) and the turn measured "
                        f"from {lag:.3g} s after the rudder order (diffship's `first_execute`: the last sample with "
                        "|δ| ≤ 10 % of the order, as the metric code places the execute). The difference between the "
                        "two truths is a bias of the prediction's simulation and metric conventions, not of the "
