@@ -269,6 +269,7 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="*", default=["vmm", "usv"], help="vmm (zigzag fit -> IMO metrics), usv "
                     "(thrust/nozzle fit -> steady turning radius)")
     ap.add_argument("--quick", action="store_true", help="3 seeds, 100 draws, files *_quick")
+    ap.add_argument("--figure-only", action="store_true", help="redraw the figure from the CSV, no computing")
     ap.add_argument("--fine", action="store_true", help="diagnostic: predict at the step L/V/200 instead of L/V/50 "
                     "(predict(duration=5 L/V): dt = duration/1000), files *_fine")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
@@ -277,6 +278,8 @@ def main(argv=None):
     tag = ("_quick" if args.quick else "") + ("_fine" if args.fine else "")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.figure_only:
+        return plot_coverage(out / f"coverage_metrics{tag}.csv", out / f"coverage_metrics{tag}.png")
     load0, cpu0, t_all = os.getloadavg(), time.process_time(), time.perf_counter()
     rows, truth, conv = [], {}, {}
     dt_pred = L / U0 / (200.0 if args.fine else 50.0)
@@ -290,6 +293,44 @@ def main(argv=None):
         w.writerows(rows + usv_rows)
     write_report(out / f"coverage_metrics{tag}.md", rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, seeds,
                  samples, load0, time.perf_counter() - t_all, time.process_time() - cpu0)
+    plot_coverage(out / f"coverage_metrics{tag}.csv", out / f"coverage_metrics{tag}.png")
+
+
+def plot_coverage(csv_path, png_path):
+    """One panel per metric: each seed's 95 % interval and prediction (relative to the IMO truth), the
+    truth (0) and, where it differs, the truth under the prediction's conventions (dashed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with open(csv_path) as f:
+        rows = list(csv.DictReader(f))
+    keys = list(dict.fromkeys((r["manoeuvre"], r["metric"]) for r in rows))
+    fig, axes = plt.subplots(len(keys), 1, figsize=(10, 2.2 * len(keys)), squeeze=False)
+    for ax, (man, met) in zip(axes[:, 0], keys):
+        rr = [r for r in rows if (r["manoeuvre"], r["metric"]) == (man, met)]
+        tv, cv = float(rr[0]["truth"]), float(rr[0]["truth_same_conventions"])
+        for r in rr:
+            ok = r["covered"] == "True"
+            lo, hi, p = (float(r[k]) - tv for k in ("lo", "hi", "predicted"))
+            ax.plot([int(r["seed"])] * 2, [lo, hi], color="C0" if ok else "C3", lw=2)
+            ax.plot(int(r["seed"]), p, ".", color="k", ms=3)
+        ax.axhline(0.0, color="k", lw=1, label="truth" if man.startswith("usv") else "truth (IMO definitions)")
+        if cv != tv:
+            ax.axhline(cv - tv, color="C1", ls="--", lw=1, label="truth, prediction's conventions")
+        cov = np.mean([r["covered"] == "True" for r in rr])
+        ax.set_title(f"{man} {met} [{rr[0]['unit']}]: truth {tv:.4g}, coverage {cov:.0%} (red: interval misses)",
+                     fontsize=8)
+        ax.set_ylabel("minus truth", fontsize=8)
+        ax.legend(fontsize=6, loc="upper right")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("seed", fontsize=8)
+    fig.suptitle("diffship — 95 % metric intervals against the NumPy truth (benchmarks/coverage_metrics.py)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+    print(f"wrote {png_path}")
 
 
 def run_vmm(seeds, samples, dt_pred, lag, duration=None):
