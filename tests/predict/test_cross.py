@@ -171,3 +171,29 @@ def test_classify_the_real_kvlcc2_zigzags():
         m = r.metadata
         want = ("zigzag", m["rudder_angle_deg"], m["switch_heading_deg"], 1.0 if m["first_rudder"] == "starboard" else -1.0)
         assert (rt.kind, rt.rudder_deg, rt.switch_deg, rt.side) == want, (r.name, rt)
+
+
+def test_vmapped_draws_reproduce_the_manoeuvre_builders():
+    """predict.sampling flies draws through the same steering law, grid and integrator as
+    manoeuvres.zigzag / turning_circle: a draw at θ̂ reproduces them, a draw elsewhere equals the
+    builder run with that model (to rounding), and a blow-up is returned as None."""
+    from diffship.integrators import Diffrax  # the manoeuvre builders' default integrator
+    from diffship.models import Nomoto1
+    from diffship.predict.sampling import fly_draws, manoeuvre_law
+
+    model = Nomoto1(K=0.25, T1=6.0, delta0=0.0)
+    names = ("K", "T1")
+    thetas = np.array([[0.25, 6.0], [0.3, 5.0], [0.25, -1e-3]])  # the last: T1 < 0, unstable
+    kw = {"inputs": {}, "dt": 0.1, "rudder_rate_deg_s": 9.0}
+    for kind, build in (("zigzag", lambda m: zigzag(m, {}, rudder_deg=10.0, duration=60.0, t_execute=0.1, **kw)),
+                        ("turning_circle", lambda m: turning_circle(m, {}, rudder_deg=35.0, duration=60.0,
+                                                                    t_execute=0.1, **kw))):
+        law = manoeuvre_law(model, kind, rudder_deg=10.0 if kind == "zigzag" else 35.0, side=1.0, t_execute=0.1,
+                            initial={}, switch_deg=10.0)
+        runs = fly_draws(model, names, thetas, law, initial={}, duration=60.0, integrator=Diffrax(substeps=2),
+                         **kw)
+        for theta, run in zip(thetas[:2], runs[:2]):
+            ref = build(model.with_params(dict(zip(names, theta))))
+            np.testing.assert_allclose(run["psi"], ref["psi"], rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(run["delta"], ref["delta"], rtol=1e-10, atol=1e-12)
+        assert runs[2] is None
