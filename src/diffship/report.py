@@ -280,6 +280,7 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "priors": r.info.get("priors"),
             "identifiability": r.info.get("identifiability"),
             "admissibility": r.info.get("admissibility"),
+            "cross_manoeuvre": r.info.get("cross_manoeuvre"),
         }
     doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}
     if extra:

@@ -33,6 +33,8 @@ from ..vessel import (
 )
 from ..fitfile import save_fit
 from ..manoeuvres import check_turn_direction
+from ..predict.cross import cross_validate, train_types_json
+from ..predict.cross_report import cross_json, cross_text, plot_cross
 from ..report import CHANNEL_NAMES, failed_methods, plot_fit, text_report, to_json_dict, write_json
 from .both import fit_both
 from .output_error import OutputErrorOptions
@@ -149,6 +151,16 @@ def _admissibility(args, result, train, say):
     ref = type(model)() if getattr(type(model), "REFERENCE", "") else None
     return admissibility(model, initial={"u": float(run["u"][:n0].mean())}, inputs=inputs, training=train,
                          reference=ref, free=result.free, helm_rate_deg_s=helm)
+
+
+def _cross_manoeuvre(oe, train, val, say):
+    """Cross-manoeuvre validation of an output-error fit of a model with a rudder input on the
+    ``--validate`` runs of manoeuvre types not in the training runs; ``None`` when there are none."""
+    if oe is None or not val or "delta" not in oe.model.input_names:
+        return None
+    say("cross-manoeuvre validation: classifying the runs, simulating the held-out manoeuvre types...")
+    cv = cross_validate(oe, train, val)
+    return cv if cv.checks else None
 
 
 def _progress(quiet: bool):
@@ -271,10 +283,17 @@ def _fit(args, say) -> int:
         if adm is not None:
             report += "\n\n" + adm.summary()
             oe.info["admissibility"] = adm.as_json()
+    cross = _cross_manoeuvre(oe, train, val, say)
+    if cross is not None:  # held-out runs of manoeuvre types not trained on (issue 12)
+        report += "\n\n" + cross_text(cross)
+        oe.info["cross_manoeuvre"] = cross_json(cross)
     if notes:
         report += "\n" + "\n".join(notes)
     print(report)
     write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say)
+    if cross is not None and args.out:
+        plot_cross(cross, Path(args.out) / "cross_manoeuvre.png")
+        say(f"wrote {Path(args.out) / 'cross_manoeuvre.png'}")
     if not any(r.converged for r in results.values()):
         print("error: no fit converged (see the statuses above)", file=sys.stderr)
         return 1
@@ -443,6 +462,8 @@ def write_outputs(args, model_name, results, ev_train, ev_val, train, val, repor
     extra = {"metrics": {"train": doc["methods"][best.method]["train"],
                          "validation": doc["methods"][best.method]["validation"],
                          "validation_runs": [r.name for r in val]}}
+    if "delta" in best.model.input_names:
+        extra["training_manoeuvres"] = train_types_json(train)
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
+from pathlib import Path
 
+from ..data import load_runs
 from ..errors import DiffshipError
 from ..params import parse_assignments
 from .core import predict
-from .report import prediction_text, write_prediction
+from .cross import RunType, cross_validate
+from .cross_report import cross_json, cross_text, plot_cross
+from .report import prediction_json, prediction_text, write_prediction
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,6 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--delay", type=float, default=0.0, metavar="S", help="zigzag autopilot delay [s] (default 0)")
     p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per manoeuvre [s]")
     p.add_argument("--samples", type=int, default=40, help="parameter draws for the 95 %% intervals (0: none)")
+    p.add_argument("--measured", nargs="*", default=[], metavar="RUN.csv",
+                   help="measured runs to judge the fit on (cross-manoeuvre validation): runs of manoeuvre types "
+                        "the fit was not trained on are simulated with their measured inputs and their IMO metrics "
+                        "compared (columns and units as for python -m diffship.fit; starboard-positive rudder)")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
     p.add_argument("--quiet", action="store_true")
@@ -56,11 +65,38 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(prediction_text(pred))
+    try:
+        cross = _cross(args, pred)
+    except DiffshipError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if cross is not None:
+        print("\n" + cross_text(cross))
     if args.out:
         files = write_prediction(pred, args.out)
+        if cross is not None:  # the cross-manoeuvre section joins prediction.json; its own figure
+            doc = {**prediction_json(pred), "cross_manoeuvre": cross_json(cross)}
+            Path(files[1]).write_text(json.dumps(doc, indent=2))
+            files.append(Path(args.out) / "cross_manoeuvre.png")
+            plot_cross(cross, files[-1])
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] wrote {', '.join(str(f) for f in files)}", file=sys.stderr)
     return 0
+
+
+def _cross(args, pred):
+    """Cross-manoeuvre validation on ``--measured`` runs; training types from the fit file."""
+    if not args.measured:
+        return None
+    from ..fitfile import load_fit
+
+    fit = load_fit(args.fit)
+    known = fit.document.get("training_manoeuvres")
+    if known is None:
+        raise DiffshipError(f"{args.fit}: the fit file does not say which manoeuvre types it was trained on "
+                            "(training_manoeuvres); refit with this version of python -m diffship.fit")
+    return cross_validate(fit, [RunType.from_json(d) for d in known], load_runs(args.measured),
+                          samples=args.samples, length=pred.condition.length)
 
 
 if __name__ == "__main__":

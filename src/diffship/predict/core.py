@@ -15,8 +15,8 @@ list of manoeuvres (:func:`parse_manoeuvre`: ``turning:35``, ``zigzag:10/10``, `
    the IMO 2002 criteria (:mod:`diffship.predict.criteria`) at full scale;
 4. **intervals**: where the fit has a finite covariance Σ of its free parameters, ``samples``
    parameter vectors are drawn from N(θ̂, Σ) (draws outside a parameter's bounds are redrawn
-   out; draws whose manoeuvre blows up are counted), each is flown (looped, one compiled
-   closed-loop simulation reused for every draw) through the same
+   out; draws whose manoeuvre blows up are counted), all are flown together (vmapped in one
+   compiled closed-loop simulation, :mod:`diffship.predict.sampling`) through the same
    manoeuvres, and the 2.5 and 97.5 percentiles of each metric are reported — Monte-Carlo
    propagation of the Gaussian (linearised) parameter uncertainty through the nonlinear
    simulation; model-structure error is not in it.
@@ -52,6 +52,7 @@ from ..manoeuvres import (
 from ..scaling import FroudeScale, helm_rate, model_length
 from ..trim import trim
 from .criteria import Criterion, check_criteria
+from .sampling import draw_parameters, fly_draws, manoeuvre_law
 
 __all__ = [
     "METRIC_KINDS",
@@ -330,27 +331,28 @@ def extrapolation(fit: LoadedFit, spec: ManoeuvreSpec, run: Run, margin: float =
 def _draw(fit: LoadedFit, n: int, seed: int) -> tuple[np.ndarray, str]:
     names = fit.covariance_names
     mean = np.asarray([fit.params[k] for k in names])
-    cov = fit.covariance
-    try:
-        L = np.linalg.cholesky(cov + 1e-300 * np.eye(len(names)))
-    except np.linalg.LinAlgError:
-        w, V = np.linalg.eigh(cov)
-        L = V * np.sqrt(np.clip(w, 0.0, None))
-    rng = np.random.default_rng(seed)
-    spec = fit.model.spec()
-    lo = np.asarray([spec[k].lower for k in names])
-    hi = np.asarray([spec[k].upper for k in names])
-    out = []
-    for _ in range(50):
-        z = mean + rng.standard_normal((n, len(names))) @ L.T
-        out.extend(z[np.all((z > lo) & (z < hi), axis=1)])
-        if len(out) >= n:
-            break
-    return np.asarray(out[:n]), (f"{n} parameter sets drawn from N(θ̂, Σ) of the {len(names)} free parameters "
-                                 "(Monte Carlo through the nonlinear manoeuvre simulation, one compiled simulation "
-                                 "per draw in a loop, not vmapped; draws outside bounds "
-                                 "redrawn); intervals: 2.5–97.5 percentiles; parameter uncertainty only (not "
-                                 "model-structure error)")
+    draws = draw_parameters(fit.model, names, mean, fit.covariance, n, seed)
+    return draws, (f"{n} parameter sets drawn from N(θ̂, Σ) of the {len(names)} free parameters "
+                   "(Monte Carlo through the nonlinear manoeuvre simulation, all draws in one vmapped compiled "
+                   "simulation; draws outside bounds "
+                   "redrawn); intervals: 2.5–97.5 percentiles; parameter uncertainty only (not "
+                   "model-structure error)")
+
+
+def _fly_draws(fit: LoadedFit, spec: ManoeuvreSpec, cond: Condition, draws: np.ndarray, duration: float
+               ) -> list[Run | None]:
+    """The draws flown through ``spec`` as :func:`_fly` flies one model with ``fixed_duration``, vmapped."""
+    model = fit.model
+    initial = {"u": cond.speed} if "u" in model.state_names else {}
+    inputs = {k: v for k, v in cond.inputs.items() if k != "delta"}
+    turn_s = duration / 2 if spec.kind == "pull_out" else None
+    total = cond.dt + duration if spec.kind == "pull_out" else duration
+    law = manoeuvre_law(model, spec.kind, rudder_deg=spec.rudder_deg, side=spec.side, t_execute=cond.dt,
+                        initial=initial, switch_deg=spec.switch_deg, delay_s=cond.delay_s, turn_s=turn_s)
+    meta = {"manoeuvre": spec.kind, "t_release": cond.dt + turn_s} if turn_s else {"manoeuvre": spec.kind}
+    runs = fly_draws(model, fit.covariance_names, draws, law, initial=initial, inputs=inputs, duration=total,
+                     dt=cond.dt, rudder_rate_deg_s=cond.helm_rate_deg_s, integrator=fit.integrator, metadata=meta)
+    return [None if r is None else _with_track(r, cond.speed) for r in runs]
 
 
 def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpec], *, speed: float | None = None,
@@ -404,10 +406,11 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
         if extra:
             notes.append(extra)
         samp, failed = [], 0
-        for theta in draws:
+        for r in _fly_draws(fit, spec, cond, draws, run.duration) if len(draws) else []:
             try:
-                mk = model.with_params(dict(zip(fit.covariance_names, theta)))
-                samp.append(manoeuvre_metrics(spec, _fly(mk, spec, cond, fit.integrator, run.duration), length))
+                if r is None:
+                    raise ModelError("blew up")
+                samp.append(manoeuvre_metrics(spec, r, length))
             except (ModelError, DataError):
                 failed += 1
         intervals = {}
