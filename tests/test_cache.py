@@ -40,3 +40,28 @@ def test_cache_can_be_switched_off(tmp_path):
     env = {**os.environ, "DIFFSHIP_CACHE_DIR": "off"}
     d, loaded, _, ok, saved, exp, _ = _run(env)
     assert d == "None" and loaded == 0 and ok and saved == exp == 0
+
+
+USER_MODEL = """
+import sys
+from diffship import compiled
+from diffship.fit import OutputErrorOptions, fit_output_error
+from diffship.models import Nomoto1
+from diffship.synthetic import nomoto_runs
+
+class Mine(Nomoto1):  # user code: the export key cannot see it
+    pass
+
+runs = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=30.0, dt=0.1, noise="none")
+fit_output_error(Mine() if sys.argv[1] == "mine" else Nomoto1(), runs, options=OutputErrorOptions(weights="spread"))
+print(compiled.exported()["saved"])
+"""
+
+
+def test_programs_of_user_defined_models_are_never_exported(tmp_path):
+    """A model class written outside diffship could be edited without changing any export key,
+    so its programs must not be kept as StableHLO (they are traced again in every process)."""
+    env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(tmp_path / "jax")}
+    saved = {which: int(subprocess.run([sys.executable, "-c", USER_MODEL, which], capture_output=True, text=True,
+                                       env=env, check=True).stdout.split()[-1]) for which in ("mine", "library")}
+    assert saved["mine"] == 0 and saved["library"] >= 2, saved

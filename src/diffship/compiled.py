@@ -22,13 +22,16 @@ The export key is a hash of everything the program depends on: the owner's and a
 structure as :func:`equinox.tree_pformat` prints it (static fields included, arrays as shapes
 and dtypes), the method name and static keywords, the float64 flag, the backend, the versions
 of jax/jaxlib/diffrax/optimistix/equinox/lineax and the bytes of every diffship source file
-(so an edited diffship never loads a stale program). Programs whose outputs are not plain
-arrays and containers, or that hold host callbacks, are not exported (they are traced as
-before, and still reach JAX's persistent cache when they can).
+(so an edited diffship never loads a stale program). Programs built from code the key cannot
+see — a model, steering law or effect class written outside diffship (a notebook, a test, a
+benchmark's truth), or a callable in a static field — are never exported; neither are programs
+whose outputs are not plain arrays and containers, or that hold host callbacks. Those are
+traced in every process as before, and still reach JAX's persistent cache when they can.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib.metadata
 import os
@@ -74,6 +77,38 @@ def _source_hash() -> str:
     return _SOURCE[0]
 
 
+#: Top-level packages whose code an export key covers (diffship's bytes, the others' versions).
+_KNOWN = frozenset({"diffship", "jax", "jaxlib", "equinox", "diffrax", "optimistix", "lineax", "numpy", "builtins",
+                    "jaxtyping", "functools", "math", "operator"})
+
+
+def _known_code(obj, depth: int = 0) -> bool:
+    """Whether every class and function reachable from ``obj`` (fields of modules and
+    dataclasses, containers, static fields) is defined in diffship or a versioned library.
+
+    A model, law or effect written by the user (a notebook, a test, a benchmark's truth) is
+    code the key cannot see: editing it would not change the key, so such programs are never
+    exported (they are traced in every process, and still reach JAX's own cache, which is
+    keyed by the program itself)."""
+    if depth > 30:
+        return False
+    if obj is None or isinstance(obj, (bool, int, float, complex, str, bytes, np.ndarray, jax.Array, np.generic)):
+        return True
+    if isinstance(obj, (tuple, list, frozenset, set)):
+        return all(_known_code(x, depth + 1) for x in obj)
+    if isinstance(obj, dict):
+        return all(_known_code(k, depth + 1) and _known_code(v, depth + 1) for k, v in obj.items())
+    owner_module = getattr(obj, "__module__", None) if callable(obj) and not isinstance(obj, type) else None
+    module = owner_module or type(obj).__module__
+    if isinstance(obj, type):
+        module = obj.__module__
+    if (module or "").split(".")[0] not in _KNOWN:
+        return False
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return all(_known_code(getattr(obj, f.name, None), depth + 1) for f in dataclasses.fields(obj))
+    return True
+
+
 def _export_key(owner: Hashable, name: str, args: tuple, static: dict) -> str:
     text = "\n".join([
         _source_hash(), name, repr(sorted(static.items())), str(jax.config.jax_enable_x64), jax.default_backend(),
@@ -90,6 +125,8 @@ def _exported(owner: Hashable, name: str, method: Callable, args: tuple, static:
     folder = cache.cache_dir()
     leaves, treedef = jax.tree_util.tree_flatten(args)
     if folder is None or not all(isinstance(x, (jax.Array, np.ndarray)) for x in leaves):
+        return None
+    if not (_known_code(owner) and _known_code(args) and _known_code(static)):
         return None
     path = folder / "exported" / f"{_export_key(owner, name, args, static)}.bin"
     if path.is_file():
