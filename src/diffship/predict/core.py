@@ -300,7 +300,10 @@ def _durations(length, speed, duration) -> tuple[dict[str, float], float, str | 
         return {"turning_circle": d, "zigzag": d, "pull_out": d}, d / 1000.0, None
     if length and speed:
         lv = length / speed
-        return ({"turning_circle": 45 * lv, "zigzag": 40 * lv, "pull_out": 50 * lv}, lv / 50.0, None)
+        # step L/V/200: the zigzag autopilot looks at the heading once per step, so a coarser step
+        # reverses the rudder late (L/V/50 added +0.18° to a 20/20 and +0.22° to a 10/10 first
+        # overshoot, more than their 95 % intervals' half-width; benchmarks/results/coverage_metrics*.md)
+        return ({"turning_circle": 45 * lv, "zigzag": 40 * lv, "pull_out": 50 * lv}, lv / 200.0, None)
     return ({"turning_circle": 300.0, "zigzag": 200.0, "pull_out": 300.0}, 0.1,
             ("no ship length or speed: durations 300 s (turning, pull-out) and 200 s (zigzag), dt 0.1 s; "
              "set --duration"))
