@@ -46,11 +46,14 @@ class _State(eqx.Module):
 
 
 class MaterialisedDampedNewton(optx.AbstractDescent):
-    """Damped Gauss–Newton descent with a dense, once-per-step Jacobian."""
+    """Damped Gauss–Newton descent with a dense, once-per-step Jacobian (kept in the state
+    only when ``keep_jacobian``: a batch of vmapped solves would otherwise carry every fit's)."""
+
+    keep_jacobian: bool = eqx.field(static=True, default=False)
 
     def init(self, y, f_info_struct):
         n = y.size
-        m = f_info_struct.residual.size
+        m = f_info_struct.residual.size if self.keep_jacobian else 0
         inf = jnp.array(jnp.inf, y.dtype)
         return _State(jnp.zeros((m, n), y.dtype), jnp.zeros((n, n), y.dtype), jnp.zeros((n,), y.dtype), inf, inf,
                       jnp.array(0))
@@ -60,7 +63,8 @@ class MaterialisedDampedNewton(optx.AbstractDescent):
         jac = jax.vmap(f_info.jac.mv, out_axes=1)(jnp.eye(n, dtype=y.dtype))
         r = f_info.residual
         cost = 0.5 * jnp.sum(r * r)
-        return _State(jac, jac.T @ jac, jac.T @ r, cost, state.cost, state.accepted + 1)
+        kept = jac if self.keep_jacobian else state.jac
+        return _State(kept, jac.T @ jac, jac.T @ r, cost, state.cost, state.accepted + 1)
 
     def step(self, step_size, state):
         eps = jnp.finfo(state.jtr.dtype).eps
@@ -82,6 +86,7 @@ class MaterialisedLM(optx.AbstractGaussNewton):
         ftol: also stop when an accepted step lowers the cost by less than ``ftol·cost``
             (a parameter drifting towards a bound in the log-scaled space otherwise never
             meets the parameter tolerance).
+        keep_jacobian: keep the last accepted step's Jacobian in the state (``state.descent_state.jac``).
     """
 
     def terminate(self, fn, y, args, options, state, tags):
@@ -104,12 +109,13 @@ class MaterialisedLM(optx.AbstractGaussNewton):
         atol: float = 1e-8,
         norm: Callable = optx.max_norm,
         ftol: float = 1e-10,
+        keep_jacobian: bool = False,
     ):
         self.ftol = ftol
         self.rtol = rtol
         self.atol = atol
         self.norm = norm
-        self.descent = MaterialisedDampedNewton()
+        self.descent = MaterialisedDampedNewton(keep_jacobian)
         self.search = optx.ClassicalTrustRegion()
         self.verbose = _quiet
 

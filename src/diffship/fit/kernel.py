@@ -203,7 +203,7 @@ class Kernel(eqx.Module):
         """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``, and with
         ``jacobian=True`` also the Jacobian :meth:`jacobian` at ``z`` (the one the last accepted
         step formed: no second forward-mode pass, no second compiled program)."""
-        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol)
+        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol, keep_jacobian=jacobian)
         sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
                                  throw=False)
         out = (sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data))
