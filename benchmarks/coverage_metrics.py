@@ -270,22 +270,22 @@ def main(argv=None):
                     "(thrust/nozzle fit -> steady turning radius)")
     ap.add_argument("--quick", action="store_true", help="3 seeds, 100 draws, files *_quick")
     ap.add_argument("--figure-only", action="store_true", help="redraw the figure from the CSV, no computing")
-    ap.add_argument("--fine", action="store_true", help="diagnostic: predict at the step L/V/200 instead of L/V/50 "
-                    "(predict(duration=5 L/V): dt = duration/1000), files *_fine")
+    ap.add_argument("--coarse", action="store_true", help="diagnostic: predict at the old step L/V/50 instead of "
+                    "predict's L/V/200 (predict(duration=20 L/V): dt = duration/1000), files *_coarse")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
     seeds, samples = (3, 100) if args.quick else (args.seeds, args.samples)
-    tag = ("_quick" if args.quick else "") + ("_fine" if args.fine else "")
+    tag = ("_quick" if args.quick else "") + ("_coarse" if args.coarse else "")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.figure_only:
         return plot_coverage(out / f"coverage_metrics{tag}.csv", out / f"coverage_metrics{tag}.png")
     load0, cpu0, t_all = os.getloadavg(), time.process_time(), time.perf_counter()
     rows, truth, conv = [], {}, {}
-    dt_pred = L / U0 / (200.0 if args.fine else 50.0)
-    lag = dt_pred * math.floor(0.1 * 35.0 / (RATE / DEG * dt_pred) + 1e-9)
+    dt_pred = L / U0 / (50.0 if args.coarse else 200.0)
+    lag = 0.0  # diffship's first_execute extrapolates the rudder ramp back to the order (nearest sample)
     if "vmm" in args.cases:
-        rows, truth, conv = run_vmm(seeds, samples, dt_pred, lag, duration=5 * L / U0 if args.fine else None)
+        rows, truth, conv = run_vmm(seeds, samples, dt_pred, lag, duration=20 * L / U0 if args.coarse else None)
     usv_rows, usv_truth = run_usv(seeds, samples) if "usv" in args.cases else ([], {})
     with open(out / f"coverage_metrics{tag}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list((rows or usv_rows)[0]))
@@ -411,8 +411,8 @@ def write_report(path, rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, see
                        f"{np.median([r['predict_s'] for r in first]):.1f} s (3 manoeuvres × {samples} draws)."),
                   "", (f"\"Prediction's conventions\": the same NumPy truth flown with the autopilot looking at the "
                        f"heading only every {dt_pred:.4g} s (the prediction's sample step) and the turn measured "
-                       f"from {lag:.3g} s after the rudder order (diffship's `first_execute`: the last sample with "
-                       "|δ| ≤ 10 % of the order, as the metric code places the execute). The difference between the "
+                       f"from {lag:.3g} s after the rudder order (diffship's `first_execute` extrapolates the rudder ramp "
+                       "back to the order). The difference between the "
                        "two truths is a bias of the prediction's simulation and metric conventions, not of the "
                        "parameters, and the intervals (parameter uncertainty) do not contain it.")]
     if usv_rows:
