@@ -8,21 +8,28 @@ L7 model (Yasukawa & Yoshimura 2015), RK4 with 10 substeps per sample, inputs li
 sample, Ornstein–Uhlenbeck disturbance forces/moments advanced exactly per substep, then white
 sensor noise (GNSS velocity 0.05 m/s, heading 0.5°, gyro 0.2°/s). diffship only fits and judges.
 
-**USV cases.** 2 training runs of 300 s at 10 Hz (``--quick``: 120 s), random surge steps and
-nozzle zigzags, 10 free parameters, fitted channels u, v, r (the issue's setting), start: the
-model defaults (30–50 % off) and the equation-error estimate, reference priors off (they are the
-defaults, 30–50 % off, and would judge the priors, not the estimators). Disturbance levels: none,
-and the issue's 30 N / 12 N / 40 N·m sd with 8 s time constant (full run: also ×2). Each
-estimator reports the worst and median parameter error, how many parameters lie within 3
-reported standard errors, the held-out RMSE of u, v, r (a third run, same excitation kind,
-simulated without disturbance or noise, from its true initial state) and the wall time.
+**USV cases.** ``--runs`` training runs (default 2) of ``--duration`` s (default 300;
+``--quick``: 120) at 10 Hz, random surge-thrust steps (``--design``: ``base`` 1500–6000 N held
+40 s; ``rich`` 150–6000 N held 20 s, so that the linear surge damping X_u is seen at low speed;
+``fast`` the same held 8 s — :data:`THRUST`; the experiment, not the estimator) and nozzle
+zigzags, 10 free parameters, fitted channels u, v, r (the issue's setting), start: the model
+defaults (30–50 % off) and the equation-error estimate, reference priors off (they are the
+defaults, 30–50 % off, and would judge the priors, not the estimators). Disturbance levels
+(``--levels``): none, and the issue's 30 N / 12 N / 40 N·m sd with 8 s time constant (full run:
+also ×2); data seeds ``--seeds``; estimators ``--methods``. Each estimator reports the worst and
+median parameter error, each parameter's error in its own reported standard errors, how many
+lie within 3, the held-out RMSE of u, v, r (a further run, same excitation kind, simulated
+without disturbance or noise, from its true initial state) and the wall time.
 
-**KVLCC2 convergence.** 10/10 and 20/20 zigzags (closed-loop rudder at 15.8°/s, 10 Hz, 10.23 rps),
-sensor noise only, the MMG model's 10 default free parameters; ``--starts`` random starts
-(default 50; ``--quick``: 6), each parameter uniform within ±50 % of the truth (±50 % of its
-scale where the truth is 0); single shooting (today's default, growing horizon) against multiple
-shooting (10 s segments + polish). A start converged "to the right optimum" when the fit says
-converged and every parameter is within 3 standard errors of the fit started from the truth.
+**KVLCC2 convergence.** Zigzags (``--k-amps``, default 10/10 and 20/20; closed-loop rudder at
+15.8°/s, 10 Hz, 10.23 rps) of ``--k-duration`` s (default 90), sensor noise only, the MMG
+model's 10 default free parameters; ``--starts`` random starts (default 50; ``--quick``: 6),
+each parameter uniform within ±50 % of the truth (±50 % of its scale where the truth is 0);
+``--variants``: single shooting with the growing horizon (``single``), plain single shooting
+(``plain``, whole runs at once: the baseline the issue means) and multiple shooting
+(``multiple``, ``--segment`` s segments + polish). A start reached "the right optimum" when every
+parameter is within 1 standard error of the plain fit started from the truth and its cost within
+1e-4 relative of the lowest cost any fit found.
 
 Run::
 
@@ -324,7 +331,7 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
-    truth, the reference) of the reference estimate, and a cost within 1e-6 relative of the
+    truth, the reference) of the reference estimate, and a cost within 1e-4 relative of the
     lowest cost any fit found (both minimise the same noise-weighted cost at one optimum)."""
     runs = kvlcc2_runs(seed, duration, amps)
     model = MMG()
@@ -333,13 +340,13 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     truth = {n: K2.get(n, K2.get({"f_alpha": "fa"}.get(n, n), 0.0)) for n in free}
     truth["delta0"] = 0.0
     o = OutputErrorOptions(reference_priors=False, estimate_x0=("psi", "u", "v", "r"))
-    ref = fit_output_error(model, runs, spec=spec0.with_values(truth), options=o)
+    plain = dataclasses.replace(o, warmup=0.0)
+    ref = fit_output_error(model, runs, spec=spec0.with_values(truth), options=plain)
     print(f"reference fit from the truth: {ref.status}, cost {ref.cost:.6g}; "
           + ", ".join(f"{n} {ref.params[n]:.4g} ± {ref.stderr[n]:.2g}" for n in free), flush=True)
     rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr, "cost": ref.cost},
            "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s}, **{v: [] for v in variants}}
-    plain = dataclasses.replace(o, warmup=0.0)
     for i in range(n_starts):
         start = {n: truth[n] + rng.uniform(-0.5, 0.5) * (abs(truth[n]) if truth[n] else spec0[n].scale) for n in free}
         spec = spec0.with_values(spec0.nudged(start)[0])
@@ -364,7 +371,7 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     out["best_cost"] = best
     for v in variants:
         for c in out[v]:
-            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0 and c["cost"] <= best * (1 + 1e-6))
+            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0 and c["cost"] <= best * (1 + 1e-4))
     return out
 
 
@@ -397,7 +404,7 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
         lines += ["", "## MMG KVLCC2 zigzags: convergence from random starts (±50 % of the truth)", "",
                   f"{'/'.join(f'{a:g}' for a in st['amps'])} zigzags of {st['duration']:g} s at 10 Hz, sensor noise. "
                   "'Right optimum': every free parameter within 1 standard error (of the fit from the truth) of the "
-                  "fit from the truth, and a cost within 1e-6 relative of the lowest cost found. Fit from the "
+                  "fit from the truth, and a cost within 1e-4 relative of the lowest cost found. Fit from the "
                   "truth: " + ("converged." if conv["reference"]["converged"] else "NOT converged."),
                   "", "| method | right optimum | says converged | median wall s |", "|---|---|---|---|"]
         names = {"single": "single shooting (growing horizon)", "plain": "single shooting (whole runs at once)",
