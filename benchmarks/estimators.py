@@ -24,7 +24,7 @@ without disturbance or noise, from its true initial state) and the wall time.
 **KVLCC2 convergence.** Zigzags (``--k-amps``, default 10/10 and 20/20; closed-loop rudder at
 15.8°/s, 10 Hz, 10.23 rps) of ``--k-duration`` s (default 90), sensor noise only, the MMG
 model's 10 default free parameters; ``--starts`` random starts (default 50; ``--quick``: 6),
-each parameter uniform within ±50 % of the truth (±50 % of its scale where the truth is 0);
+each parameter uniform within ±50 % of the truth (``--spread``; of its scale where the truth is 0);
 ``--variants``: single shooting with the growing horizon (``single``), plain single shooting
 (``plain``, whole runs at once: the baseline the issue means) and multiple shooting
 (``multiple``, ``--segment`` s segments + polish). A start reached "the right optimum" when every
@@ -327,7 +327,7 @@ def usv_rows(duration, levels, seed=0, design="base", n_runs=2, methods=USV_METH
 
 
 def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "multiple"), duration=90.0,
-                       amps=(10.0, 20.0), segment_s=10.0):
+                       amps=(10.0, 20.0), segment_s=10.0, spread=0.5):
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
@@ -346,9 +346,11 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
           + ", ".join(f"{n} {ref.params[n]:.4g} ± {ref.stderr[n]:.2g}" for n in free), flush=True)
     rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr, "cost": ref.cost},
-           "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s}, **{v: [] for v in variants}}
+           "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s, "spread": spread},
+           **{v: [] for v in variants}}
     for i in range(n_starts):
-        start = {n: truth[n] + rng.uniform(-0.5, 0.5) * (abs(truth[n]) if truth[n] else spec0[n].scale) for n in free}
+        start = {n: truth[n] + rng.uniform(-spread, spread) * (abs(truth[n]) if truth[n] else spec0[n].scale)
+                 for n in free}
         spec = spec0.with_values(spec0.nudged(start)[0])
         todo = {"single": lambda s=spec: fit_output_error(model, runs, spec=s, options=o),
                 "plain": lambda s=spec: fit_output_error(model, runs, spec=s, options=plain),
@@ -401,7 +403,8 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
                   "30/5335 = 0.0056 m/s², 12/5535 = 0.0022 m/s², 40/28928 = 0.0014 rad/s², τ 8 s."]
     if conv:
         st = conv["setting"]
-        lines += ["", "## MMG KVLCC2 zigzags: convergence from random starts (±50 % of the truth)", "",
+        lines += ["", f"## MMG KVLCC2 zigzags: convergence from random starts (±{100 * st['spread']:g} % of the truth)",
+                  "",
                   f"{'/'.join(f'{a:g}' for a in st['amps'])} zigzags of {st['duration']:g} s at 10 Hz, sensor noise. "
                   "'Right optimum': every free parameter within 1 standard error (of the fit from the truth) of the "
                   "fit from the truth, and a cost within 1e-4 relative of the lowest cost found. Fit from the "
@@ -426,7 +429,8 @@ def main(argv=None):
     p.add_argument("--skip", nargs="*", default=[], choices=("usv", "kvlcc2"))
     p.add_argument("--levels", nargs="*", type=float, default=None, help="disturbance levels (×30/12/40 N, N m)")
     p.add_argument("--tag", default="", help="suffix of the result files")
-    p.add_argument("--duration", type=float, default=None, help="USV training-run length [s] (default 300, --quick 120)")
+    p.add_argument("--duration", type=float, default=None,
+                   help="USV training-run length [s] (default 300, --quick 120)")
     p.add_argument("--runs", type=int, default=2, help="USV training runs")
     p.add_argument("--design", default="base", choices=tuple(THRUST), help="USV surge-thrust design (THRUST)")
     p.add_argument("--seeds", nargs="*", type=int, default=[0], help="USV data seeds")
@@ -438,6 +442,8 @@ def main(argv=None):
     p.add_argument("--k-duration", type=float, default=90.0, help="KVLCC2 zigzag length [s]")
     p.add_argument("--k-amps", nargs="*", type=float, default=[10.0, 20.0], help="KVLCC2 zigzag angles [deg]")
     p.add_argument("--segment", type=float, default=10.0, help="KVLCC2 multiple-shooting segment [s]")
+    p.add_argument("--spread", type=float, default=0.5,
+                   help="KVLCC2 starts: uniform within ± this fraction of the truth")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
     out = Path(args.out)
@@ -449,7 +455,7 @@ def main(argv=None):
     starts = args.starts if args.starts is not None else (6 if args.quick else 50)
     conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(
         starts, start_seed=args.start_seed, variants=tuple(args.variants), duration=args.k_duration,
-        amps=tuple(args.k_amps), segment_s=args.segment)
+        amps=tuple(args.k_amps), segment_s=args.segment, spread=args.spread)
     write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
 
