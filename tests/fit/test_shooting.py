@@ -102,3 +102,10 @@ def test_block_jacobian_is_the_jacobian():
     assert kernel.block_jacobian and J_block.shape == J_dense.shape == (data.ys.size + 2 * 3 * 2, z.size)
     assert np.abs(J_block - J_dense).max() <= 1e-10 * np.abs(J_dense).max()
     assert np.array_equal(np.asarray(kernel.residuals(z, data)), np.asarray(dense.residuals(z, data)))
+    # with prior rows (one per free parameter) appended
+    n_p = len(_spec().free_names)
+    data = data.replace(prior_mean=jnp.asarray([0.2, 8.0, 0.0]), prior_w=jnp.asarray([10.0, 0.5, 0.0]))
+    J_block = np.asarray(jax.jacfwd(kernel.residuals)(z, data))
+    J_dense = np.asarray(jax.jacfwd(dense.residuals)(z, data))
+    assert J_block.shape[0] == data.ys.size + 12 + n_p and np.any(J_block[-n_p:] != 0)
+    assert np.abs(J_block - J_dense).max() <= 1e-10 * np.abs(J_dense).max()
