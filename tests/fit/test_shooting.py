@@ -80,3 +80,32 @@ def test_cli_multiple_shooting(tmp_path, capsys):
     assert (out / "fit.png").exists() and (out / "fit.json").exists()
     assert main([*paths, "--model", "nomoto1", "--shooting", "triple", "--quiet"]) == 2
     assert "--shooting 'triple'" in capsys.readouterr().err
+
+
+def test_block_jacobian_is_the_jacobian():
+    """The per-segment (block) Jacobian equals forward-mode differentiation of the whole residual."""
+    import dataclasses
+
+    import jax
+    import jax.numpy as jnp
+
+    from diffship.fit.shooting import shooting_problem
+
+    runs = nomoto_runs(Nomoto1(**TRUTH), 2, 30.0, 0.1, noise="realistic", seed=4)
+    kernel, data, _, info = shooting_problem(Nomoto1(), runs, _spec(), None, OPTS, 10.0)
+    rng = np.random.default_rng(0)
+    z = jnp.asarray(np.concatenate([_spec().to_z(_spec().values()), 0.3 * rng.normal(size=info["n_segment_unknowns"])]))
+    data = data.replace(weight=jnp.asarray(10.0))
+    dense = dataclasses.replace(kernel, block_jacobian=False)
+    J_block = np.asarray(jax.jacfwd(kernel.residuals)(z, data))
+    J_dense = np.asarray(jax.jacfwd(dense.residuals)(z, data))
+    assert kernel.block_jacobian and J_block.shape == J_dense.shape == (data.ys.size + 2 * 3 * 2, z.size)
+    assert np.abs(J_block - J_dense).max() <= 1e-10 * np.abs(J_dense).max()
+    assert np.array_equal(np.asarray(kernel.residuals(z, data)), np.asarray(dense.residuals(z, data)))
+    # with prior rows (one per free parameter) appended
+    n_p = len(_spec().free_names)
+    data = data.replace(prior_mean=jnp.asarray([0.2, 8.0, 0.0]), prior_w=jnp.asarray([10.0, 0.5, 0.0]))
+    J_block = np.asarray(jax.jacfwd(kernel.residuals)(z, data))
+    J_dense = np.asarray(jax.jacfwd(dense.residuals)(z, data))
+    assert J_block.shape[0] == data.ys.size + 12 + n_p and np.any(J_block[-n_p:] != 0)
+    assert np.abs(J_block - J_dense).max() <= 1e-10 * np.abs(J_dense).max()
