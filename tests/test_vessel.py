@@ -151,7 +151,7 @@ def test_cli_vessel_warns_before_fitting_and_reports_fixed_values(tmp_path, caps
     path = tmp_path / "slow.csv"
     run.to_dataframe().to_csv(path, index=False)
     code = fit_main([str(path), "--model", "vmm_linear", "--vessel", "mariner", "--method", "equation-error",
-                     "--filter", "savgol:5"])
+                     "--filter", "savgol:5", "--json", str(tmp_path / "r.json")])
     out = capsys.readouterr()
     assert code == 0, out.err
     lines = out.err.splitlines()
@@ -160,6 +160,8 @@ def test_cli_vessel_warns_before_fitting_and_reports_fixed_values(tmp_path, caps
     assert warn < first_fit, lines
     assert "fixed values (not estimated):" in out.out
     assert re.search(r"U0\s+= 7.7175\s+m/s\s+vessel mariner: approach_speed", out.out), out.out
+    fixed = json.loads((tmp_path / "r.json").read_text())["methods"]["equation_error"]["fixed"]
+    assert fixed["U0"] == {"value": 7.7175, "unit": "m/s", "source": "vessel mariner: approach_speed"}, fixed["U0"]
 
 
 def test_cli_constant_thrust_and_rigid_body_option(tmp_path, capsys):

@@ -281,6 +281,7 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "identifiability": r.info.get("identifiability"),
             "admissibility": r.info.get("admissibility"),
             "cross_manoeuvre": r.info.get("cross_manoeuvre"),
+            "fixed": r.info.get("fixed"),
         }
     doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}
     if extra:

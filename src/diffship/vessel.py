@@ -56,7 +56,7 @@ from .models import AbstractModel, OpenWaterPropeller
 from .params import ParamSpec
 
 __all__ = ["QUANTITIES", "Particulars", "Propeller", "Rudder", "Vessel", "bundled_vessels", "data_speed",
-           "fixed_values_text", "load_vessel", "particulars", "plausibility", "propeller_map", "require_particulars",
+           "fixed_values", "fixed_values_text", "load_vessel", "particulars", "plausibility", "propeller_map", "require_particulars",
            "speed_range"]
 
 _DIR = Path(__file__).parent / "vessels"
@@ -487,6 +487,19 @@ def plausibility(vessel: Vessel, runs: Sequence = (), model: AbstractModel | Non
     rng = speed_range(runs)
     if model is not None and rng is not None and hasattr(model, "convention_warnings"):
         out += [f"warning: {w}" for w in model.convention_warnings(*rng)]
+    return out
+
+
+def fixed_values(spec: ParamSpec, sources: Mapping[str, str] | None = None) -> dict[str, dict]:
+    """The fixed values a fit used, for the JSON report: ``{name: {"value", "unit", "source"}}``
+    (SI units; the source is the vessel file entry, ``--fix``, or ``"model default"``), plus
+    ``{"notes": {...}}`` for sources that are not parameters (e.g. a rigid-body option)."""
+    sources = sources or {}
+    out: dict[str, dict] = {p.name: {"value": float(p.value), "unit": p.unit, "source": sources.get(p.name, "model default")}
+                            for p in spec.params if not p.free}
+    notes = {k: v for k, v in sources.items() if k not in spec}
+    if notes:
+        out["notes"] = dict(notes)
     return out
 
 

@@ -24,6 +24,7 @@ from ..preprocess import Filter
 from ..admissibility import admissibility
 from ..vessel import (
     bundled_vessels,
+    fixed_values,
     fixed_values_text,
     load_vessel,
     plausibility,
@@ -276,6 +277,8 @@ def _fit(args, say) -> int:
     ev_train, ev_val = evaluate_all(results, train, val, flt)
     notes = resample_notes(args, model, spec, results, flt, options, say)
     report = text_report(model.name, results, ev_train, ev_val, train, val) + "\n\n" + fixed_values_text(spec, sources)
+    for r in results.values():
+        r.info["fixed"] = fixed_values(spec, sources)  # the same table in the JSON, with each value's source
     oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None else None
     if oe is not None:
