@@ -254,15 +254,23 @@ K2_FREE = {"ten": None,
                      "gammaR_minus", "gammaR_plus", "f_alpha", "delta0", "C1", "C2_plus", "C2_minus")}
 
 
-def kvlcc2_runs(seed, duration=90.0, amps=(10.0, 20.0), dt=0.1):
+#: KVLCC2 L7 disturbance at level 1: Ornstein–Uhlenbeck X, Y, N [N, N, N m] standard deviations (τ 8 s),
+#: sized like the USV's (about 1 % of the resistance R'_0·q ≈ 49 N at 1.18 m/s in X, 1 N in Y, a lever
+#: of 0.4 L in N).
+K2_DIST = (0.5, 1.0, 3.0)
+
+
+def kvlcc2_runs(seed, duration=90.0, amps=(10.0, 20.0), dt=0.1, dist_level=0.0):
     """Closed-loop zigzags of the NumPy truth at 10 Hz with sensor noise; ``dt`` > 0.1 keeps every
-    ``dt / 0.1``-th sample (the truth is always integrated at 10 Hz with 10 RK4 substeps)."""
+    ``dt / 0.1``-th sample (the truth is always integrated at 10 Hz with 10 RK4 substeps);
+    ``dist_level`` > 0 adds the OU disturbance :data:`K2_DIST` × level (τ 8 s)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration + 0.05, 0.1)
     keep = round(dt / 0.1)
+    sd = np.asarray(K2_DIST) * dist_level if dist_level else None
     runs = []
     for amp in amps:
-        xs, us = simulate_truth(mmg_rhs, [0, 0, 0, 1.179, 0, 0], t, np.zeros((1, 2)), rng, None, 8.0,
+        xs, us = simulate_truth(mmg_rhs, [0, 0, 0, 1.179, 0, 0], t, np.zeros((1, 2)), rng, sd, 8.0,
                                 law=Zigzag(amp, amp))
         run = to_run(f"zigzag_{amp:g}", t, xs, us, ("delta", "n"), rng)
         if keep > 1:
@@ -344,7 +352,8 @@ def usv_rows(duration, levels, seed=0, design="base", n_runs=2, methods=USV_METH
 
 
 def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "multiple"), duration=90.0,
-                       amps=(10.0, 20.0), segment_s=10.0, spread=0.5, free_set="ten", dt=0.1, on_start=None):
+                       amps=(10.0, 20.0), segment_s=10.0, spread=0.5, free_set="ten", dt=0.1, dist_level=0.0,
+                       on_start=None):
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
@@ -352,7 +361,7 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     lowest cost any fit found (both minimise the same noise-weighted cost at one optimum).
     ``free_set``: a key of :data:`K2_FREE`; ``on_start(out)`` is called after every start (partial
     results survive a stopped run)."""
-    runs = kvlcc2_runs(seed, duration, amps, dt)
+    runs = kvlcc2_runs(seed, duration, amps, dt, dist_level)
     model = MMG()
     spec0 = model.spec() if K2_FREE[free_set] is None else model.spec().only_free(list(K2_FREE[free_set]))
     free = spec0.free_names
@@ -366,7 +375,7 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr, "cost": ref.cost},
            "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s, "spread": spread,
-                       "free": list(free), "dt": dt},
+                       "free": list(free), "dt": dt, "disturbance_level": dist_level},
            **{v: [] for v in variants}}
     for i in range(n_starts):
         start = {n: truth[n] + rng.uniform(-spread, spread) * (abs(truth[n]) if truth[n] else spec0[n].scale)
@@ -428,7 +437,8 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
         lines += ["", f"## MMG KVLCC2 zigzags: convergence from random starts (±{100 * st['spread']:g} % of the truth)",
                   "",
                   f"{'/'.join(f'{a:g}' for a in st['amps'])} zigzags of {st['duration']:g} s "
-                  f"(samples every {st.get('dt', 0.1):g} s), sensor noise, {len(st.get('free', ())) or 10} free "
+                  f"(samples every {st.get('dt', 0.1):g} s), sensor noise, OU disturbance ×{st.get('disturbance_level', 0):g} "
+                  f"(K2_DIST), {len(st.get('free', ())) or 10} free "
                   "parameters, no priors. "
                   "'Right optimum': every free parameter within 1 standard error (of the fit from the truth) of the "
                   "fit from the truth, and a cost within 1e-4 relative of the lowest cost found. Fit from the "
@@ -471,6 +481,7 @@ def main(argv=None):
     p.add_argument("--k-free", default="ten", choices=tuple(K2_FREE),
                    help="KVLCC2 free set: the MMG default ten, or the KVLCC2 study's 33 (K2_FREE)")
     p.add_argument("--k-dt", type=float, default=0.1, help="KVLCC2 sample interval of the fitted data [s]")
+    p.add_argument("--k-dist", type=float, default=0.0, help="KVLCC2 OU disturbance level (× K2_DIST, τ 8 s)")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
     out = Path(args.out)
@@ -488,6 +499,7 @@ def main(argv=None):
     conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(
         starts, start_seed=args.start_seed, variants=tuple(args.variants), duration=args.k_duration,
         amps=tuple(args.k_amps), segment_s=args.segment, spread=args.spread, free_set=args.k_free, dt=args.k_dt,
+        dist_level=args.k_dist,
         on_start=dump)
     write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
