@@ -28,8 +28,10 @@ each parameter uniform within ±50 % of the truth (``--spread``; of its scale wh
 ``--variants``: single shooting with the growing horizon (``single``), plain single shooting
 (``plain``, whole runs at once: the baseline the issue means) and multiple shooting
 (``multiple``, ``--segment`` s segments + polish). A start reached "the right optimum" when every
-parameter is within 1 standard error of the plain fit started from the truth and its cost within
-1e-4 relative of the lowest cost any fit found.
+parameter is within 1 standard error of the plain fit started from the truth (:func:`judge`: costs
+are not compared, each fit's noise weights being its own). ``--k-free study``: the KVLCC2 study's 33
+coefficients; ``--k-dt``: sample interval of the fitted data; ``--k-dist``: OU disturbance level;
+``--only-starts``: fit only some start numbers; ``--from-json``: table from a (partial) JSON.
 
 Run::
 
@@ -375,8 +377,7 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
-    truth, the reference) of the reference estimate, and a cost within 1e-4 relative of the
-    lowest cost any fit found (both minimise the same noise-weighted cost at one optimum).
+    truth, the reference) of the reference estimate (:func:`judge`; costs are not compared).
     ``only``: 1-based start numbers to fit (the others are drawn and skipped, so start *k* is the
     same start in every run with the same start seed).
     ``free_set``: a key of :data:`K2_FREE`; ``on_start(out)`` is called after every start (partial
@@ -428,12 +429,17 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
 
 
 def judge(out, variants):
-    """Mark each start's ``right_optimum`` (see :func:`kvlcc2_convergence`) against the lowest cost so far."""
+    """Mark each start's ``right_optimum``: every free parameter within 1 standard error (of the fit from the
+    truth) of the fit from the truth. The earlier second test, a cost within 1e-4 relative of the lowest cost
+    found, is kept only as ``cost_within_1e-4`` (not judged): with ``weights="noise"`` each fit re-weights
+    its channels by its own first-pass residual RMS, so a fit far off (large residuals, large σ_c) can end
+    with a *lower* cost than the right one (measured: 2734 against 2978 on the 5/5 zigzag, 560 se away)."""
     best = min([out["reference"]["cost"]] + [c["cost"] for v in variants for c in out[v]])
     out["best_cost"] = best
     for v in variants:
         for c in out[v]:
-            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0 and c["cost"] <= best * (1 + 1e-4))
+            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0)
+            c["cost_within_1e-4"] = bool(c["cost"] <= best * (1 + 1e-4))
     return out
 
 
@@ -470,8 +476,8 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
                   f"(K2_DIST), {len(st.get('free', ())) or 10} free "
                   "parameters, no priors. "
                   "'Right optimum': every free parameter within 1 standard error (of the fit from the truth) of the "
-                  "fit from the truth, and a cost within 1e-4 relative of the lowest cost found. Fit from the "
-                  "truth: " + ("converged." if conv["reference"]["converged"] else "NOT converged."),
+                  "fit from the truth (costs are not compared: each fit's noise weights are its own, see judge). "
+                  "Fit from the truth: " + ("converged." if conv["reference"]["converged"] else "NOT converged."),
                   "", ("| method | right optimum | says converged | starts whose ψ departs > 45° (start_departure): "
                        "right optimum | median wall s |"), "|---|---|---|---|---|"]
         names = {"single": "single shooting (growing horizon)", "plain": "single shooting (whole runs at once)",
