@@ -28,8 +28,10 @@ each parameter uniform within ±50 % of the truth (``--spread``; of its scale wh
 ``--variants``: single shooting with the growing horizon (``single``), plain single shooting
 (``plain``, whole runs at once: the baseline the issue means) and multiple shooting
 (``multiple``, ``--segment`` s segments + polish). A start reached "the right optimum" when every
-parameter is within 1 standard error of the plain fit started from the truth and its cost within
-1e-4 relative of the lowest cost any fit found.
+parameter is within 1 standard error of the plain fit started from the truth (:func:`judge`: costs
+are not compared, each fit's noise weights being its own). ``--k-free study``: the KVLCC2 study's 33
+coefficients; ``--k-dt``: sample interval of the fitted data; ``--k-dist``: OU disturbance level;
+``--only-starts``: fit only some start numbers; ``--from-json``: table from a (partial) JSON.
 
 Run::
 
@@ -243,14 +245,39 @@ class Zigzag:
         return np.array([u_prev[0] + np.clip(self.target - u_prev[0], -step, step), self.rps])
 
 
-def kvlcc2_runs(seed, duration=90.0, amps=(10.0, 20.0)):
+#: MMG parameter names (diffship) → keys of :data:`K2` where they differ.
+K2_NAMES = {"f_alpha": "fa", "gammaR_minus": "gRm", "gammaR_plus": "gRp", "C2_plus": "C2p", "C2_minus": "C2m"}
+#: KVLCC2 free sets: the MMG model's 10 defaults, or the KVLCC2 study's 33 (every hydrodynamic and
+#: interaction coefficient, the manoeuvring wake C1, C2± and δ0: ``diffship.studies.kvlcc2.DEFAULT_FREE``,
+#: copied here so that the benchmark does not load the study's pandas dependencies).
+K2_FREE = {"ten": None,
+           "study": ("R0", "Xvv", "Xvr", "Xrr", "Xvvvv", "Yv", "Yr", "Yvvv", "Yvvr", "Yvrr", "Yrrr", "Nv", "Nr",
+                     "Nvvv", "Nvvr", "Nvrr", "Nrrr", "mx", "my", "Jz", "tR", "aH", "xH", "eps", "kappa", "lR",
+                     "gammaR_minus", "gammaR_plus", "f_alpha", "delta0", "C1", "C2_plus", "C2_minus")}
+
+
+#: KVLCC2 L7 disturbance at level 1: Ornstein–Uhlenbeck X, Y, N [N, N, N m] standard deviations (τ 8 s),
+#: sized like the USV's (about 1 % of the resistance R'_0·q ≈ 49 N at 1.18 m/s in X, 1 N in Y, a lever
+#: of 0.4 L in N).
+K2_DIST = (0.5, 1.0, 3.0)
+
+
+def kvlcc2_runs(seed, duration=90.0, amps=(10.0, 20.0), dt=0.1, dist_level=0.0):
+    """Closed-loop zigzags of the NumPy truth at 10 Hz with sensor noise; ``dt`` > 0.1 keeps every
+    ``dt / 0.1``-th sample (the truth is always integrated at 10 Hz with 10 RK4 substeps);
+    ``dist_level`` > 0 adds the OU disturbance :data:`K2_DIST` × level (τ 8 s)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration + 0.05, 0.1)
+    keep = round(dt / 0.1)
+    sd = np.asarray(K2_DIST) * dist_level if dist_level else None
     runs = []
     for amp in amps:
-        xs, us = simulate_truth(mmg_rhs, [0, 0, 0, 1.179, 0, 0], t, np.zeros((1, 2)), rng, None, 8.0,
+        xs, us = simulate_truth(mmg_rhs, [0, 0, 0, 1.179, 0, 0], t, np.zeros((1, 2)), rng, sd, 8.0,
                                 law=Zigzag(amp, amp))
-        runs.append(to_run(f"zigzag_{amp:g}", t, xs, us, ("delta", "n"), rng))
+        run = to_run(f"zigzag_{amp:g}", t, xs, us, ("delta", "n"), rng)
+        if keep > 1:
+            run = Run(run.name, t[::keep], {c: np.asarray(v)[::keep] for c, v in run.channels.items()})
+        runs.append(run)
     return runs
 
 
@@ -326,18 +353,40 @@ def usv_rows(duration, levels, seed=0, design="base", n_runs=2, methods=USV_METH
     return rows
 
 
+def start_departure(runs, start):
+    """How far a start's model departs from the data: the largest |ψ_start − ψ_measured| [deg] over the runs,
+    the NumPy truth model with the start's coefficients (δ0 added to the measured rudder) flown open loop on
+    the measured rudder from the true initial state (RK4, 0.05 s steps). Context for a failed start."""
+    p = {**K2, **{K2_NAMES.get(n, n): v for n, v in start.items() if n != "delta0"}}
+    d0 = start.get("delta0", 0.0)
+    worst = 0.0
+    for run in runs:
+        t = run.time
+        inputs = np.stack([np.asarray(run.channels["delta"]) + d0, np.asarray(run.channels["n"])], 1)
+        with np.errstate(all="ignore"):
+            xs, _ = simulate_truth(lambda x, u, d: mmg_rhs(x, u, d, p), [0, 0, 0, 1.179, 0, 0], t, inputs,
+                                   None, None, 8.0, substeps=max(1, round((t[1] - t[0]) / 0.05)))
+        dev = np.abs(xs[:, 2] - np.asarray(run.channels["psi"]))
+        worst = max(worst, float(np.nanmax(dev)) / DEG if np.all(np.isfinite(dev)) else math.inf)
+    return worst
+
+
 def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "multiple"), duration=90.0,
-                       amps=(10.0, 20.0), segment_s=10.0, spread=0.5):
+                       amps=(10.0, 20.0), segment_s=10.0, spread=0.5, free_set="ten", dt=0.1, dist_level=0.0,
+                       on_start=None, only=None):
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
-    truth, the reference) of the reference estimate, and a cost within 1e-4 relative of the
-    lowest cost any fit found (both minimise the same noise-weighted cost at one optimum)."""
-    runs = kvlcc2_runs(seed, duration, amps)
+    truth, the reference) of the reference estimate (:func:`judge`; costs are not compared).
+    ``only``: 1-based start numbers to fit (the others are drawn and skipped, so start *k* is the
+    same start in every run with the same start seed).
+    ``free_set``: a key of :data:`K2_FREE`; ``on_start(out)`` is called after every start (partial
+    results survive a stopped run)."""
+    runs = kvlcc2_runs(seed, duration, amps, dt, dist_level)
     model = MMG()
-    spec0 = model.spec()
+    spec0 = model.spec() if K2_FREE[free_set] is None else model.spec().only_free(list(K2_FREE[free_set]))
     free = spec0.free_names
-    truth = {n: K2.get(n, K2.get({"f_alpha": "fa"}.get(n, n), 0.0)) for n in free}
+    truth = {n: K2.get(K2_NAMES.get(n, n), 0.0) for n in free}
     truth["delta0"] = 0.0
     o = OutputErrorOptions(reference_priors=False, estimate_x0=("psi", "u", "v", "r"))
     plain = dataclasses.replace(o, warmup=0.0)
@@ -346,12 +395,16 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
           + ", ".join(f"{n} {ref.params[n]:.4g} ± {ref.stderr[n]:.2g}" for n in free), flush=True)
     rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr, "cost": ref.cost},
-           "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s, "spread": spread},
+           "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s, "spread": spread,
+                       "free": list(free), "dt": dt, "disturbance_level": dist_level},
            **{v: [] for v in variants}}
     for i in range(n_starts):
         start = {n: truth[n] + rng.uniform(-spread, spread) * (abs(truth[n]) if truth[n] else spec0[n].scale)
                  for n in free}
+        if only is not None and i + 1 not in only:
+            continue
         spec = spec0.with_values(spec0.nudged(start)[0])
+        dep = start_departure(runs, start)
         todo = {"single": lambda s=spec: fit_output_error(model, runs, spec=s, options=o),
                 "plain": lambda s=spec: fit_output_error(model, runs, spec=s, options=plain),
                 "multiple": lambda s=spec: fit_multiple_shooting(model, runs, spec=s, options=plain,
@@ -365,15 +418,28 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
                 status, cost, conv = res.status, res.cost, res.converged
             except diffship.errors.DiffshipError as exc:
                 in_se, worst, status, cost, conv = math.inf, math.inf, f"error: {exc}", math.inf, False
-            out[key].append({"start": start, "max_dev_in_ref_se": in_se, "worst_err": worst, "status": status,
+            out[key].append({"number": i + 1, "start": start, "start_psi_departure_deg": dep, "max_dev_in_ref_se": in_se, "worst_err": worst, "status": status,
                              "cost": cost, "converged": conv, "seconds": time.perf_counter() - t0})
-            print(f"start {i + 1:2d} {key:<8} dev {in_se:9.3g} ref se  cost {cost:.6g}  worst {worst:.3g} "
+            print(f"start {i + 1:2d} {key:<8} (start's ψ departs ≤ {dep:6.1f}°) dev {in_se:9.3g} ref se  "
+                  f"cost {cost:.6g}  worst {worst:.3g} "
                   f"{status[:50]} {out[key][-1]['seconds']:.1f} s", flush=True)
-    best = min([ref.cost] + [c["cost"] for v in variants for c in out[v]])
+        if on_start is not None:
+            on_start(judge(out, variants))
+    return judge(out, variants)
+
+
+def judge(out, variants):
+    """Mark each start's ``right_optimum``: every free parameter within 1 standard error (of the fit from the
+    truth) of the fit from the truth. The earlier second test, a cost within 1e-4 relative of the lowest cost
+    found, is kept only as ``cost_within_1e-4`` (not judged): with ``weights="noise"`` each fit re-weights
+    its channels by its own first-pass residual RMS, so a fit far off (large residuals, large σ_c) can end
+    with a *lower* cost than the right one (measured: 2734 against 2978 on the 5/5 zigzag, 560 se away)."""
+    best = min([out["reference"]["cost"]] + [c["cost"] for v in variants for c in out[v]])
     out["best_cost"] = best
     for v in variants:
         for c in out[v]:
-            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0 and c["cost"] <= best * (1 + 1e-4))
+            c["right_optimum"] = bool(c["max_dev_in_ref_se"] <= 1.0)
+            c["cost_within_1e-4"] = bool(c["cost"] <= best * (1 + 1e-4))
     return out
 
 
@@ -405,18 +471,24 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
         st = conv["setting"]
         lines += ["", f"## MMG KVLCC2 zigzags: convergence from random starts (±{100 * st['spread']:g} % of the truth)",
                   "",
-                  f"{'/'.join(f'{a:g}' for a in st['amps'])} zigzags of {st['duration']:g} s at 10 Hz, sensor noise. "
+                  f"{'/'.join(f'{a:g}' for a in st['amps'])} zigzags of {st['duration']:g} s "
+                  f"(samples every {st.get('dt', 0.1):g} s), sensor noise, OU disturbance ×{st.get('disturbance_level', 0):g} "
+                  f"(K2_DIST), {len(st.get('free', ())) or 10} free "
+                  "parameters, no priors. "
                   "'Right optimum': every free parameter within 1 standard error (of the fit from the truth) of the "
-                  "fit from the truth, and a cost within 1e-4 relative of the lowest cost found. Fit from the "
-                  "truth: " + ("converged." if conv["reference"]["converged"] else "NOT converged."),
-                  "", "| method | right optimum | says converged | median wall s |", "|---|---|---|---|"]
+                  "fit from the truth (costs are not compared: each fit's noise weights are its own, see judge). "
+                  "Fit from the truth: " + ("converged." if conv["reference"]["converged"] else "NOT converged."),
+                  "", ("| method | right optimum | says converged | starts whose ψ departs > 45° (start_departure): "
+                       "right optimum | median wall s |"), "|---|---|---|---|---|"]
         names = {"single": "single shooting (growing horizon)", "plain": "single shooting (whole runs at once)",
                  "multiple": f"multiple shooting ({st['segment_s']:g} s segments, polish)"}
         for key, name in names.items():
             if key in conv:
                 n, k = len(conv[key]), sum(c["right_optimum"] for c in conv[key])
+                far = [c for c in conv[key] if c.get("start_psi_departure_deg", 0.0) > 45.0]
                 lines.append(f"| {name} | {k}/{n} ({100 * k / max(n, 1):.0f} %) | "
                              f"{sum(c['converged'] for c in conv[key])}/{n} | "
+                             f"{sum(c['right_optimum'] for c in far)}/{len(far)} | "
                              f"{np.median([c['seconds'] for c in conv[key]]):.1f} |")
     (out_dir / f"estimators{tag}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
@@ -444,18 +516,38 @@ def main(argv=None):
     p.add_argument("--segment", type=float, default=10.0, help="KVLCC2 multiple-shooting segment [s]")
     p.add_argument("--spread", type=float, default=0.5,
                    help="KVLCC2 starts: uniform within ± this fraction of the truth")
+    p.add_argument("--k-free", default="ten", choices=tuple(K2_FREE),
+                   help="KVLCC2 free set: the MMG default ten, or the KVLCC2 study's 33 (K2_FREE)")
+    p.add_argument("--k-dt", type=float, default=0.1, help="KVLCC2 sample interval of the fitted data [s]")
+    p.add_argument("--k-dist", type=float, default=0.0, help="KVLCC2 OU disturbance level (× K2_DIST, τ 8 s)")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
+    p.add_argument("--only-starts", nargs="*", type=int, default=None,
+                   help="KVLCC2: fit only these (1-based) start numbers of the --starts drawn")
+    p.add_argument("--from-json", default=None,
+                   help="only rewrite the KVLCC2 table from a (partial) JSON of an earlier run (e.g. one stopped for time)")
     args = p.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.from_json:
+        conv = json.loads(Path(args.from_json).read_text())["kvlcc2"]
+        conv = judge(conv, [v for v in ("single", "plain", "multiple") if v in conv])
+        write(out, args.quick, [], conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
+        return
     levels = args.levels if args.levels is not None else ((0.0, 1.0) if args.quick else (0.0, 1.0, 2.0))
     duration = args.duration or (120.0 if args.quick else 300.0)
     usv = [] if "usv" in args.skip else [row for seed in args.seeds for row in usv_rows(
         duration, levels, seed, args.design, args.runs, tuple(args.methods))]
     starts = args.starts if args.starts is not None else (6 if args.quick else 50)
+    partial = out / f"estimators{'_quick' if args.quick else ''}{args.tag}_partial.json"
+
+    def dump(res):
+        partial.write_text(json.dumps({"kvlcc2": res}, indent=1, default=str))
+
     conv = None if "kvlcc2" in args.skip else kvlcc2_convergence(
         starts, start_seed=args.start_seed, variants=tuple(args.variants), duration=args.k_duration,
-        amps=tuple(args.k_amps), segment_s=args.segment, spread=args.spread)
+        amps=tuple(args.k_amps), segment_s=args.segment, spread=args.spread, free_set=args.k_free, dt=args.k_dt,
+        dist_level=args.k_dist, only=set(args.only_starts) if args.only_starts else None,
+        on_start=dump)
     write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
 
