@@ -67,7 +67,7 @@ def write_data(name: str, folder: Path, input_noise: bool = False) -> list[Path]
         runs = [zigzag(model, {"u": float(model.U0)}, rudder_deg=a, inputs={"thrust": T0}, duration=300.0, dt=0.5,
                        name=f"zz{a:g}") for a in (10.0, 20.0)]
     elif name == "mmg":
-        runs = [zigzag(model, {"u": 1.179}, rudder_deg=a, inputs={"n": 10.23}, duration=80.0, dt=0.2,
+        runs = [zigzag(model, {"u": 1.179}, rudder_deg=a, inputs={"n": 10.23}, duration=80.0, dt=0.2, scale=45.714,
                        name=f"zz{a:g}") for a in (10.0, 20.0)]
     elif name.startswith("decay"):
         t = np.arange(0.0, 60.0, 0.1)
@@ -100,6 +100,10 @@ def one_process(model: str, files: list[Path], cache: Path, out_json: Path, src:
     vessel = type(get_model(model)).REFERENCE_VESSEL  # the data are the reference vessel's (write_data)
     cmd = [sys.executable, "-m", "diffship.fit", *map(str, files), "--model", model, "--quiet", "--json", str(out_json),
            *(["--vessel", vessel] if vessel else [])]
+    if model.startswith("decay"):  # no vessel file holds a decaying DOF's inertia: fixed at the truth's, as a user would
+        m = get_model(model)
+        need = list(m.PARTICULARS)
+        cmd += ["--fix", f"{need[0]}={float(m.param_values()[need[0]])!r}", *(["--free", *need[1:]] if need[1:] else [])]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -114,6 +118,22 @@ def one_process(model: str, files: list[Path], cache: Path, out_json: Path, src:
     if p.returncode not in (0, 1):
         row["error"] = (p.stderr.strip().splitlines() or ["?"])[-1][:200]
     return row
+
+
+def particulars_stop(files: list[Path], repeats: int = 5) -> dict:
+    """Whole-process wall time of ``python -m diffship.fit RUN --model vmm_simple`` without a vessel: the stop
+    that names the twelve missing particulars (issue 17: "within a second"); median and max of ``repeats``."""
+    cmd = [sys.executable, "-m", "diffship.fit", str(files[0]), "--model", "vmm_simple"]
+    env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", "src")}
+    walls, codes, err = [], set(), ""
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, env=env, capture_output=True, text=True)
+        walls.append(time.perf_counter() - t0)
+        codes.add(p.returncode)
+        err = p.stderr.strip()
+    return {"model": "vmm_simple (no vessel)", "mode": "particulars_stop", "median_s": float(np.median(walls)),
+            "max_s": float(np.max(walls)), "rc": sorted(codes), "lines": err.count("\n") + 1, "stderr": err[:90]}
 
 
 def hlo_lines(name: str, files: list[Path]) -> dict:
@@ -186,6 +206,9 @@ def main(argv=None):
                     h = {"error": f"{type(exc).__name__}: {exc}"[:200]}
                 rows.append({"model": name, "mode": "hlo", **h})
                 print(json.dumps(rows[-1]), flush=True)
+        rows.append(particulars_stop(write_data("vmm_simple", tmp) if "vmm_simple" not in args.models else
+                                     sorted(tmp.glob("vmm_simple*.csv"))))
+        print(json.dumps(rows[-1]), flush=True)
     keys = sorted({k for r in rows for k in r}, key=lambda k: (k not in ("model", "mode", "repeat"), k))
     tag = f"_{args.tag}" if args.tag else ""
     with open(out / f"compile_time{tag}.csv", "w", newline="") as f:
@@ -214,6 +237,11 @@ def main(argv=None):
                      f"{med(cold, 'equation_error_compile_s')} | {med(warm, 'wall_s')} | "
                      f"{med(warm, 'output_error_compile_s')} | {med(warm, 'output_error_fit_s')} | {conv} | "
                      f"{med(cold, 'load1')} |")
+    stop = [r for r in rows if r["mode"] == "particulars_stop"]
+    for r in stop:
+        lines += ["", f"Missing particulars (`python -m diffship.fit RUN.csv --model vmm_simple`, no vessel): whole process "
+                      f"{r['median_s']:.2f} s median, {r['max_s']:.2f} s max of 5; exit {r['rc']}, {r['lines']} line: "
+                      f"`{r['stderr']}...`"]
     hl = [r for r in rows if r["mode"] == "hlo"]
     if hl:
         lines += ["", "Lowered StableHLO lines per program (output-error kernel, all default-free parameters):", "",

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .channels import CHANNEL_NAMES
 from .data import CHANNEL_UNITS, Run
 from .metrics import Evaluation
 
@@ -32,14 +33,6 @@ __all__ = [
 ]
 
 
-#: Channel names diffship knows (``--columns NAME=COLUMN`` maps a file's column to one) and their
-#: units inside diffship (files in degrees: ``--degrees COLUMN``).
-CHANNEL_NAMES = {
-    "time": "s", "x0": "m, north/ahead", "y0": "m, east/starboard", "psi": "rad, clockwise", "u": "m/s",
-    "v": "m/s, starboard", "r": "rad/s, clockwise", "delta": "rad, starboard-positive after --rudder-sign",
-    "n": "rev/s, propeller", "tau_x": "N", "tau_y": "N", "tau_z": "N m", "delta_n": "rad, water-jet nozzle",
-    "rpm": "rev/min, water jets", "z0": "m", "phi": "rad", "theta": "rad", "w": "m/s", "p": "rad/s", "q": "rad/s",
-}
 _LABEL = {"equation_error": "equation error", "output_error": "output error"}
 HORIZON_NOTE = "metrics: whole-horizon simulation of every run from its initial state (no one-step prediction)"
 

@@ -54,6 +54,7 @@ import numpy as np
 from .errors import ModelError
 from .models import AbstractModel, OpenWaterPropeller
 from .params import ParamSpec
+from .particulars import QUANTITIES, bundled_vessels, missing_message
 
 __all__ = ["QUANTITIES", "Particulars", "Propeller", "Rudder", "Vessel", "bundled_vessels", "data_speed",
            "fixed_values", "fixed_values_text", "load_vessel", "particulars", "plausibility", "propeller_map", "require_particulars",
@@ -62,27 +63,6 @@ __all__ = ["QUANTITIES", "Particulars", "Propeller", "Rudder", "Vessel", "bundle
 _DIR = Path(__file__).parent / "vessels"
 G = 9.81
 
-#: Vessel quantities a model's ``PARTICULARS`` can name: key -> "description [unit]".
-QUANTITIES: dict[str, str] = {
-    "mass": "mass [kg] (or displacement [m3] and rho)", "length": "length between perpendiculars [m]",
-    "beam": "beam [m]", "draught": "draught [m]", "rho": "water density [kg/m3]",
-    "approach_speed": "approach speed [m/s]", "xG": "CG x from the origin [m]", "yG": "CG y [m]", "zG": "CG z [m]",
-    "xB": "CB x from the origin [m]", "yB": "CB y [m]", "zB": "CB z [m]",
-    "Ixx_cg": "roll inertia about the CG [kg m2]", "Iyy_cg": "pitch inertia about the CG [kg m2]",
-    "Izz_cg": "yaw inertia about the CG [kg m2]", "Izz_origin": "yaw inertia about the origin [kg m2]",
-    "kzz_L": "yaw radius of gyration about the CG / L [-]", "weight": "weight m g [N]",
-    "buoyancy": "buoyancy rho g displacement [N]", "one_minus_t": "1 - propeller thrust deduction [-]",
-    "thrust_deduction": "propeller thrust deduction t [-]", "wake_fraction": "propeller wake fraction w [-]",
-    "propeller_diameter": "propeller diameter [m]", "propeller_x_L": "propeller x from the origin / L [-]",
-    "kt0": "open-water K_T(J) coefficient k0", "kt1": "open-water K_T coefficient k1",
-    "kt2": "open-water K_T coefficient k2", "rudder_area": "rudder area [m2]", "rudder_span": "rudder span [m]",
-    "rudder_x_L": "rudder x from the origin / L [-]",
-    "Xudot_prime": "surge added mass X'_udot [-] (or L, displacement)",
-    "Yvdot_prime": "sway added mass Y'_vdot [-] (or L, B, T, C_B)", "Yrdot_prime": "Y'_rdot [-] (or L, B, T, C_B)",
-    "Nvdot_prime": "N'_vdot [-] (or L, B, T, C_B)", "Nrdot_prime": "yaw added inertia N'_rdot [-] (or L, B, T, C_B)",
-    "dof_inertia": "total inertia of the decaying DOF, rigid + added [kg or kg m2]: --fix it",
-    "dof_stiffness": "restoring stiffness of the decaying DOF [N m/rad]: --fix it",
-}
 _XYZ = tuple[float | None, float | None, float | None]
 _NONE3: _XYZ = (None, None, None)
 
@@ -360,12 +340,8 @@ class Particulars:
     missing: tuple[str, ...]  # parameters neither the vessel, nor --fix, nor --free sets
 
     def missing_message(self, model: AbstractModel, vessel: Vessel | None = None) -> str:
-        what = "; ".join(f"{n} ({QUANTITIES[model.PARTICULARS[n]]})" for n in self.missing)
-        ref = model.REFERENCE_VESSEL
-        hint = ("give --vessel FILE (JSON, see src/diffship/vessels/*.json) or --fix NAME=VALUE for each"
-                + (f", or --vessel {ref} for the model's reference vessel" if ref else ""))
-        src = f"vessel {vessel.name} lacks" if vessel is not None else "no vessel given:"
-        return f"model {model.name} needs the vessel's particulars; {src} {what}; {hint}"
+        return missing_message(model.name, model.PARTICULARS, model.REFERENCE_VESSEL, self.missing,
+                               vessel.name if vessel is not None else None)
 
 
 def particulars(model: AbstractModel, vessel: Vessel | None, fixed: Iterable[str] = (),
@@ -405,11 +381,6 @@ def require_particulars(model: AbstractModel, vessel: Vessel | None, fixed: Iter
 
 
 # -- loading by name ------------------------------------------------------------------------------
-def bundled_vessels() -> tuple[str, ...]:
-    """Names of the bundled reference vessels (``src/diffship/vessels/*.json``)."""
-    return tuple(sorted(p.stem for p in _DIR.glob("*.json")))
-
-
 def load_vessel(name_or_path: str | os.PathLike) -> Vessel:
     """A bundled vessel by name (:func:`bundled_vessels`) or a JSON vessel file."""
     s = str(name_or_path)

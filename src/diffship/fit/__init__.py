@@ -2,19 +2,29 @@
 (extended Kalman filter innovations) and the equation-error baseline (optionally on EKF + RTS
 smoothed runs), same result type.
 
-``python -m diffship.fit`` is the command-line front end (:mod:`diffship.fit.cli`).
+``python -m diffship.fit`` is the command-line front end (:mod:`diffship.fit.cli`; its arguments and
+JAX-free first checks: :mod:`diffship.fit.args`). The names below load their modules on first use,
+so that the command line can answer a user's mistake before JAX is imported.
 """
-
-from .both import fit_both as fit_both
-from .equation_error import fit_equation_error as fit_equation_error
-from .output_error import OutputErrorOptions as OutputErrorOptions, fit_output_error as fit_output_error
-from .prediction_error import PredictionErrorOptions as PredictionErrorOptions
-from .prediction_error import fit_prediction_error as fit_prediction_error
-from .result import FitResult as FitResult
-from .shooting import ShootingOptions as ShootingOptions
-from .shooting import fit_multiple_shooting as fit_multiple_shooting
-from .smoother import KalmanSmoother as KalmanSmoother
 
 __all__ = ["FitResult", "OutputErrorOptions", "fit_equation_error", "fit_output_error", "fit_both",
            "fit_multiple_shooting", "ShootingOptions", "fit_prediction_error", "PredictionErrorOptions",
            "KalmanSmoother"]
+
+# lazily loaded names (PEP 562): name -> submodule that defines it
+_LAZY = {"fit_both": "both", "fit_equation_error": "equation_error", "OutputErrorOptions": "output_error",
+         "fit_output_error": "output_error", "PredictionErrorOptions": "prediction_error",
+         "fit_prediction_error": "prediction_error", "FitResult": "result", "ShootingOptions": "shooting",
+         "fit_multiple_shooting": "shooting", "KalmanSmoother": "smoother"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -7,7 +7,6 @@ line ``error: ...`` on stderr with exit status 2 and no traceback.
 
 from __future__ import annotations
 
-import argparse
 import math
 import dataclasses
 import sys
@@ -16,14 +15,13 @@ from pathlib import Path
 
 from ..data import example_runs, load_runs
 from ..errors import DiffshipError
-from ..integrators import INTEGRATORS, get_integrator
+from ..integrators import get_integrator
 from ..metrics import evaluate
-from ..models import MODELS, ConstantThrust, get_model
+from ..models import ConstantThrust, get_model
 from ..params import parse_assignments
 from ..preprocess import Filter
 from ..admissibility import admissibility
 from ..vessel import (
-    bundled_vessels,
     fixed_values,
     fixed_values_text,
     load_vessel,
@@ -36,7 +34,8 @@ from ..fitfile import save_fit
 from ..manoeuvres import check_turn_direction
 from ..predict.cross import cross_validate, train_types_json
 from ..predict.cross_report import cross_json, cross_text, plot_cross
-from ..report import CHANNEL_NAMES, failed_methods, plot_fit, text_report, to_json_dict, write_json
+from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_json
+from .args import build_parser
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
@@ -45,82 +44,6 @@ from .problem import default_channels
 from .shooting import fit_multiple_shooting, parse_shooting
 
 __all__ = ["main", "build_parser"]
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="python -m diffship.fit",
-        description="Fit a manoeuvring model to measured runs by equation error and output error. "
-        "With no RUN files, fits the bundled example (SSPA zigzag for nomoto1/2, "
-        "synthetic USV runs for fossen3).",
-    )
-    p.add_argument("runs", nargs="*", metavar="RUN.csv", help="training runs (CSV; separator detected)")
-    p.add_argument("--model", default="nomoto2", choices=tuple(MODELS), metavar="MODEL",
-                   help=f"one of: {', '.join(MODELS)} (default nomoto2)")
-    p.add_argument("--method", default="both", choices=("output-error", "equation-error", "prediction-error", "both"),
-                   help="output-error (simulation error), equation-error (baseline), prediction-error (extended "
-                        "Kalman filter innovations: for data with unmeasured disturbances) or both (EE then OE); decay1/decay2 curve fits: python -m diffship.decay")
-    p.add_argument("--validate", nargs="*", default=[], metavar="RUN.csv", help="held-out runs")
-    p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold parameters fixed")
-    p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="estimate parameters fixed by default")
-    p.add_argument("--init", nargs="*", default=[], metavar="NAME=VALUE", help="start values for output error")
-    p.add_argument("--rudder-sign", default="starboard", choices=("starboard", "port"),
-                   help="sign convention of delta in the files: starboard (positive turns to starboard) or port")
-    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN",
-                   help="map diffship channel names to file columns, e.g. psi=heading. Channel names: "
-                        + ", ".join(f"{c} [{u}]" for c, u in CHANNEL_NAMES.items()) + "; columns with other "
-                        "names are kept under their own names")
-    p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN", help="columns given in degrees (deg/s)")
-    p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
-    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
-                   help="initial states in the fit: estimated per run with the parameters (default; a measured "
-                        "heading offset never decays and biases the estimates) or taken from the data; the metrics "
-                        "always start every run, training or validation, from its measured (filtered) initial state, "
-                        "as metrics.evaluate does")
-    p.add_argument("--weights", default="noise", choices=("noise", "spread"),
-                   help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
-    p.add_argument("--solver", default="diffrax-rk4", choices=tuple(INTEGRATORS),
-                   help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
-                        "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
-                        "(diffrax Tsit5, adaptive within each sample)")
-    p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
-    p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="write report.txt, fit.png, report.json and the fit file fit.json here")
-    p.add_argument("--save", default=None, metavar="FILE",
-                   help="write the fit file (diffship.fit/1 JSON, for python -m diffship.predict) here")
-    p.add_argument("--check-sampling", action="store_true",
-                   help="with --resample: refit at the files' own rate and warn where the estimates move by more "
-                        "than their intervals")
-    p.add_argument("--skip-sign-check", action="store_true",
-                   help="do not stop when the heading turns against the rudder in a run")
-    p.add_argument("--json", default=None, metavar="FILE", help="write the results as JSON")
-    p.add_argument("--quiet", action="store_true", help="no progress messages")
-    _add_prior_arguments(p)
-    _add_vessel_arguments(p)
-    # -- estimators for sea data (issue 13) --
-    p.add_argument("--shooting", default="single", metavar="single|multiple[:SEGMENT_S]",
-                   help="output error by single shooting (default) or multiple shooting with segments of SEGMENT_S "
-                        "seconds (default 20), finished by single shooting")
-    p.add_argument("--disturbance", default="ou", choices=("ou", "white"),
-                   help="prediction-error process noise: Ornstein–Uhlenbeck disturbance (default) or white")
-    return p
-
-
-def _add_prior_arguments(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("priors and admissibility (predictive identification)")
-    g.add_argument("--prior", nargs="*", default=[], metavar="NAME=MEAN±SD",
-                   help="Gaussian prior on a parameter (MAP fit); also NAME=MEAN+-SD or SD in %% of MEAN")
-    g.add_argument("--prior-file", default=None, metavar="FILE",
-                   help='priors from JSON {"NAME": {"mean": M, "sd": S}} (or a saved fit file\'s priors)')
-    g.add_argument("--no-prior", action="store_true",
-                   help="no priors from the model's reference set (on by default for mmg/KVLCC2, fossen3/USV, "
-                        "fossen6/BlueROV2 when the fixed particulars are the reference vessel's)")
-    g.add_argument("--prior-sd", type=float, default=0.5, metavar="REL",
-                   help="relative standard deviation of the reference-set priors (default 0.5)")
-    g.add_argument("--admissibility", default="auto", choices=("auto", "off"),
-                   help="after the fit, simulate standard manoeuvres (35° turns, 10/10 and 20/20 zigzags, pull-out) "
-                        "and check damping over a wide envelope (auto: for models with a rudder input)")
 
 
 def _prior_options(args) -> dict:
@@ -304,17 +227,6 @@ def _fit(args, say) -> int:
 
 
 # -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
-def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--vessel", default=None, metavar="FILE|NAME",
-                   help="vessel particulars: a JSON file or a bundled vessel (" + ", ".join(bundled_vessels()) + "); "
-                        "models that need particulars (mass, inertia, dimensions, ...) stop without one")
-    p.add_argument("--rigid-body-cg", action="store_true",
-                   help="fossen6: use the CG offset in the rigid-body inertia and Coriolis terms (full M_RB(r_g))")
-    p.add_argument("--propulsion", default="thrust", metavar="thrust|propeller|constant:N",
-                   help="vmm_*: thrust from the measured 'thrust' column [N] (default), from the propeller speed column "
-                        "'n' [1/s] through the vessel's open-water curve (propeller), or a constant [N]")
-
-
 def _with_vessel(args, model, fix, say):
     """The model with its particulars from ``--vessel`` (or stop naming the missing ones)."""
     if args.rigid_body_cg:
@@ -346,6 +258,9 @@ def _with_vessel(args, model, fix, say):
         model = dataclasses.replace(model, propulsion=prop)
         sources["propulsion"] = f"{args.propulsion}: " + ", ".join(
             f"{f.name}={getattr(prop, f.name)}" for f in dataclasses.fields(prop))
+    if "dwP" in args.free and args.propulsion.partition(":")[0] != "propeller":
+        raise DiffshipError("--free dwP: the wake-fraction correction enters only the open-water propeller map; "
+                            "add --propulsion propeller (thrust from the propeller speed column n)")
     if args.rigid_body_cg:
         sources["rigid_body_cg"] = "--rigid-body-cg"
     elif hasattr(model, "rigid_body_cg") and not model.rigid_body_cg and any(fix.get(n) for n in ("xg", "yg", "zg")):

@@ -74,7 +74,8 @@ class ThrustInput(eqx.Module):
 
     input_names: ClassVar[tuple[str, ...]] = ("thrust",)
 
-    def thrust(self, inp, u):
+    def thrust(self, inp, u, dw=0.0):
+        """The measured thrust [N] (``dw``, a wake-fraction correction, does not enter)."""
         return inp[0]
 
 
@@ -85,7 +86,8 @@ class ConstantThrust(eqx.Module):
     input_names: ClassVar[tuple[str, ...]] = ()
     value: float = eqx.field(static=True, default=0.0)
 
-    def thrust(self, inp, u):
+    def thrust(self, inp, u, dw=0.0):
+        """The constant thrust [N] (``dw`` does not enter)."""
         return self.value + 0.0 * u
 
 
@@ -98,6 +100,8 @@ class OpenWaterPropeller(eqx.Module):
     with ``count`` :math:`N_P` propellers of diameter ``diameter`` :math:`D` [m], wake fraction ``wake_fraction``
     :math:`w` (straight motion), open-water coefficients ``kt`` :math:`(k_0, k_1, \dots)` and water density
     ``rho`` [kg/m³]; ``thrust_deduction`` :math:`t` is used by :meth:`__call__` only (the VMMs have X'_T = 1 − t).
+    The wake fraction is the vessel's value plus a correction :math:`\Delta w` that a fit can estimate (the
+    VMMs' parameter ``dwP``, ``--free dwP``): :math:`J = u(1 - w - \Delta w)/(nD)`.
     Valid for ahead operation (0 ≤ J below the K_T zero); the advance ratio's denominator is floored at 1e-9 m/s.
     Build it from a vessel file with :func:`diffship.vessel.propeller_map`.
 
@@ -119,10 +123,12 @@ class OpenWaterPropeller(eqx.Module):
             out = out * J + c
         return out
 
-    def thrust(self, inp, u):
+    def thrust(self, inp, u, dw=0.0):
+        """Thrust [N] at propeller speed ``inp[0]`` [1/s] and surge speed ``u`` [m/s], with the wake fraction
+        ``wake_fraction + dw`` (``dw``: the fitted correction, the VMMs' parameter ``dwP``)."""
         n = inp[0]
         nd = n * self.diameter
-        J = u * (1.0 - self.wake_fraction) / jnp.where(jnp.abs(nd) > 1e-9, nd, 1e-9)
+        J = u * (1.0 - self.wake_fraction - dw) / jnp.where(jnp.abs(nd) > 1e-9, nd, 1e-9)
         return self.count * self.rho * n * jnp.abs(n) * self.diameter**4 * self.kt_of(J)
 
     def __call__(self, inp, nu):

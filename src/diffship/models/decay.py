@@ -18,6 +18,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
+from ..particulars import DECAY1, DECAY2
 from ._base import AbstractModel, param
 
 __all__ = ["Decay1", "Decay2"]
@@ -35,7 +36,7 @@ class Decay1(AbstractModel):
     EQUATIONS: ClassVar[tuple[str, ...]] = ("force",)
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("velocity",)
     #: the DOF's total inertia is not a vessel-file quantity (which DOF decays is the test's): ``--fix m=VALUE``
-    PARTICULARS: ClassVar[dict[str, str]] = {"m": "dof_inertia"}
+    PARTICULARS: ClassVar[dict[str, str]] = DECAY1
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
 
     m: jnp.ndarray = param(1.0, free=False, lower=0.0, scale=1.0, unit="kg", description="total inertia (rigid + added)")
@@ -67,7 +68,7 @@ class Decay2(AbstractModel):
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("angle",)
     EQUATION_ORDER: ClassVar[int] = 2
     #: ``--fix`` both, or fix one and ``--free`` the other (the decay gives only k/I and b/I)
-    PARTICULARS: ClassVar[dict[str, str]] = {"I": "dof_inertia", "k": "dof_stiffness"}
+    PARTICULARS: ClassVar[dict[str, str]] = DECAY2
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
 
     I: jnp.ndarray = param(  # noqa: E741

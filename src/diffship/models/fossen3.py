@@ -37,6 +37,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from ._base import param
+from ..particulars import FOSSEN3
 from ._rigid3 import AbstractShip3, Mass3
 from .actuators import ForceInput, WaterJet
 
@@ -82,7 +83,7 @@ class Fossen3(AbstractShip3):
     REFERENCE: ClassVar[str] = "the seed-002 high-speed USV standard model (Odin, FFI)"
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "N")
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("u", "v", "r")
-    PARTICULARS: ClassVar[dict[str, str]] = {"m": "mass", "Iz": "Izz_origin", "xg": "xG"}
+    PARTICULARS: ClassVar[dict[str, str]] = FOSSEN3
     REFERENCE_VESSEL: ClassVar[str | None] = "usv"
 
     m: jnp.ndarray = param(_S["m"], free=False, lower=0.0, scale=5e3, unit="kg", description="mass")

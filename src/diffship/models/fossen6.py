@@ -75,6 +75,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from ..particulars import FOSSEN6
 from ._base import AbstractModel, param
 
 __all__ = ["Fossen6", "BLUEROV2_HEAVY"]
@@ -123,9 +124,7 @@ class Fossen6(AbstractModel):
     angle_outputs: ClassVar[tuple[str, ...]] = ("phi", "theta", "psi")
     EQUATIONS: ClassVar[tuple[str, ...]] = ("X", "Y", "Z", "K", "M", "N")
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("phi", "theta", "u", "v", "w", "p", "q", "r")
-    PARTICULARS: ClassVar[dict[str, str]] = {
-        "m": "mass", "Ix": "Ixx_cg", "Iy": "Iyy_cg", "Iz": "Izz_cg", "xg": "xG", "yg": "yG", "zg": "zG",
-        "xb": "xB", "yb": "yB", "zb": "zB", "W": "weight", "B": "buoyancy"}
+    PARTICULARS: ClassVar[dict[str, str]] = FOSSEN6
     REFERENCE_VESSEL: ClassVar[str | None] = "bluerov2"
 
     m: jnp.ndarray = _p("m", False, 10.0, "kg", "mass", lower=0.0)

@@ -87,6 +87,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 
 from ._base import param
+from ..particulars import MMG
 from ._rigid3 import AbstractShip3, Mass3
 
 __all__ = ["MMG", "KVLCC2_L7", "kvlcc2_mmg"]
@@ -138,10 +139,7 @@ class MMG(AbstractShip3):
     name: ClassVar[str] = "mmg"
     #: The published/standard parameter set the defaults are (priors: :mod:`diffship.fit.priors`).
     REFERENCE: ClassVar[str] = "KVLCC2 L7 model, Yasukawa & Yoshimura 2015"
-    PARTICULARS: ClassVar[dict[str, str]] = {
-        "L": "length", "B": "beam", "d": "draught", "m": "mass", "xG": "xG", "kzz": "kzz_L", "rho": "rho",
-        "DP": "propeller_diameter", "xP": "propeller_x_L", "wP0": "wake_fraction", "tP": "thrust_deduction",
-        "k0": "kt0", "k1": "kt1", "k2": "kt2", "AR": "rudder_area", "HR": "rudder_span", "xR": "rudder_x_L"}
+    PARTICULARS: ClassVar[dict[str, str]] = MMG
     REFERENCE_VESSEL: ClassVar[str | None] = "kvlcc2_model"
     R0: jnp.ndarray = _p("R0", _ND, "straight-ahead resistance coefficient R'_0", lower=0.0)
     Xvv: jnp.ndarray = _p("Xvv", _ND, "surge force derivative X'_vv")

@@ -114,6 +114,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from ._base import LinearForm, param
+from ..particulars import VMM
 from ._rigid3 import AbstractShip3, Mass3
 from .actuators import ConstantThrust, OpenWaterPropeller, ThrustInput
 
@@ -195,10 +196,7 @@ class VMM(AbstractShip3):
     X_TERMS: ClassVar[tuple[str, ...]] = ()
     Y_TERMS: ClassVar[tuple[str, ...]] = ()
     N_TERMS: ClassVar[tuple[str, ...]] = ()
-    PARTICULARS: ClassVar[dict[str, str]] = {
-        "m": "mass", "Iz": "Izz_origin", "xG": "xG", "L": "length", "rho": "rho", "U0": "approach_speed",
-        "XT": "one_minus_t", "Xudot": "Xudot_prime", "Yvdot": "Yvdot_prime", "Yrdot": "Yrdot_prime",
-        "Nvdot": "Nvdot_prime", "Nrdot": "Nrdot_prime"}
+    PARTICULARS: ClassVar[dict[str, str]] = VMM
     REFERENCE_VESSEL: ClassVar[str | None] = "mariner"
 
     m: jnp.ndarray = param(M_REF, free=False, lower=0.0, scale=M_REF, unit="kg", description="mass")
@@ -210,6 +208,9 @@ class VMM(AbstractShip3):
     U0: jnp.ndarray = param(U0_REF, free=False, lower=0.0, scale=U0_REF, unit="m/s",
                             description="approach speed (Δu' = (u−U0)/U)")
     XT: jnp.ndarray = param(VMM_REFERENCE["XT"], free=False, scale=1.0, unit="-", description="thrust factor 1 − t (X'_T)")
+    dwP: jnp.ndarray = param(0.0, free=False, scale=0.1, unit="-",
+                             description="wake-fraction correction Δw of the open-water propeller map (w = w_vessel + Δw; "
+                                         "--propulsion propeller only)")
     Xudot: jnp.ndarray = _added("Xudot")
     Yvdot: jnp.ndarray = _added("Yvdot")
     Yrdot: jnp.ndarray = _added("Yrdot")
@@ -284,7 +285,7 @@ class VMM(AbstractShip3):
         u, v, r = nu[0], nu[1], nu[2]
         U = self.speed(u, v)
         q = 0.5 * self.rho * self.L**2 * U * U
-        return (u - self.U0) / U, v / U, r * self.L / U, inp[0], self.propulsion.thrust(inp[1:], u) / q, U
+        return (u - self.U0) / U, v / U, r * self.L / U, inp[0], self.propulsion.thrust(inp[1:], u, self.dwP) / q, U
 
     @staticmethod
     def _poly(model, terms, du, v, r, d):
