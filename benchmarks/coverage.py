@@ -196,7 +196,8 @@ def draw_priors(truth, names, rel, seed):
 
     rng = np.random.default_rng(50_000 + seed)
     return Priors({n: Prior(mean=truth[n] + rel * abs(truth[n]) * rng.normal(), sd=rel * abs(truth[n]),
-                            source=f"drawn around the truth, rel {rel}") for n in names}, source="benchmark")
+                            source=f"drawn around the truth, rel {rel}") for n in names if truth[n] != 0.0},
+                  source="benchmark")  # a coefficient whose truth is 0 gets no (relative) prior
 
 
 def fit_and_covariances(case, runs, prior_rel=None, seed=0):

@@ -208,14 +208,14 @@ class VMM(AbstractShip3):
     U0: jnp.ndarray = param(U0_REF, free=False, lower=0.0, scale=U0_REF, unit="m/s",
                             description="approach speed (Δu' = (u−U0)/U)")
     XT: jnp.ndarray = param(VMM_REFERENCE["XT"], free=False, scale=1.0, unit="-", description="thrust factor 1 − t (X'_T)")
-    dwP: jnp.ndarray = param(0.0, free=False, scale=0.1, unit="-",
-                             description="wake-fraction correction Δw of the open-water propeller map (w = w_vessel + Δw; "
-                                         "--propulsion propeller only)")
     Xudot: jnp.ndarray = _added("Xudot")
     Yvdot: jnp.ndarray = _added("Yvdot")
     Yrdot: jnp.ndarray = _added("Yrdot")
     Nvdot: jnp.ndarray = _added("Nvdot")
     Nrdot: jnp.ndarray = _added("Nrdot")
+    dwP: jnp.ndarray = param(0.0, free=False, scale=0.1, unit="-",
+                             description="wake-fraction correction Δw of the open-water propeller map (w = w_vessel + Δw; "
+                                         "--propulsion propeller only)")
     X0: jnp.ndarray = _ref("X0")
     Xu: jnp.ndarray = _ref("Xu")
     Xuu: jnp.ndarray = _ref("Xuu")
