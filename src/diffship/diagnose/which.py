@@ -22,8 +22,13 @@ validation runs (:mod:`.shrink`).
 close rival is ruled out by a joint refit, *tie* when a rival within ``tie_share`` of its gain
 cannot be ruled out — the verdict then names the manoeuvre that separates the two.
 
-**Base reference.** When the base fit stopped before converging, it is continued by the same
-refit procedure with no effect, and that is the reference every candidate is judged against.
+**Base reference (fair comparisons).** Every candidate is judged against the base refitted by
+the same procedure with no effect (:meth:`~.screen.Workspace.refit` from θ̂, the same step
+cap, initial-state estimation and continuation rounds — always finished), whenever that lowers
+the base fit's training cost: a base fit that stopped early, was pulled by priors or used
+another tolerance would otherwise let every candidate refit take credit for finishing it. The
+non-smooth actuator effects (delay, lag, rate limit: nonconvex in their time constant) are
+refitted from three starts (probe magnitude × 1, 0.3, 3); smooth ones from the null.
 
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
