@@ -47,7 +47,9 @@ class Diagnosis:
     with the reason; ``final_model`` the base with the selected effects (and refitted base
     parameters); ``eval_before`` / ``eval_after`` the validation evaluations of the base and
     final models on ``val_runs``; ``reference`` which base model the candidates were judged against
-    (the base refitted by the refit procedure with no effect, when that lowers its training cost).
+    (the base refitted by the refit procedure with no effect, when that lowers its training cost);
+    ``possible`` effects under the gap gate (low confidence, not selected); ``partial`` whether a
+    structural gap (E ≥ gap_gate) remains after the selected effects.
     """
 
     model_name: str
@@ -74,6 +76,8 @@ class Diagnosis:
     timings: dict[str, float]
     val_runs: tuple[Run, ...] = ()
     reference: str = ""
+    possible: tuple[str, ...] = ()
+    partial: bool = False
 
     @property
     def shrink_total_error(self) -> float:
@@ -90,6 +94,8 @@ class Diagnosis:
             "screen": [dataclasses.asdict(s) for s in self.screen],
             "ranking": [r.to_dict() for r in self.ranking],
             "selected": list(self.selected),
+            "possible": list(self.possible),
+            "partial": self.partial,
             "path": [p.to_dict() for p in self.path],
             "validation_rmse_before": self.rmse_before,
             "validation_rmse_after": self.rmse_after,
@@ -219,7 +225,7 @@ def diagnose(
 
     # -- how far and verdicts --------------------------------------------------------------------
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
-                   sel.rivals, sel.note)
+                   sel.rivals, sel.note, sel.possible)
     shrink = sel.shrink(before.E)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
@@ -227,7 +233,9 @@ def diagnose(
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
-        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate),
+        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate,
+                              sel.possible),
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
+        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= o.gap_gate,
     )

@@ -17,6 +17,13 @@ validation runs (:mod:`.shrink`).
   excludes the null;
 * to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
 
+**Possible effects** (under the gate, 1 < E_base < ``gap_gate``): nothing is attributed, but a
+candidate whose parameter is relevant with a 95 % interval excluding the null, that lowers E on
+a majority of the validation runs by more than ``max(possible_min_dE, 2·SE)`` (the scatter of E on
+no-effect data) and closes at least ``min_shrink`` of the small structural gap is reported as a
+**possible** effect with *low* confidence and the experiment that would settle it (more
+excitation or longer runs to lift the gap over the gate, then the effect's separating manoeuvre).
+
 **Confidence.** The first selected effect states how sure it is (:meth:`Search._confidence`):
 *high* when the runner-up misses ≥ 25 % of its validation gain, *medium* otherwise or when a
 close rival is ruled out by a joint refit, *tie* when a rival within ``tie_share`` of its gain
@@ -65,6 +72,8 @@ class Judgement:
     gain: float
     shrink: float
     why: str
+    runs_improved: str = ""
+    possible: bool = False
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -89,6 +98,7 @@ class Selection:
     confidence: str = ""
     rivals: tuple[str, ...] = ()
     note: str = ""
+    possible: tuple[str, ...] = ()
 
     def shrink(self, E0: float) -> float:
         """Share of the structural gap S(E0) closed by the selected effects (0 if none; :mod:`.shrink`)."""
@@ -152,6 +162,11 @@ class Search:
                 relevant |= abs(v - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
                 ci_ok |= abs(v - e.null()[n]) > 1.96 * s
         ok = self.has_gap and rf.ok and gain >= o.min_gain and (E_ref - E) > thr and majority and relevant and ci_ok
+        shrink = structural_shrink(self.base.E, self.base.E, E)
+        # under the gate (1 < E < gap_gate): a significant effect that closes the small gap on most
+        # validation runs is a *possible* effect (low confidence), never an attribution
+        possible = (not self.has_gap and self.base.E > 1.0 and rf.ok and majority and relevant and ci_ok
+                    and (E_ref - E) > max(o.possible_min_dE, 2 * se) and shrink >= o.min_shrink)
         reasons = []
         if not self.has_gap:
             reasons.append("no structural gap")
@@ -164,7 +179,7 @@ class Search:
             reasons.append("fitted magnitude below relevance")
         elif not ci_ok:
             reasons.append("95 % interval includes the null")
-        return Judgement(ok, gain, structural_shrink(self.base.E, self.base.E, E), "; ".join(reasons))
+        return Judgement(ok, gain, shrink, "; ".join(reasons), f"{int(np.sum(d > 0))}/{d.size}", possible)
 
     # -- single candidates -------------------------------------------------------------------
     def singles(self, names: Sequence[str]) -> dict[str, Candidate]:
@@ -196,6 +211,10 @@ class Search:
         cur = Selection((), (), self.base, {}, None)
         if not accepted and self.has_gap and o.max_pairs > 0:
             cur = self._pair(singles, by_E) or cur
+        if not self.has_gap:
+            poss = tuple(n for n in by_E if singles[n].judgement.possible)
+            if poss:
+                cur = dataclasses.replace(cur, possible=poss, confidence="low")
         if accepted:
             name, conf, rivals, note = self._confidence(singles, accepted, by_E)
             w = singles[name]
