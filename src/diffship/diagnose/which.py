@@ -143,6 +143,20 @@ class Search:
         rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say)
         return rf, self.validation.refit(rf)
 
+    def joint_starts(self, a: Candidate, b: Candidate) -> list[dict[str, float]]:
+        """Starts of a joint refit of two single candidates: both fitted values, and each single's
+        solution with the other effect at its null. The two effects are nested in the joint model,
+        so from the nested starts the joint cost can only go below the better single's; from the
+        combined start alone, LM can end in a worse basin (a delay and a lag trade off along a
+        curved valley), and the encompassing test would then judge a fit worse than a single."""
+        ea = [self.effect(n) for n in a.effects]
+        eb = [self.effect(n) for n in b.effects]
+        null_a = {k: v for e in ea for k, v in e.null().items()}
+        null_b = {k: v for e in eb for k, v in e.null().items()}
+        va = {k: a.refit.values[k] for k in null_a}
+        vb = {k: b.refit.values[k] for k in null_b}
+        return [{**va, **vb}, {**va, **null_b}, {**null_a, **vb}]
+
     def judge(self, rf: RefitResult, ref: Score, new: Score, effect_names: Sequence[str]) -> Judgement:
         """The acceptance rule for the effects ``effect_names`` of ``rf``, against ``ref``."""
         o = self.options
@@ -268,7 +282,7 @@ class Search:
                 unresolved.append(alt)
                 continue
             try:
-                rf, _ = self._refit([name, alt], [{**singles[name].refit.values, **singles[alt].refit.values}])
+                rf, _ = self._refit([name, alt], self.joint_starts(singles[name], singles[alt]))
             except FitError:
                 unresolved.append(alt)
                 continue
@@ -293,7 +307,7 @@ class Search:
             if self.n_params((a, b)) > P_MAX:
                 continue
             try:
-                rf, sc = self._refit([a, b], [{**singles[a].refit.values, **singles[b].refit.values}])
+                rf, sc = self._refit([a, b], self.joint_starts(singles[a], singles[b]))
             except FitError:
                 continue
             j = self.judge(rf, self.base, sc, [a, b])
@@ -318,8 +332,9 @@ class Search:
             if self.n_params(effs_now) > P_MAX:
                 continue
             e = self.effect(n)
+            # the nested start (the new effect at its null) cannot end above the current step's cost
             starts = [{**cur.values, **e.null()}] if e.smooth_null else [
-                {**cur.values, **{k: f * v for k, v in e.PROBE.items()}} for f in (1.0, 3.0)]
+                {**cur.values, **{k: f * v for k, v in e.PROBE.items()}} for f in (1.0, 3.0)] + [{**cur.values, **e.null()}]
             try:
                 rf, sc = self._refit(effs_now, starts)
             except FitError:
