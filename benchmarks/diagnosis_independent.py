@@ -61,6 +61,19 @@ import independent  # the generator, imported as a top-level package: no diffshi
 OUT = Path(__file__).resolve().parent / "results"
 
 
+def _commit() -> str:
+    """The commit the diagnosis ran from (rows merged from older runs say which code they measured)."""
+    import subprocess
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "?"
+
+
+COMMIT = _commit()
+
+
 def to_runs(gen: list[dict]) -> list[Run]:
     return [Run(g["name"], g["time"], g["channels"], {"source": "benchmarks.independent"}) for g in gen]
 
@@ -119,7 +132,7 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
             "confidence": getattr(row, "confidence", "") if row is not None else "",
             "verdict": d.verdict[1], "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
             "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall,
-            "finished_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+            "finished_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()), "commit": COMMIT}
 
 
 def confusion(rows, kind) -> list[str]:
@@ -232,12 +245,12 @@ def write_md(rows, stem: str, command: str, wall: float):
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
-          "| scenario | selected | top-1 | top-3 | possible | nearest miss | E base | E after | E truth | shrink | confidence | screen CPU s |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "| scenario | selected | top-1 | top-3 | possible | nearest miss | E base | E after | E truth | shrink | confidence | screen CPU s | commit |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r.get('possible', '-')} | "
                   f"{r.get('nearest_miss', '-')} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
-                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} |")
+                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} | {r.get('commit') or 'before diag5'} |")
     md += ["", "## Verdicts (which)", ""] + [f"- {r['scenario']}: {r['verdict']}" for r in rows]
     (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
 
