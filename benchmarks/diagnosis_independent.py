@@ -222,7 +222,9 @@ def figure(rows, path):
 def _typed(r: dict) -> dict:
     out = {}
     for k, v in r.items():
-        if v in ("True", "False"):
+        if k in ("commit", "finished_utc"):
+            out[k] = v  # text, even when it looks like a number
+        elif v in ("True", "False"):
             out[k] = v == "True"
         else:
             try:
@@ -230,6 +232,17 @@ def _typed(r: dict) -> dict:
             except ValueError:
                 out[k] = v
     return out
+
+
+def _by_code(rows) -> list[str]:
+    """When merged rows were measured by different code, the summary of each part."""
+    new = [r for r in rows if r.get("commit")]
+    if not new or len(new) == len(rows):
+        return []
+    old = [r for r in rows if not r.get("commit")]
+    return (["### Only the rows measured by the current code (commit column set)", "", *summarise(new), "",
+             f"### Only the {len(old)} rows merged from runs before these changes (commit column empty)", "",
+             *summarise(old), ""])
 
 
 def write_md(rows, stem: str, command: str, wall: float):
@@ -241,7 +254,7 @@ def write_md(rows, stem: str, command: str, wall: float):
            + " on a shared 2-core CPU (timings disturbed by other jobs)."), "",
           ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
            "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
-           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "",
+           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "", *_by_code(rows),
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
