@@ -35,7 +35,10 @@ cap, initial-state estimation and continuation rounds — always finished), when
 the base fit's training cost: a base fit that stopped early, was pulled by priors or used
 another tolerance would otherwise let every candidate refit take credit for finishing it. The
 non-smooth actuator effects (delay, lag, rate limit: nonconvex in their time constant) are
-refitted from three starts (probe magnitude × 1, 0.3, 3); smooth ones from the null.
+refitted from three starts (probe magnitude × 1, 0.3, 3); smooth ones from the null. Joint
+refits (tie decisions, pairs, greedy steps) also start from the nested solutions — each
+single's fit with the other effect at its null — so a joint fit is never judged from a worse
+basin than its singles (:meth:`Search.joint_starts`).
 
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
