@@ -86,3 +86,21 @@ def test_possible_rule_under_the_gate():
     s2 = _search(1.5, {"a": 1.5, "b": 1.5})
     j2 = _judge(s2, 0.8, 0.05, {"a": 1.0, "b": 1.0})
     assert j2.ok and not j2.possible and math.isclose(j2.gain, 1 - 1.0 / 1.5)
+
+
+def test_a_significant_term_that_closes_the_gap_is_relevant_below_the_absolute_threshold():
+    """A weak |v|v term on a small USV (N_vv = -60 ± 3, MIN_RELEVANT 100) closed the whole
+    validation gap and was rejected as 'below relevance'; the rule now takes the validation gain
+    (against the refitted base) as the relevance of the term."""
+    from diffship.models import Fossen3
+
+    eff = make_effect(Fossen3(), "damping_vv")
+    s = Search(SimpleNamespace(effects=[eff]), None, SimpleNamespace(E=1.16, E_runs={"a": 1.17, "b": 1.15}),
+               DiagnoseOptions(), lambda m: None)
+    rf = RefitResult(("damping_vv",), {"Nvv": -60.5}, {"Nvv": 3.0}, {}, 1.0, 5, 0.1, True)
+    j = s.judge(rf, s.base, SimpleNamespace(E=0.99, E_runs={"a": 0.99, "b": 0.99}), ["damping_vv"])
+    assert abs(-60.5) < eff.MIN_RELEVANT["Nvv"]
+    assert j.ok, j.why
+    # the same small magnitude with no validation gain stays irrelevant
+    j0 = s.judge(rf, s.base, SimpleNamespace(E=1.15, E_runs={"a": 1.16, "b": 1.14}), ["damping_vv"])
+    assert not j0.ok and "below relevance" in j0.why

@@ -13,8 +13,10 @@ validation runs (:mod:`.shrink`).
 * validation error drops by at least ``min_gain`` (5 %) **and** by more than the noise-level
   threshold ``max(0.1, 2·SE)`` in normalised units (SE of the mean per-run gain, with four or
   more validation runs), on a majority of the validation runs;
-* at least one effect parameter is relevant (|φ̂ − φ₀| ≥ MIN_RELEVANT) and its 95 % interval
-  excludes the null;
+* at least one effect parameter has a 95 % interval that excludes the null, and the effect is
+  relevant: |φ̂ − φ₀| ≥ MIN_RELEVANT, or its term is what lowers the validation error by the
+  amounts above (against the refitted base, so not by extra base iterations) — an absolute
+  coefficient threshold alone depends on the vessel's scale;
 * to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
 
 **Possible effects** (under the gate, 1 < E_base < ``gap_gate``): nothing is attributed, but a
@@ -178,12 +180,18 @@ class Search:
                 v, s = rf.values[n], rf.stderr.get(n, float("inf"))
                 relevant |= abs(v - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
                 ci_ok |= abs(v - e.null()[n]) > 1.96 * s
-        ok = self.has_gap and rf.ok and gain >= o.min_gain and (E_ref - E) > thr and majority and relevant and ci_ok
+        # relevance: the fitted magnitude reaches MIN_RELEVANT, or the effect's own term is what
+        # lowers the validation error materially (the reference is the refitted base, so the gain
+        # is not the base's extra iterations). An absolute coefficient threshold alone is
+        # vessel-scale dependent: it rejected a 20-σ |v|v term that closed a small USV's whole gap.
+        material = gain >= o.min_gain and (E_ref - E) > thr
+        ok = self.has_gap and rf.ok and material and majority and (relevant or material) and ci_ok
         shrink = structural_shrink(self.base.E, self.base.E, E)
         # under the gate (1 < E < gap_gate): a significant effect that closes the small gap on most
         # validation runs is a *possible* effect (low confidence), never an attribution
-        possible = (not self.has_gap and self.base.E > 1.0 and rf.ok and majority and relevant and ci_ok
-                    and (E_ref - E) > max(o.possible_min_dE, 2 * se) and shrink >= o.min_shrink)
+        small_drop = (E_ref - E) > max(o.possible_min_dE, 2 * se)
+        possible = (not self.has_gap and self.base.E > 1.0 and rf.ok and majority and ci_ok
+                    and small_drop and shrink >= o.min_shrink)
         reasons = []
         if not self.has_gap:
             reasons.append("no structural gap")
@@ -192,7 +200,7 @@ class Search:
                            f"({100 * o.min_gain:.0f} % and ΔE > {thr:.2g})")
         elif not majority:
             reasons.append("improves fewer than half of the validation runs")
-        if not relevant:
+        if not relevant and not material:
             reasons.append("fitted magnitude below relevance")
         elif not ci_ok:
             reasons.append("95 % interval includes the null")
@@ -251,10 +259,11 @@ class Search:
 
     # -- confidence and ties -----------------------------------------------------------------
     def _significant(self, rf: RefitResult, name: str) -> bool:
-        """Some parameter of ``name`` is relevant and its 95 % interval excludes the null."""
+        """Some parameter of ``name`` has a 95 % interval that excludes the null (in the joint refit
+        of two candidates that each passed the rule alone, so each is already relevant by its
+        validation gain)."""
         e = self.effect(name)
-        return any(abs(rf.values[n] - e.null()[n]) >= e.MIN_RELEVANT.get(n, 0.0)
-                   and abs(rf.values[n] - e.null()[n]) > 1.96 * rf.stderr.get(n, math.inf) for n in e.param_names)
+        return any(abs(rf.values[n] - e.null()[n]) > 1.96 * rf.stderr.get(n, math.inf) for n in e.param_names)
 
     def _confidence(self, singles: dict[str, Candidate], accepted: list[str],
                     by_E: list[str]) -> tuple[str, str, tuple[str, ...], str]:
