@@ -235,14 +235,17 @@ def _typed(r: dict) -> dict:
 
 
 def _by_code(rows) -> list[str]:
-    """When merged rows were measured by different code, the summary of each part."""
-    new = [r for r in rows if r.get("commit")]
-    if not new or len(new) == len(rows):
+    """When merged rows were measured by different code (commit column; empty: runs from before
+    the column existed), the summary of each part."""
+    groups = {}
+    for r in rows:
+        groups.setdefault(r.get("commit") or "before the commit column", []).append(r)
+    if len(groups) < 2:
         return []
-    old = [r for r in rows if not r.get("commit")]
-    return (["### Only the rows measured by the current code (commit column set)", "", *summarise(new), "",
-             f"### Only the {len(old)} rows merged from runs before these changes (commit column empty)", "",
-             *summarise(old), ""])
+    out = []
+    for c, rs in groups.items():
+        out += [f"### Only the {len(rs)} rows measured at {c}", "", *summarise(rs), ""]
+    return out
 
 
 def write_md(rows, stem: str, command: str, wall: float):
