@@ -178,7 +178,7 @@ def summarise(rows) -> list[str]:
         f"- null cases: false alarms {pct([not r['top1'] for r in none])} (target ≤ 10 %)",
         (f"- out of family: right family first {pct([r['top1'] for r in out])} (target ≥ 60 %), "
          f"right family in the top 3 {pct([r['top3'] for r in out])}; right family named with partial "
-         f"explanations counted (NOT the headline) {pct([bool(r.get('family_named')) for r in out])}"),
+         f"explanations counted (NOT the headline) {pct([bool(r.get('family_named', r['top1'])) for r in out])}"),
         (f"- screen of {int(min(r['n_candidates'] for r in rows))}–{int(max(r['n_candidates'] for r in rows))} candidates, "
          f"fossen3 USV (11 applicable, no wind measured): CPU time median {np.median(scpu):.1f} s, max {np.max(scpu):.1f} s (first call includes compilation; "
          "target ≤ 30 s)") if scpu else "- screen CPU time: no USV scenario run",
