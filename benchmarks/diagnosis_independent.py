@@ -17,6 +17,18 @@ selection on the held-out runs), and score
 * the confusion matrix (true × first selected), in and out of family separately;
 * the CPU time (``time.process_time``, compilation included) of the screen of all candidates.
 
+**Which counting the headline numbers use.** top-1 and "right family first" count only the
+*first selected* effect (an attribution). Reported separately, never in the headline:
+
+* **possible** hits: under the gap gate nothing is selected, but the diagnosis may name a
+  *possible* effect (low confidence); a possible hit is an in-family scenario whose hidden effect
+  is the first possible one (on null cases any possible effect is a possible false alarm);
+* **right family named, partial counted** (out of family): the first selected effect is of the
+  right family, or nothing is selected and the verdict's nearest miss (the candidate with the
+  largest validation gain, stated as at most a partial explanation) is of the right family;
+* **partial**: the selected effects leave a structural gap (E_after ≥ the gate) and the verdict
+  says so.
+
 Usage::
 
     python benchmarks/diagnosis_independent.py --quick   # strong sizes, one seed (≈ 20–30 min on 2 shared cores)
@@ -40,12 +52,26 @@ import numpy as np
 import diffship  # noqa: F401  (float64)
 from diffship.data import Run
 from diffship.diagnose import FAMILY, DiagnoseOptions, diagnose
+from diffship.diagnose.verdict import nearest_miss
 from diffship.models import Fossen3, Nomoto1
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import independent  # the generator, imported as a top-level package: no diffship inside
 
 OUT = Path(__file__).resolve().parent / "results"
+
+
+def _commit() -> str:
+    """The commit the diagnosis ran from (rows merged from older runs say which code they measured)."""
+    import subprocess
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "?"
+
+
+COMMIT = _commit()
 
 
 def to_runs(gen: list[dict]) -> list[Run]:
@@ -86,12 +112,27 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
         top1 = first == sc.label
         top3 = sc.label in ranked
     row = next((r for r in d.ranking if r.effect == first), None)
+    poss = d.possible[0] if d.possible else "none"
+    miss = nearest_miss(d.ranking) if not d.selected and d.E_before >= options.gap_gate else None
+    nearest = miss.effect if miss is not None else "none"
+    if sc.kind == "none":
+        possible_hit = False
+        named = not d.selected
+    elif sc.kind == "out":
+        possible_hit = poss != "none" and FAMILY[poss] == sc.family
+        named = top1 or (not d.selected and nearest != "none" and FAMILY[nearest] == sc.family)
+    else:
+        possible_hit = poss == sc.label
+        named = top1
     return {"scenario": sc.name, "vessel": sc.vessel, "kind": sc.kind, "truth": sc.label, "size": sc.size,
             "seed": sc.seed, "selected": "+".join(d.selected) or "none", "first": first, "top1": top1, "top3": top3,
             "E_base": d.E_before, "E_after": d.E_after, "E_truth": E_truth, "shrink": shrink, "shrink_linear": shrink_linear,
+            "possible": "+".join(d.possible) or "none", "possible_hit": possible_hit, "partial": d.partial,
+            "nearest_miss": nearest, "family_named": named,
             "confidence": getattr(row, "confidence", "") if row is not None else "",
             "verdict": d.verdict[1], "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
-            "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall}
+            "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall,
+            "finished_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()), "commit": COMMIT}
 
 
 def confusion(rows, kind) -> list[str]:
@@ -126,10 +167,18 @@ def summarise(rows) -> list[str]:
     for size in sorted({r["size"] for r in inn}):
         rs = [r for r in inn if r["size"] == size]
         lines.append(f"  - {size}: top-1 {pct([r['top1'] for r in rs])}")
+    miss_in = [r for r in inn if not r["top1"]]
     lines += [
+        (f"- possible effects (low confidence, under the gate; NOT in the headline): in-family misses whose hidden "
+         f"effect is named as possible {int(sum(bool(r.get('possible_hit')) for r in miss_in))}/{len(miss_in)}, "
+         f"wrong possible effect {sum(1 for r in miss_in if r.get('possible', 'none') != 'none' and not r.get('possible_hit'))}; "
+         f"null cases with a possible effect {sum(1 for r in none if r.get('possible', 'none') != 'none')}/{len(none)}"),
+        f"- partial (a structural gap remains after the selected effects, stated in the verdict): "
+        f"{sum(1 for r in rows if r.get('partial') is True)}/{sum(1 for r in rows if r['first'] != 'none')} attributions",
         f"- null cases: false alarms {pct([not r['top1'] for r in none])} (target ≤ 10 %)",
         (f"- out of family: right family first {pct([r['top1'] for r in out])} (target ≥ 60 %), "
-         f"right family in the top 3 {pct([r['top3'] for r in out])}"),
+         f"right family in the top 3 {pct([r['top3'] for r in out])}; right family named with partial "
+         f"explanations counted (NOT the headline) {pct([bool(r.get('family_named', r['top1'])) for r in out])}"),
         (f"- screen of {int(min(r['n_candidates'] for r in rows))}–{int(max(r['n_candidates'] for r in rows))} candidates, "
          f"fossen3 USV (11 applicable, no wind measured): CPU time median {np.median(scpu):.1f} s, max {np.max(scpu):.1f} s (first call includes compilation; "
          "target ≤ 30 s)") if scpu else "- screen CPU time: no USV scenario run",
@@ -173,13 +222,29 @@ def figure(rows, path):
 def _typed(r: dict) -> dict:
     out = {}
     for k, v in r.items():
-        if v in ("True", "False"):
+        if k in ("commit", "finished_utc"):
+            out[k] = v  # text, even when it looks like a number
+        elif v in ("True", "False"):
             out[k] = v == "True"
         else:
             try:
                 out[k] = float(v) if k not in ("seed",) else int(v)
             except ValueError:
                 out[k] = v
+    return out
+
+
+def _by_code(rows) -> list[str]:
+    """When merged rows were measured by different code (commit column; empty: runs from before
+    the column existed), the summary of each part."""
+    groups = {}
+    for r in rows:
+        groups.setdefault(r.get("commit") or "before the commit column", []).append(r)
+    if len(groups) < 2:
+        return []
+    out = []
+    for c, rs in groups.items():
+        out += [f"### Only the {len(rs)} rows measured at {c}", "", *summarise(rs), ""]
     return out
 
 
@@ -192,15 +257,16 @@ def write_md(rows, stem: str, command: str, wall: float):
            + " on a shared 2-core CPU (timings disturbed by other jobs)."), "",
           ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
            "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
-           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "",
+           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "", *_by_code(rows),
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
-          "| scenario | selected | top-1 | top-3 | E base | E after | E truth | shrink | confidence | screen CPU s |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
+          "| scenario | selected | top-1 | top-3 | possible | nearest miss | E base | E after | E truth | shrink | confidence | screen CPU s | commit |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
-                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} |")
+        md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r.get('possible', '-')} | "
+                  f"{r.get('nearest_miss', '-')} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
+                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} | {r.get('commit') or 'before diag5'} |")
     md += ["", "## Verdicts (which)", ""] + [f"- {r['scenario']}: {r['verdict']}" for r in rows]
     (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
 
@@ -211,6 +277,7 @@ def main(argv=None):
     p.add_argument("--only", default="", help="run only scenarios whose name contains this text (comma-separated)")
     p.add_argument("--vessels", default="ship,usv")
     p.add_argument("--verbose", action="store_true")
+    p.add_argument("--stem", default="", help="result file name (without extension) instead of the default")
     p.add_argument("--merge", nargs="+", default=None,
                    help="write diagnosis_independent.md from these result CSVs (runs done separately) and stop")
     a = p.parse_args(argv)
@@ -234,6 +301,7 @@ def main(argv=None):
         grid = list(dict.fromkeys(s for k in keys for s in grid if k in s.name))  # in the order asked
     stem = "diagnosis_independent" + ("_quick" if a.quick else "") + ("" if a.vessels == "ship,usv" else "_" + "_".join(vessels)) \
         + ("_" + "_".join(k.replace("-", "") for k in a.only.split(",")) if a.only else "")
+    stem = a.stem or stem
     OUT.mkdir(exist_ok=True)
     t0 = time.perf_counter()
     rows = []
@@ -244,12 +312,14 @@ def main(argv=None):
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
             w.writeheader()
             w.writerows(rows)
-        print(f"[{time.perf_counter() - t0:6.0f} s] {r['scenario']:34s} → {r['selected']:28s} top1={r['top1']!s:5s} "
+        print(f"[{r['finished_utc'][11:]} UTC, {time.perf_counter() - t0:6.0f} s] {r['scenario']:34s} → {r['selected']:28s} top1={r['top1']!s:5s} "
               f"E {r['E_base']:.2f}→{r['E_after']:.2f} (truth {r['E_truth']:.2f}) shrink {r['shrink']:.2f} "
-              f"[{r['confidence']}] screen {r['screen_cpu_s']:.1f} s CPU", flush=True)
+              f"[{r['confidence']}] possible {r['possible']} nearest miss {r['nearest_miss']} "
+              f"screen {r['screen_cpu_s']:.1f} s CPU", flush=True)
     write_md(rows, stem, (f"python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
                           f"{' --vessels ' + a.vessels if a.vessels != 'ship,usv' else ''}"
-                          f"{' --only ' + a.only if a.only else ''}"), time.perf_counter() - t0)
+                          f"{' --only ' + a.only if a.only else ''}{' --stem ' + a.stem if a.stem else ''}"),
+             time.perf_counter() - t0)
     print("\n".join(summarise(rows)))
 
 if __name__ == "__main__":

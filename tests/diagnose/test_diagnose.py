@@ -18,10 +18,10 @@ TRUTH = dict(K=0.2, T1=8.0, delta0=0.01)
 ZIGZAGS = [(10, 20), (-20, 30), (25, 40), (15, 16), (-12, 36)]
 OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 #: top-level keys of the JSON contract (``Diagnosis.to_dict()``)
-JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "path",
+JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "final_params",
-             "not_applicable", "timings_s"]
+             "not_applicable", "reference", "timings_s"]
 
 
 def _runs(truth, seed):
@@ -71,7 +71,7 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     row = next(r for r in d2["ranking"] if r["effect"] == "actuator_lag")
     assert list(row) == ["effect", "family", "params", "stderr", "validation_gain", "shrink", "validation_E",
                          "train_cost_reduction", "screen_fraction", "orthogonal_fraction", "p_value", "verdict",
-                         "confidence", "confusable_with", "separating_manoeuvre"]
+                         "confidence", "confusable_with", "separating_manoeuvre", "runs_improved"]
     assert list(d2["path"][0])[:4] == ["effect", "E_before", "E_after", "shrink_of_structural_gap"]
     assert "_residuals" not in d2["where"] and set(d2["where"]) >= {"per_channel", "per_phase", "residual_tests"}
     files = write_report(d, tmp_path)  # Markdown, JSON and the five figures

@@ -46,7 +46,10 @@ class Diagnosis:
     ``verdict`` the where / which / how-far summary; ``skipped`` the effects that do not apply,
     with the reason; ``final_model`` the base with the selected effects (and refitted base
     parameters); ``eval_before`` / ``eval_after`` the validation evaluations of the base and
-    final models on ``val_runs``.
+    final models on ``val_runs``; ``reference`` which base model the candidates were judged against
+    (the base refitted by the refit procedure with no effect, when that lowers its training cost);
+    ``possible`` effects under the gap gate (low confidence, not selected); ``partial`` whether a
+    structural gap (E ≥ gap_gate) remains after the selected effects.
     """
 
     model_name: str
@@ -72,6 +75,9 @@ class Diagnosis:
     skipped: dict[str, str]
     timings: dict[str, float]
     val_runs: tuple[Run, ...] = ()
+    reference: str = ""
+    possible: tuple[str, ...] = ()
+    partial: bool = False
 
     @property
     def shrink_total_error(self) -> float:
@@ -88,6 +94,8 @@ class Diagnosis:
             "screen": [dataclasses.asdict(s) for s in self.screen],
             "ranking": [r.to_dict() for r in self.ranking],
             "selected": list(self.selected),
+            "possible": list(self.possible),
+            "partial": self.partial,
             "path": [p.to_dict() for p in self.path],
             "validation_rmse_before": self.rmse_before,
             "validation_rmse_after": self.rmse_after,
@@ -101,6 +109,7 @@ class Diagnosis:
             "base_params": self.base_fit.params,
             "final_params": self.final_model.param_values(),
             "not_applicable": self.skipped,
+            "reference": self.reference,
             "timings_s": self.timings,
         }
 
@@ -182,19 +191,23 @@ def diagnose(
     # -- where ---------------------------------------------------------------------------------
     t0 = time.perf_counter()
     before = validation.base()
-    null_base = None
-    if not fit.converged:
-        # a base fit stopped early would let every refit (which also moves θ) take credit for
-        # finishing it: the reference is the base refitted with the same procedure, no effect
-        say(f"the base fit did not converge ({fit.status}); continuing it with the refit procedure")
-        try:
-            rf0 = ws.refit([], [{}], max_iter=o.max_iter, progress=say)
-            if rf0.ok and rf0.train_cost < sinfo["train_cost"]:
-                before = validation.refit(rf0)
-                sinfo["train_cost"] = rf0.train_cost
-                null_base = rf0.base_values
-        except FitError as exc:
-            say(f"  continuing the base fit failed: {exc}")
+    # the reference every candidate is judged against: the base refitted by the same refit
+    # procedure (same steps, continuation rounds, initial-state estimation) with no effect, so an
+    # effect's validation gain is never the credit for extra iterations of the base parameters
+    null_base, reference = None, "the base fit (the no-effect refit did not lower its training cost)"
+    try:
+        rf0 = ws.refit([], [{}], max_iter=o.max_iter, progress=say, finish=True)
+        if rf0.ok and rf0.train_cost < sinfo["train_cost"]:
+            say(f"the no-effect refit lowers the training cost {sinfo['train_cost']:.6g} → {rf0.train_cost:.6g}: "
+                "candidates are judged against it")
+            reference = (f"the base refitted by the refit procedure, no effect (training cost {sinfo['train_cost']:.6g} "
+                         f"→ {rf0.train_cost:.6g}; base fit {'converged' if fit.converged else 'stopped: ' + str(fit.status)})")
+            before = validation.refit(rf0)
+            sinfo["train_cost"] = rf0.train_cost
+            null_base = rf0.base_values
+    except FitError as exc:
+        say(f"  the no-effect refit failed: {exc}")
+        reference = f"the base fit (the no-effect refit failed: {exc})"
     where = where_analysis(base, val, before.evaluation, floor, chans)
     timings["where"] = time.perf_counter() - t0
     gap = gap_budget(fit, before.E)
@@ -212,7 +225,7 @@ def diagnose(
 
     # -- how far and verdicts --------------------------------------------------------------------
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
-                   sel.rivals, sel.note)
+                   sel.rivals, sel.note, sel.possible)
     shrink = sel.shrink(before.E)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
@@ -220,7 +233,9 @@ def diagnose(
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
-        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate),
+        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate,
+                              sel.possible),
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
-        eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val),
+        eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
+        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= o.gap_gate,
     )

@@ -37,6 +37,9 @@ class DiagnoseOptions:
             stays at 1.00 ± 0.01 in the independent benchmark, and the validation-gain rules
             guard the rest).
         min_gain: smallest relative validation gain.
+        possible_min_dE: under the gate, the smallest drop of E for a *possible* effect (low
+            confidence, not attributed; :mod:`.which`): twice the ±0.01 scatter of E on
+            no-effect data.
         min_shrink: smallest fraction of the structural gap removed.
         confusable_margin: candidates that pass and come within this relative margin of the
             winner's validation error are reported as confusable.
@@ -56,6 +59,7 @@ class DiagnoseOptions:
     fit_steps: int = 200
     gap_gate: float = 1.1
     min_gain: float = 0.05
+    possible_min_dE: float = 0.02
     min_shrink: float = 0.3
     confusable_margin: float = 0.05
     tie_share: float = 0.1

@@ -270,7 +270,8 @@ class Workspace:
 
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
-              max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3) -> RefitResult:
+              max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3,
+              finish: bool | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
@@ -278,7 +279,9 @@ class Workspace:
         effect coordinates have zero Jacobian columns and stay at zero); the start with the
         lowest cost wins, and — when it already removes half the base training cost — is
         continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
-        step cap and still lowers the cost (``converged`` says whether it ended before the cap). Standard errors come from :func:`diffship.fit.covariance.covariance`
+        step cap and still lowers the cost (``converged`` says whether it ended before the cap);
+        ``finish=True`` continues it whatever its cost (the no-effect reference refit of
+        :func:`~.diagnosis.diagnose`, so that it gets at least the effort of any candidate). Standard errors come from :func:`diffship.fit.covariance.covariance`
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
         """
         t0 = time.perf_counter()
@@ -314,7 +317,7 @@ class Workspace:
         converged = it < 4 * max_iter
         # only a refit that already explains most of the training cost is worth finishing (a
         # wrong candidate far from the data crawls; its verdict does not depend on the last digits)
-        promising = cost < 0.5 * self.base_cost
+        promising = cost < 0.5 * self.base_cost if finish is None else finish
         for _ in range(rounds if promising else 0):
             if converged:
                 break

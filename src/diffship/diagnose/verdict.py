@@ -6,7 +6,7 @@ winner W's validation error — the separating manoeuvre is named); *explains pa
 *helps on validation but removes less than min_shrink of the structural gap*; *not identifiable*
 (absorbed by the base parameters, or no effect on the fitted channels); *rejected on validation
 (improves the training fit only)*; *rejected* with the failed parts of the rule; *not refitted*;
-*not applicable*. The summary says where (worst channel and phase), which (selected effects with
+*not applicable*; under the gate, *possible effect (low confidence)*. The summary says where (worst channel and phase), which (selected effects with
 95 % intervals, confusable and rejected ones) and how far (error before → after, shrink).
 """
 
@@ -22,7 +22,11 @@ from .screen import ScreenResult
 from .where import GapBudget, WhereAnalysis
 from .which import Candidate
 
-__all__ = ["RankedEffect", "rank", "verdict_lines", "format_params"]
+__all__ = ["RankedEffect", "rank", "verdict_lines", "format_params", "nearest_miss"]
+
+#: The experiment that settles a possible effect under the gap gate.
+SETTLE_SMALL_GAP = ("more validation runs, longer or with larger inputs, so that the gap rises above the gate "
+                    "(or vanishes)")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -45,6 +49,8 @@ class RankedEffect:
     confidence: str | None = None
     confusable_with: tuple[str, ...] | None = None
     separating_manoeuvre: str | None = None
+    runs_improved: str | None = None
+    why: str | None = None
 
     def to_dict(self) -> dict:
         out = {}
@@ -56,10 +62,13 @@ class RankedEffect:
 
 
 def _verdict(s: ScreenResult, c: Candidate, e: Effect, selected: Sequence[str], winner: Candidate | None,
-             train_cost: float, o: DiagnoseOptions) -> str:
+             train_cost: float, o: DiagnoseOptions, possible: Sequence[str] = ()) -> str:
     n, j = s.effect, c.judgement
     if n in selected:
         return "attributed" if n == selected[0] else f"attributed (greedy step {selected.index(n) + 1})"
+    if n in possible:
+        return (f"possible effect (low confidence): the gap is under the gate, but it closes {100 * j.shrink:.0f} % "
+                f"of it on {j.runs_improved} validation runs with an interval excluding the null")
     if j.ok and winner and c.score.E <= winner.score.E * (1 + o.confusable_margin) + 1e-12:
         return f"confusable with {selected[0]}: separate with {e.separating}"
     if j.ok and winner:
@@ -77,7 +86,7 @@ def _verdict(s: ScreenResult, c: Candidate, e: Effect, selected: Sequence[str], 
 def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects: Sequence[Effect],
          selected: Sequence[str], train_cost: float, skipped: dict[str, str],
          options: DiagnoseOptions, confidence: str = "", rivals: Sequence[str] = (),
-         note: str = "") -> tuple[RankedEffect, ...]:
+         note: str = "", possible: Sequence[str] = ()) -> tuple[RankedEffect, ...]:
     """Every screened candidate with its verdict: selected first, then by validation gain; the
     effects that do not apply last. ``train_cost``: the base fit's cost on the training runs;
     ``confidence``, ``rivals``, ``note``: how sure the first selected effect is
@@ -108,13 +117,17 @@ def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects:
                 conf = f"{conf} ({note})"
         elif n in rivals:
             conf = f"tie with {selected[0]}: separate with {e.separating}"
+        elif n in possible:
+            conf = (f"low (possible effect under the gap gate): settle with {SETTLE_SMALL_GAP}"
+                    + (f", then {e.separating}" if e.separating else ""))
         rows.append(RankedEffect(
             **common, params={k: rf.values[k] for k in e.param_names},
             stderr={k: rf.stderr.get(k, float("nan")) for k in e.param_names},
             validation_gain=float(c.judgement.gain), shrink=float(c.judgement.shrink), validation_E=float(c.score.E),
             train_cost_reduction=1 - rf.train_cost / train_cost,
-            verdict=_verdict(s, c, e, selected, winner, train_cost, options), confidence=conf))
-    rows.sort(key=lambda r: (0 if r.effect in selected else 1, -r.validation_gain))
+            verdict=_verdict(s, c, e, selected, winner, train_cost, options, possible), confidence=conf,
+            runs_improved=c.judgement.runs_improved or None, why=c.judgement.why or None))
+    rows.sort(key=lambda r: (0 if r.effect in selected else 1, 0 if r.effect in possible else 1, -r.validation_gain))
     rows += [RankedEffect(effect=n, family=FAMILY[n], params={}, verdict=f"not applicable: {why}")
              for n, why in skipped.items()]
     return tuple(rows)
@@ -129,9 +142,23 @@ def format_params(p: dict, se: dict | None = None) -> str:
     return ", ".join(out)
 
 
+def nearest_miss(ranking: Sequence[RankedEffect]) -> RankedEffect | None:
+    """The refitted candidate with the largest positive validation gain (when nothing passed)."""
+    rows = [r for r in ranking if r.validation_E is not None and r.validation_gain > 0]
+    return max(rows, key=lambda r: r.validation_gain) if rows else None
+
+
 def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[RankedEffect], selected: Sequence[str],
-                  E_before: float, E_after: float, shrink: float, gap_gate: float) -> tuple[str, str, str]:
-    """Where, which, how far — one line each."""
+                  E_before: float, E_after: float, shrink: float, gap_gate: float,
+                  possible: Sequence[str] = ()) -> tuple[str, str, str]:
+    r"""Where, which, how far — one line each.
+
+    *Which* says what it knows: the selected effects with their confidence, and **partial** when
+    a structural gap remains after them (:math:`E_{after} \ge` ``gap_gate``: the same test that
+    says a gap exists), with the share closed; with nothing accepted, the **nearest miss** (the
+    candidate with the largest validation gain, its shrink and the failed parts of the rule);
+    under the gate, a **possible** effect (low confidence) with the experiment that settles it.
+    """
     pc = where.per_channel
     worst = max(pc, key=lambda c: pc[c]["share"])
     ph = where.per_phase
@@ -139,14 +166,32 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
     where_line = (f"Where: validation error {E_before:.2f}× the noise floor "
                   f"({100 * gap.share_struct:.0f} % structural); mostly in {worst} "
                   f"({100 * pc[worst]['share']:.0f} % of the error), worst phase: {worst_phase}.")
+    r = {x.effect: x for x in ranking}
     if E_before < gap_gate:
         which = (f"Which: no structural gap detected (validation error within {100 * (gap_gate - 1):.0f} % of the "
                  "noise floor); no effect attributed.")
+        if possible:
+            p = r[possible[0]]
+            which = (f"Which: no structural gap at the gate (E {E_before:.3f} < {gap_gate}); possible effect "
+                     f"(low confidence): {p.effect} ({format_params(p.params, p.stderr)}; validation E "
+                     f"{E_before:.3f} → {p.validation_E:.3f} on {p.runs_improved} runs improved, "
+                     f"{100 * p.shrink:.0f} % of the small gap)"
+                     + (f", also possible: {', '.join(possible[1:])}" if len(possible) > 1 else "")
+                     + f"; not attributed — settle with {SETTLE_SMALL_GAP}"
+                     + (f", then {p.separating_manoeuvre}" if p.separating_manoeuvre else "") + ".")
     elif not selected:
-        which = ("Which: gap unexplained by the library — no candidate passed the validation rule "
-                 "(see the ranking for near misses and effects not identifiable from these runs).")
+        m = nearest_miss(ranking)
+        which = "Which: gap unexplained by the library — no candidate passed the validation rule"
+        if m is not None:
+            which += (f"; nearest miss: {m.effect} ({format_params(m.params, m.stderr)}; validation gain "
+                      f"{100 * m.validation_gain:.1f} % on {m.runs_improved} runs improved, shrink {m.shrink:.2f}; "
+                      f"failed: {m.why or m.verdict})")
+            if m.shrink < 0.3:
+                which += ": at most a small part of the gap is of this kind"
+            which += "."
+        else:
+            which += "; no candidate lowers the validation error."
     else:
-        r = {x.effect: x for x in ranking}
         w = selected[0]
         conf = [x.effect for x in ranking if x.verdict.startswith("confusable")]
         rej = [x.effect for x in ranking if x.verdict.startswith("rejected on validation")]
@@ -154,8 +199,11 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
                  + (" then " + ", ".join(selected[1:]) if len(selected) > 1 else "")
                  + (f"; confusable: {', '.join(conf)}" if conf else "")
                  + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")
+        if E_after >= gap_gate:
+            which += (f" Partial: {'they close' if len(selected) > 1 else 'it closes'} {100 * shrink:.0f} % of the "
+                      f"structural gap; E {E_after:.2f} stays above the gate ({gap_gate}), the rest is unexplained "
+                      "(an effect outside the library, or a variant of the selected one, e.g. time-varying).")
     how = (f"How far: validation error {E_before:.2f} → {E_after:.2f} × noise floor; "
            f"{100 * shrink:.0f} % of the structural gap removed"
            + (f" ({', '.join(selected)})." if selected else "."))
     return where_line, which, how
-
