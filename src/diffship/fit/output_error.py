@@ -75,6 +75,10 @@ class OutputErrorOptions:
         channel_scales: fixed per-channel normalisation (overrides ``weights``).
         integrator: how simulations advance between samples (:mod:`diffship.integrators`).
         max_steps, rtol, atol: Levenberg–Marquardt limits and tolerances.
+        gntol: a small step or a stalled cost ends the solve only when the Gauss–Newton step
+            from there is shorter than ``gntol`` standard errors, ``‖J δ_GN‖/σ̂ < gntol``
+            (:mod:`diffship.fit._lm`); otherwise LM goes on up to ``max_steps``. ``inf``: the
+            plain step/cost tests.
         flt: filter used to take initial states from the data.
         choose: ``"best"`` takes the finite start with the lowest cost; ``"first"`` the first
             start (the spec's values, then ``starts`` in order) whose simulation stays finite.
@@ -97,6 +101,7 @@ class OutputErrorOptions:
     max_steps: int = 200
     rtol: float = 1e-6
     atol: float = 1e-6
+    gntol: float = 0.05
     flt: Filter = Filter()
     choose: str = "best"
     warmup: float = 0.25
@@ -109,6 +114,8 @@ class OutputErrorOptions:
         object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
         if self.weights not in ("noise", "spread"):
             raise FitError(f"weights must be 'noise' or 'spread', got {self.weights!r}")
+        if not self.gntol > 0:
+            raise FitError(f"gntol must be a positive number of standard errors, got {self.gntol!r}")
         if self.choose not in ("best", "first"):
             raise FitError(f"choose must be 'best' or 'first', got {self.choose!r}")
 
@@ -243,7 +250,7 @@ def fit_output_error(
         (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named
     ]
     # -- every program this fit needs, compiled at once (in parallel from an empty cache) ----
-    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float(o.gntol))
     n_full = batch.ts.shape[1]
     n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
     z_shape = np.zeros(n_p + n_x0)

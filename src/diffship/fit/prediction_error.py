@@ -424,7 +424,8 @@ def fit_prediction_error(
     label, z, _ = best
     messages.append(f"started from {label}")
 
-    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
+    # innovations are normalised by their predicted covariance: unit variance in the stopping test
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float(o.gntol), variance=1.0)
     say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
         f"levels, {len(runs)} runs, {o.integrator.describe()})...")
     solve_fn, c = kernel.compiled("solve", z, data, **lm)
