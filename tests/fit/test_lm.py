@@ -69,3 +69,14 @@ def test_gauss_newton_step_is_the_least_squares_step():
     np.testing.assert_allclose(np.asarray(dz), ref, atol=1e-10)
     # ‖J δ‖² is the squared projection of r on J's columns
     np.testing.assert_allclose(float(chi2), float(np.sum((J @ ref) ** 2)), rtol=1e-10)
+
+
+def test_marginal_gauss_newton_length_of_the_leading_unknowns():
+    rng = np.random.default_rng(2)
+    J = rng.normal(size=(40, 5))
+    r = rng.normal(size=40)
+    dz, chi2 = gauss_newton_step(jnp.asarray(J.T @ J), jnp.asarray(J.T @ r), 2)
+    cov = np.linalg.inv(J.T @ J)[:2, :2]
+    d = -np.linalg.lstsq(J, r, rcond=None)[0][:2]
+    np.testing.assert_allclose(float(chi2), d @ np.linalg.solve(cov, d), rtol=1e-9)
+    assert float(chi2) <= float(gauss_newton_step(jnp.asarray(J.T @ J), jnp.asarray(J.T @ r))[1])
