@@ -497,8 +497,35 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
                              f"{sum(c['converged'] for c in conv[key])}/{n} | "
                              f"{sum(c['right_optimum'] for c in far)}/{len(far)} | "
                              f"{np.median([c['seconds'] for c in conv[key]]):.1f} |")
+        lines += per_start_table(conv, [k for k in names if k in conv])
     (out_dir / f"estimators{tag}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def per_start_table(conv, variants):
+    """Markdown lines: one row per start, each variant's deviation from the reference (in its standard
+    errors), right optimum, status, LM steps and wall time."""
+    by = {v: {c["number"]: c for c in conv[v]} for v in variants}
+    numbers = sorted(set().union(*(by[v] for v in variants))) if variants else []
+    if not numbers:
+        return []
+    head = "| start | start's ψ departs [deg] | " + " | ".join(
+        f"{v}: max dev [ref se] | {v}: right | {v}: status | {v}: steps | {v}: s" for v in variants) + " |"
+    out = ["", "### Per start", "", head, "|" + "---|" * (2 + 5 * len(variants))]
+    for k in numbers:
+        cells = []
+        dep = next(by[v][k]["start_psi_departure_deg"] for v in variants if k in by[v])
+        for v in variants:
+            c = by[v].get(k)
+            if c is None:
+                cells += ["not run"] + [""] * 4
+                continue
+            st = "converged" if c["status"] == "converged" else ("max steps" if "maximum number of steps" in c["status"]
+                                                                 else c["status"][:40])
+            cells += [f"{c['max_dev_in_ref_se']:.3g}", "yes" if c["right_optimum"] else "**no**", st,
+                      str(c.get("steps", "")), f"{c['seconds']:.0f}"]
+        out.append(f"| {k} | {dep:.1f} | " + " | ".join(cells) + " |")
+    return out
 
 
 def main(argv=None):
