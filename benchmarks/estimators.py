@@ -373,7 +373,7 @@ def start_departure(runs, start):
 
 def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "multiple"), duration=90.0,
                        amps=(10.0, 20.0), segment_s=10.0, spread=0.5, free_set="ten", dt=0.1, dist_level=0.0,
-                       on_start=None, only=None):
+                       on_start=None, only=None, max_steps=None, gntol=None):
     """Single vs multiple shooting from random starts on the MMG KVLCC2 zigzags (sensor noise only).
 
     "Right optimum": every free parameter within one standard error (of the fit started from the
@@ -381,14 +381,16 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     ``only``: 1-based start numbers to fit (the others are drawn and skipped, so start *k* is the
     same start in every run with the same start seed).
     ``free_set``: a key of :data:`K2_FREE`; ``on_start(out)`` is called after every start (partial
-    results survive a stopped run)."""
+    results survive a stopped run). ``max_steps``, ``gntol``: Levenberg–Marquardt steps per pass and the
+    Gauss–Newton-step stopping tolerance (:class:`~diffship.fit.OutputErrorOptions`; default: its defaults)."""
     runs = kvlcc2_runs(seed, duration, amps, dt, dist_level)
     model = MMG()
     spec0 = model.spec() if K2_FREE[free_set] is None else model.spec().only_free(list(K2_FREE[free_set]))
     free = spec0.free_names
     truth = {n: K2.get(K2_NAMES.get(n, n), 0.0) for n in free}
     truth["delta0"] = 0.0
-    o = OutputErrorOptions(reference_priors=False, estimate_x0=("psi", "u", "v", "r"))
+    lm = {k: v for k, v in (("max_steps", max_steps), ("gntol", gntol)) if v is not None}
+    o = OutputErrorOptions(reference_priors=False, estimate_x0=("psi", "u", "v", "r"), **lm)
     plain = dataclasses.replace(o, warmup=0.0)
     ref = fit_output_error(model, runs, spec=spec0.with_values(truth), options=plain)
     print(f"reference fit from the truth: {ref.status}, cost {ref.cost:.6g}; "
@@ -396,7 +398,8 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
     rng = np.random.default_rng(seed + 1 if start_seed is None else start_seed)
     out = {"reference": {"converged": ref.converged, "params": ref.params, "stderr": ref.stderr, "cost": ref.cost},
            "setting": {"duration": duration, "amps": list(amps), "segment_s": segment_s, "spread": spread,
-                       "free": list(free), "dt": dt, "disturbance_level": dist_level},
+                       "free": list(free), "dt": dt, "disturbance_level": dist_level,
+                       "max_steps": o.max_steps, "gntol": o.gntol},
            **{v: [] for v in variants}}
     for i in range(n_starts):
         start = {n: truth[n] + rng.uniform(-spread, spread) * (abs(truth[n]) if truth[n] else spec0[n].scale)
@@ -416,10 +419,14 @@ def kvlcc2_convergence(n_starts, seed=0, start_seed=None, variants=("single", "m
                 in_se = max(abs(res.params[n] - ref.params[n]) / ref.stderr[n] for n in free)
                 worst = max(abs(res.params[n] / truth[n] - 1) if truth[n] else 0.0 for n in free)
                 status, cost, conv = res.status, res.cost, res.converged
+                params, steps = {n: res.params[n] for n in free}, res.iterations
             except diffship.errors.DiffshipError as exc:
                 in_se, worst, status, cost, conv = math.inf, math.inf, f"error: {exc}", math.inf, False
+                params, steps = {}, 0
             out[key].append({"number": i + 1, "start": start, "start_psi_departure_deg": dep, "max_dev_in_ref_se": in_se, "worst_err": worst, "status": status,
-                             "cost": cost, "converged": conv, "seconds": time.perf_counter() - t0})
+                             "cost": cost, "converged": conv, "seconds": time.perf_counter() - t0,
+                             "params": params, "steps": steps,
+                             "dev_in_ref_se": {n: (params[n] - ref.params[n]) / ref.stderr[n] for n in params}})
             print(f"start {i + 1:2d} {key:<8} (start's ψ departs ≤ {dep:6.1f}°) dev {in_se:9.3g} ref se  "
                   f"cost {cost:.6g}  worst {worst:.3g} "
                   f"{status[:50]} {out[key][-1]['seconds']:.1f} s", flush=True)
@@ -490,8 +497,35 @@ def write(out_dir: Path, quick: bool, usv, conv, argv, tag=""):
                              f"{sum(c['converged'] for c in conv[key])}/{n} | "
                              f"{sum(c['right_optimum'] for c in far)}/{len(far)} | "
                              f"{np.median([c['seconds'] for c in conv[key]]):.1f} |")
+        lines += per_start_table(conv, [k for k in names if k in conv])
     (out_dir / f"estimators{tag}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def per_start_table(conv, variants):
+    """Markdown lines: one row per start, each variant's deviation from the reference (in its standard
+    errors), right optimum, status, LM steps and wall time."""
+    by = {v: {c["number"]: c for c in conv[v]} for v in variants}
+    numbers = sorted(set().union(*(by[v] for v in variants))) if variants else []
+    if not numbers:
+        return []
+    head = "| start | start's ψ departs [deg] | " + " | ".join(
+        f"{v}: max dev [ref se] | {v}: right | {v}: status | {v}: steps | {v}: s" for v in variants) + " |"
+    out = ["", "### Per start", "", head, "|" + "---|" * (2 + 5 * len(variants))]
+    for k in numbers:
+        cells = []
+        dep = next(by[v][k]["start_psi_departure_deg"] for v in variants if k in by[v])
+        for v in variants:
+            c = by[v].get(k)
+            if c is None:
+                cells += ["not run"] + [""] * 4
+                continue
+            st = "converged" if c["status"] == "converged" else ("max steps" if "maximum number of steps" in c["status"]
+                                                                 else c["status"][:40])
+            cells += [f"{c['max_dev_in_ref_se']:.3g}", "yes" if c["right_optimum"] else "**no**", st,
+                      str(c.get("steps", "")), f"{c['seconds']:.0f}"]
+        out.append(f"| {k} | {dep:.1f} | " + " | ".join(cells) + " |")
+    return out
 
 
 def main(argv=None):
@@ -520,6 +554,9 @@ def main(argv=None):
                    help="KVLCC2 free set: the MMG default ten, or the KVLCC2 study's 33 (K2_FREE)")
     p.add_argument("--k-dt", type=float, default=0.1, help="KVLCC2 sample interval of the fitted data [s]")
     p.add_argument("--k-dist", type=float, default=0.0, help="KVLCC2 OU disturbance level (× K2_DIST, τ 8 s)")
+    p.add_argument("--k-max-steps", type=int, default=None, help="KVLCC2: LM steps per pass (OutputErrorOptions)")
+    p.add_argument("--k-gntol", type=float, default=None,
+                   help="KVLCC2: LM Gauss–Newton-step stopping tolerance in standard errors (inf: the plain rule)")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     p.add_argument("--only-starts", nargs="*", type=int, default=None,
                    help="KVLCC2: fit only these (1-based) start numbers of the --starts drawn")
@@ -547,7 +584,7 @@ def main(argv=None):
         starts, start_seed=args.start_seed, variants=tuple(args.variants), duration=args.k_duration,
         amps=tuple(args.k_amps), segment_s=args.segment, spread=args.spread, free_set=args.k_free, dt=args.k_dt,
         dist_level=args.k_dist, only=set(args.only_starts) if args.only_starts else None,
-        on_start=dump)
+        on_start=dump, max_steps=args.k_max_steps, gntol=args.k_gntol)
     write(out, args.quick, usv, conv, argv if argv is not None else __import__("sys").argv[1:], args.tag)
 
 

@@ -269,6 +269,8 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "train": _metrics(train.get(m)),
             "validation": _metrics(validation.get(m)),
             "messages": list(r.messages),
+            "filter": r.info.get("filter"),
+            "smoother": r.info.get("smoother"),
             "prior_note": r.info.get("prior_note"),
             "priors": r.info.get("priors"),
             "identifiability": r.info.get("identifiability"),

@@ -143,3 +143,16 @@ def test_solve_many_matches_one_start_at_a_time():
         assert int(steps) == int(steps1) and np.array_equal(np.asarray(z), np.asarray(z1))
         fitted = dict(zip(spec.free_names, np.asarray(spec.from_z(z))))
         assert all(abs(fitted[n] / tv[n] - 1) < 1e-6 for n in spec.free_names), fitted
+
+
+def test_parameter_started_on_its_bound_is_not_left_there(usv_noisy):
+    # Nr ≤ 0 is log-mapped: started at 1e-7 of the truth, ∂θ/∂z ≈ 0 and LM in z stops at once ("converged",
+    # Nr ≈ −2e-4, 9.8 standard errors off with the plain step/cost rule); the Gauss–Newton step in θ sees it
+    start = {n: TV[n] for n in FREE}
+    start["Nr"] = TV["Nr"] * 1e-7
+    res = fit_output_error(Fossen3(), usv_noisy, spec=Fossen3().spec().with_values(start),
+                           options=OutputErrorOptions(estimate_x0=("psi", "u", "v", "r")))
+    assert res.converged, res.status
+    z = {n: (res.params[n] - TV[n]) / res.stderr[n] for n in res.free}
+    assert max(abs(v) for v in z.values()) < 3.0, z
+    assert any("Gauss–Newton step in the parameters" in m for m in res.messages)

@@ -161,3 +161,33 @@ def test_cli_prediction_error(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "prediction_error" in text and "estimated noise: measurement sd psi" in text
     assert (tmp_path / "pe.json").exists()
+
+
+def test_cli_equation_error_with_the_kalman_smoother(tmp_path, capsys):
+    """``--filter kalman``: equation error on EKF + RTS smoothed runs, through the command line; on disturbed
+    runs its parameters are no worse than with the default Butterworth, and the JSON says which filter
+    and the estimated noise levels."""
+    import json
+
+    from diffship.fit.cli import main
+
+    paths = []
+    for run in _nomoto_numpy(seed=7, sigma_w=0.01):
+        p = tmp_path / f"{run.name}.csv"
+        run.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    worst = {}
+    for flt in ("kalman", "butter"):
+        out = tmp_path / f"{flt}.json"
+        assert main([*paths, "--model", "nomoto1", "--method", "equation-error", "--filter", flt, "--quiet",
+                     "--json", str(out)]) == 0
+        ee = json.loads(out.read_text())["methods"]["equation_error"]
+        worst[flt] = max(abs(ee["params"][n] / TRUTH[n] - 1) for n in ("K", "T1"))
+        if flt == "kalman":
+            assert "Kalman filter + RTS smoother" in ee["filter"]
+            sm = ee["smoother"]
+            assert abs(sm["measurement_sd"]["r"] / SENSOR["r"] - 1) < 0.15, sm  # the gyro noise, found
+            assert abs(sm["measurement_sd"]["psi"] / SENSOR["psi"] - 1) < 0.15, sm
+    assert "Kalman smoother, estimated noise: measurement sd" in capsys.readouterr().out
+    assert worst["kalman"] < 0.1, worst
+    assert worst["kalman"] <= worst["butter"], worst

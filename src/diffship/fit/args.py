@@ -59,7 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
                         "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
                         "(diffrax Tsit5, adaptive within each sample)")
-    p.add_argument("--filter", default="butter", help="equation-error differentiation filter: butter[:Hz], savgol[:s], none")
+    p.add_argument("--filter", default="butter",
+                   help="equation-error differentiation filter: butter[:Hz], savgol[:s], none, or kalman (extended "
+                        "Kalman filter + RTS smoother over the model at its starting values, noise levels estimated; "
+                        "initial states and metrics then use butter)")
     p.add_argument("--resample", type=float, default=None, metavar="DT", help="resample runs to a uniform step [s]")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write report.txt, fit.png, report.json and the fit file fit.json here")

@@ -30,6 +30,7 @@ def fit_both(
     channels: Sequence[str] | None = None,
     options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
+    ee_filter=None,
 ) -> dict[str, FitResult]:
     """Run the requested methods on the same data; output error starts from equation error.
 
@@ -37,6 +38,7 @@ def fit_both(
     reference values) and the equation-error estimate where one is available; the start with
     the lowest finite simulation cost is used (the first finite one where ``init`` is given).
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
+    ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
     ``estimate_x0="fitted"`` estimates the initial values of the fitted channels' states
     (``()`` takes them from the data); ``options`` holds the other output-error settings.
     """
@@ -49,7 +51,7 @@ def fit_both(
     if "equation_error" in methods:
         try:
             say("equation error: differentiating and solving the least-squares problem...")
-            ee = fit_equation_error(model, runs, spec=spec, flt=flt)
+            ee = fit_equation_error(model, runs, spec=spec, flt=flt if ee_filter is None else ee_filter)
             out["equation_error"] = ee
             say(f"equation error: {ee.status} in {ee.fit_seconds + ee.compile_seconds:.2f} s")
             starts["the equation-error estimate"] = {n: ee.params[n] for n in ee.free}

@@ -42,6 +42,7 @@ from .priors import format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .problem import default_channels
 from .shooting import fit_multiple_shooting, parse_shooting
+from .smoother import KalmanSmoother
 
 __all__ = ["main", "build_parser"]
 
@@ -165,12 +166,23 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
     return out
 
 
+def _filters(args):
+    """``(flt, ee_filter)`` of ``--filter``: the filter for initial states and metrics, and the equation-error
+    preprocessing when it differs (``kalman``: EKF + RTS smoother over the model, :mod:`diffship.fit.smoother`;
+    initial states and metrics then use the default Butterworth)."""
+    if args.filter == "kalman":
+        return Filter(), KalmanSmoother(channels=tuple(args.channels) if args.channels else None,
+                                        noise=PredictionErrorOptions(disturbance=args.disturbance),
+                                        options=OutputErrorOptions(integrator=get_integrator(args.solver)))
+    return Filter.parse(args.filter), None
+
+
 def _fit(args, say) -> int:
     model = get_model(args.model)
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
     model, vessel, sources = _with_vessel(args, model, fix, say)
-    flt = Filter.parse(args.filter)
+    flt, ee_filter = _filters(args)
     spec = model.spec()
     for n in list(fix) + list(init):
         spec[n]  # unknown names fail early, with the list of valid ones
@@ -193,7 +205,7 @@ def _fit(args, say) -> int:
     multiple = shooting is not None and "output_error" in methods
     results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
                        init=init or None, flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (),
-                       channels=args.channels, options=options, progress=say) if methods else {}
+                       channels=args.channels, options=options, progress=say, ee_filter=ee_filter) if methods else {}
     results.update(_sea_estimators(args, model, train, spec, init, flt, options, shooting if multiple else None,
                                    results, say))
     say("simulating every run over its whole horizon for the metrics...")

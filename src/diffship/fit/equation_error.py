@@ -196,7 +196,12 @@ def fit_equation_error(
     flt: Filter = Filter(),
     max_steps: int = 50,
 ) -> FitResult:
-    """Fit ``model`` to ``runs`` by equation error (see the module docstring)."""
+    """Fit ``model`` to ``runs`` by equation error (see the module docstring).
+
+    ``flt`` may also be a :class:`~diffship.fit.smoother.KalmanSmoother` (``--filter kalman``): the
+    runs are smoothed by an EKF + RTS smoother over ``model`` at its starting values first (noise
+    levels estimated; ``info["smoother"]`` and the messages report them), then differentiated with
+    central differences."""
     t_start = time.perf_counter()
     _check_form(model)
     spec = spec or model.spec()
@@ -205,6 +210,13 @@ def fit_equation_error(
     if not free:
         raise FitError("no free parameters: free at least one (remove it from --fix)")
     eq_names = tuple(model.EQUATIONS)
+    smoother = None
+    if getattr(flt, "kind", None) == "kalman":
+        # EKF + RTS smoother over the model at its starting values (diffship.fit.smoother.KalmanSmoother):
+        # the regression then differentiates the smoothed states with central differences
+        smoother_text = flt.describe(runs[0].dt)
+        runs, smoother = flt.apply(model, runs)
+        flt = Filter("none")
     x0_flt, flt = flt, differentiation_filter(flt)
     samples = equation_samples(model, runs, flt)
     idx = spec.free_index()
@@ -223,7 +235,10 @@ def fit_equation_error(
         theta = np.array([start.get(n, float(base[i])) for n, i in zip(free, idx)])
     n_eq = len(eq_names)
     w = np.ones(n_eq)
-    messages = [f"derivatives: {flt.describe(runs[0].dt)}", f"equations: {', '.join(eq_names)}"]
+    flt_text = smoother_text if smoother is not None else flt.describe(runs[0].dt)
+    messages = [f"derivatives: {flt_text}", f"equations: {', '.join(eq_names)}"]
+    if smoother is not None:
+        messages.append(_smoother_note(smoother))
     cut = cutoffs(model, runs, flt)
     if cut:
         messages.append("Butterworth cut-offs [Hz]: " + "; ".join(
@@ -313,5 +328,16 @@ def fit_equation_error(
         run_names=tuple(r_.name for r_ in runs),
         covariance=cov,
         messages=tuple(messages),
-        info={"filter": flt.describe(runs[0].dt), "equations": eq_names, "cutoff_hz": cut, **cov_all.info()},
+        info={"filter": flt_text, "equations": eq_names, "cutoff_hz": cut, **cov_all.info(),
+              **({"smoother": {k: v for k, v in smoother.items() if k != "method"}} if smoother else {})},
     )
+
+
+def _smoother_note(info: dict) -> str:
+    """One line of the Kalman smoother's estimated noise levels (report and messages)."""
+    meas = ", ".join(f"{c} {v:.3g}" for c, v in info["measurement_sd"].items())
+    proc = ", ".join(f"{s} {v:.3g}" for s, v in info["process_sd"].items())
+    tau = info.get("disturbance_tau")
+    dist = (f"disturbance sd (Ornstein–Uhlenbeck, time constant {tau:.3g} s) {proc}" if tau is not None
+            and math.isfinite(tau) else f"process sd per √s {proc}")
+    return f"Kalman smoother, estimated noise: measurement sd {meas}; {dist}"

@@ -199,11 +199,18 @@ class Kernel(eqx.Module):
         return jax.jacfwd(self.residuals)(z, data)
 
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
-              ftol: float = 1e-9, jacobian: bool = False):
+              ftol: float = 1e-9, jacobian: bool = False, gntol: float = 0.05, variance: float | None = None,
+              gn_params: int | None = -1):
         """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``, and with
         ``jacobian=True`` also the Jacobian :meth:`jacobian` at ``z`` (the one the last accepted
-        step formed: no second forward-mode pass, no second compiled program)."""
-        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol, keep_jacobian=jacobian)
+        step formed: no second forward-mode pass, no second compiled program). A small step or a
+        stalled cost stops it only when the Gauss–Newton step is shorter than ``gntol`` standard
+        errors (residual variance ``variance``, estimated when ``None``; :mod:`diffship.fit._lm`), judged
+        on the first ``gn_params`` unknowns (default ``-1``: the parameters ``(z_θ, w)``, not the
+        nuisance unknowns after them; ``None``: all)."""
+        k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
+        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol, keep_jacobian=jacobian, gntol=gntol,
+                                variance=variance, gn_params=k)
         sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
                                  throw=False)
         out = (sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data))

@@ -424,7 +424,13 @@ def fit_prediction_error(
     label, z, _ = best
     messages.append(f"started from {label}")
 
-    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol)
+    # The plain step/cost stopping tests, without the Gauss–Newton-step check of output error (gntol):
+    # the noise unknowns have flat, non-quadratic directions where the data carry no disturbance (the
+    # time constant; a process-noise level on its floor) and the Gauss–Newton step along them is
+    # spurious. Measured on the calm-water Nomoto test (tests/fit/test_prediction_error.py): at the
+    # optimum the step predicts a 0.36-standard-error move of K, T1, δ0, while 178 further LM steps
+    # moved them by less than 1e-4 standard errors; the check would hold every such fit to max_steps.
+    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf"))
     say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
         f"levels, {len(runs)} runs, {o.integrator.describe()})...")
     solve_fn, c = kernel.compiled("solve", z, data, **lm)

@@ -377,7 +377,7 @@ def fit_multiple_shooting(
     messages.append(f"multiple shooting started from {label}")
 
     # -- increasing continuity penalty, one LM solve each (one compiled program) ---------------
-    lm = dict(max_steps=shooting.max_steps, rtol=o.rtol, atol=o.atol)
+    lm = dict(max_steps=shooting.max_steps, rtol=o.rtol, atol=o.atol, gntol=float(o.gntol))
     say(f"multiple shooting: compiling ({n_p} parameters + {n_s} segment states, {info['segments_per_run']} "
         f"segments per run, {o.integrator.describe()})...")
     solve_fn, c = kernel.compiled("solve", z, data, **lm)

@@ -99,7 +99,9 @@ class KalmanSmoother:
         kernel, data, batch, pstates = pe_problem(model, runs, spec, self.channels, self.options, self.noise)
         z = np.ones(kernel.n_noise)
         if kernel.n_noise:
-            z, _, _, _ = kernel.call("solve", z, data, max_steps=self.max_steps, rtol=1e-3, atol=1e-3)
+            # loose on purpose (class docstring): the plain step/cost tests, no Gauss–Newton-step check
+            z, _, _, _ = kernel.call("solve", z, data, max_steps=self.max_steps, rtol=1e-3, atol=1e-3,
+                                     gntol=float("inf"))
         fp = kernel.filter(jnp.asarray(z), data, keep=True)
         xs, Ps = jax.vmap(rts)(fp)
         q, r, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
