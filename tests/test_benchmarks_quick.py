@@ -5,6 +5,7 @@ headline row: speed ratio vs the scipy peer, equation-/output-error parameter-er
 batched time per fit) in a subprocess; about 1–2 minutes on a loaded 2-core machine.
 """
 
+import pytest
 import csv
 import subprocess
 import sys
@@ -18,6 +19,7 @@ def _numbers(path):
         return {(r["case"], r["variant"], r["method"], r["metric"]): float(r["value"]) for r in csv.DictReader(fh)}
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_quick_benchmark_nomoto(tmp_path):
     env = {"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"}
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "run.py"), "--quick", "--cases", "nomoto",

@@ -1,5 +1,6 @@
 """The persistent compilation cache: a second process loads the programs the first compiled."""
 
+import pytest
 import os
 import subprocess
 import sys
@@ -36,6 +37,7 @@ def test_second_process_loads_instead_of_compiling(tmp_path):
     assert any((tmp_path / "jax" / "exported").iterdir())
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_cache_can_be_switched_off(tmp_path):
     env = {**os.environ, "DIFFSHIP_CACHE_DIR": "off"}
     d, loaded, _, ok, saved, exp, _ = _run(env)
@@ -58,6 +60,7 @@ print(compiled.exported()["saved"])
 """
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_programs_of_user_defined_models_are_never_exported(tmp_path):
     """A model class written outside diffship could be edited without changing any export key,
     so its programs must not be kept as StableHLO (they are traced again in every process)."""

@@ -242,6 +242,7 @@ def test_help_lists_every_model_and_channel_names(capsys):
     assert "--columns" in out and "psi [rad" in out and "delta [rad" in out
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_resampling_sensitivity_is_reported(capsys):
     """The SSPA zigzag at 10 Hz vs its own 50 Hz: Nomoto K moves from 0.835 to 1.31 (issue 15). The
     CLI warns whenever it resamples, and --check-sampling refits at the files' rate and compares

@@ -37,7 +37,7 @@ def usv_short():
     return usv_runs(2, 40.0, 0.1, noise="realistic", seed=5)
 
 
-@pytest.mark.parametrize("name", ["diffrax-rk4", "rk4", "tsit5"])
+@pytest.mark.parametrize("name", ["diffrax-rk4", "rk4", pytest.param("tsit5", marks=pytest.mark.slow)])  # tsit5: CI time budget (-m slow)
 def test_every_integrator_reaches_the_same_optimum(name, usv_short):
     """Fossen 3-DOF USV on velocities from a start ±50 % off: the adaptive path (Tsit5 + PID inside
     each sample interval) fits as the fixed-step ones do (it used to end in a singular normal matrix)."""

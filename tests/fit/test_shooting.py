@@ -82,6 +82,7 @@ def test_cli_multiple_shooting(tmp_path, capsys):
     assert "--shooting 'triple'" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_block_jacobian_is_the_jacobian():
     """The per-segment (block) Jacobian equals forward-mode differentiation of the whole residual."""
     import dataclasses

@@ -142,6 +142,7 @@ def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     assert max(err.values()) < 0.03, err  # 1 s samples, 9 s window: derivative bias (measured ≤ 2.1 %, N'_v)
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_cli_both_methods_vmm_linear(tmp_path):
     truth = vmm_truth()  # 23–43 % off the defaults, one of output error's candidate starts
     runs = vmm_runs(truth, n_runs=3, duration=200.0, dt=0.5, noise="realistic")
