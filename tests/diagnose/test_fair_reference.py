@@ -8,33 +8,21 @@ procedure, no candidate gains, nothing is attributed.
 
 import dataclasses
 
-import numpy as np
 import pytest
 
 import diffship  # noqa: F401
 from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.fit import fit_output_error
 from diffship.models import Nomoto1
-from diffship.synthetic import rudder_sequence, simulate_run
+from test_diagnose import _runs  # the same five noisy zigzags as the other diagnosis tests
 
-D = np.pi / 180
 TRUTH = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
 OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 
 
-def _runs(seed):
-    out = []
-    for i, (a, p) in enumerate([(10, 20), (-20, 30), (25, 40), (15, 16), (-12, 36)]):
-        t = np.arange(0.0, 40.0, 0.1)
-        d = rudder_sequence(t, a * D, p, rate=10 * D)
-        x0 = np.asarray(TRUTH.initial_state({"delta": 0.0}))
-        out.append(simulate_run(TRUTH, t, {"delta": d}, x0, name=f"zz{i}", noise="realistic", seed=100 * seed + i))
-    return out[:3], out[3:]
-
-
 @pytest.fixture(scope="module")
 def short_of_optimum():
-    train, val = _runs(2)
+    train, val = _runs(TRUTH, 2)
     fit = fit_output_error(Nomoto1(), train, channels=("psi", "r"))
     # the same fit, K and T1 8 % off its optimum, yet flagged converged (as a fit pulled by priors
     # or stopped by a looser tolerance would be)

@@ -369,8 +369,8 @@ def fit_output_error(
     # -- a parameter pinned on a log-mapped bound: LM again from the Gauss–Newton step in θ ------------
     if last_jac and math.isfinite(o.gntol):
         for _ in range(2):
-            moved = bound_escape(spec, np.asarray(z), np.asarray(res_fn(jnp.asarray(z), data)),
-                                 np.asarray(last_jac[0]), n_p, o.gntol)
+            r_old = np.asarray(res_fn(jnp.asarray(z), data))
+            moved = bound_escape(spec, np.asarray(z), r_old, np.asarray(last_jac[0]), n_p, o.gntol)
             if moved is None:
                 break
             z_new, length = moved
@@ -379,7 +379,6 @@ def fit_output_error(
             r_new, r_alt = (np.asarray(res_fn(jnp.asarray(c), data)) for c in (z_new, z_alt))
             if np.all(np.isfinite(r_alt)) and not (r_new @ r_new <= r_alt @ r_alt):
                 z_new = z_alt
-            r_old = np.asarray(res_fn(jnp.asarray(z), data))
             kept = (z, r, list(passes), list(last_jac))
             z_try, r_try = run_solve(solve_fn, z_new, data)
             r_full = np.asarray(res_fn(jnp.asarray(z_try), data))
