@@ -62,6 +62,8 @@ def test_parse_shooting_and_errors():
             parse_shooting(bad)
     with pytest.raises(FitError, match="penalties"):
         ShootingOptions(penalties=(1.0, np.nan))
+    with pytest.raises(FitError, match="stage_ftol"):
+        ShootingOptions(stage_ftol=np.nan)
 
 
 def test_cli_multiple_shooting(tmp_path, capsys):

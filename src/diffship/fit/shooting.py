@@ -105,6 +105,8 @@ class ShootingOptions:
         object.__setattr__(self, "penalties", tuple(float(p) for p in self.penalties))
         if not self.penalties or any(not (p > 0 and math.isfinite(p)) for p in self.penalties):
             raise FitError(f"multiple shooting: penalties must be positive numbers, got {self.penalties!r}")
+        if not (0 <= self.stage_ftol < 1):
+            raise FitError(f"multiple shooting: stage_ftol must be in [0, 1), got {self.stage_ftol!r}")
 
 
 def parse_shooting(text: str) -> ShootingOptions | None:
