@@ -113,7 +113,7 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
         top3 = sc.label in ranked
     row = next((r for r in d.ranking if r.effect == first), None)
     poss = d.possible[0] if d.possible else "none"
-    miss = nearest_miss(d.ranking) if not d.selected and d.E_before >= options.gap_gate else None
+    miss = nearest_miss(d.ranking) if not d.selected and d.E_before >= d.gap_gate else None
     nearest = miss.effect if miss is not None else "none"
     if sc.kind == "none":
         possible_hit = False

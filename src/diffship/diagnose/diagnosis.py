@@ -25,7 +25,7 @@ from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .verdict import RankedEffect, rank, verdict_lines
-from .where import GapBudget, WhereAnalysis, gap_budget, noise_estimates, where_analysis
+from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
 __all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]
@@ -49,7 +49,8 @@ class Diagnosis:
     final models on ``val_runs``; ``reference`` which base model the candidates were judged against
     (the base refitted by the refit procedure with no effect, when that lowers its training cost);
     ``possible`` effects under the gap gate (low confidence, not selected); ``partial`` whether a
-    structural gap (E ≥ gap_gate) remains after the selected effects.
+    structural gap (E ≥ the gate) remains after the selected effects; ``gate`` the gap gate used
+    (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`).
     """
 
     model_name: str
@@ -78,6 +79,12 @@ class Diagnosis:
     reference: str = ""
     possible: tuple[str, ...] = ()
     partial: bool = False
+    gate: GapGate | None = None
+
+    @property
+    def gap_gate(self) -> float:
+        """The gap gate used (E ≥ it: a structural gap)."""
+        return self.gate.value if self.gate is not None else float("nan")
 
     @property
     def shrink_total_error(self) -> float:
@@ -110,6 +117,7 @@ class Diagnosis:
             "final_params": self.final_model.param_values(),
             "not_applicable": self.skipped,
             "reference": self.reference,
+            "gap_gate": dataclasses.asdict(self.gate) if self.gate is not None else None,
             "timings_s": self.timings,
         }
 
@@ -166,6 +174,7 @@ def diagnose(
     base = fit.model
     chans = tuple(fit.channels)
     base_spec = spec.with_values({n: fit.params[n] for n in spec.names})
+    est = None
     if o.noise:
         floor = dict(o.noise)
         noise_info = {c: {"sigma": floor[c], "method": "given (DiagnoseOptions.noise)"} for c in chans}
@@ -173,6 +182,12 @@ def diagnose(
         est = noise_estimates(list(train) + list(val), chans, base.angle_outputs)
         floor = {c: e.sigma for c, e in est.items()}
         noise_info = {c: dataclasses.asdict(e) for c, e in est.items()}
+    # the gap gate: the null scatter of E for these sample counts (p/N: the base fit's parameters)
+    n_p, n_res = len(fit.free), max(int(fit.info.get("n_residuals", 1)), 1)
+    if o.gap_gate is None:
+        gate = structural_gate(chans, list(train) + list(val), val, est, param_sq=n_p / n_res, z=o.gate_z)
+    else:
+        gate = GapGate(float(o.gap_gate), float("nan"), float("nan"), 0.0, "fixed (DiagnoseOptions.gap_gate)")
     scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
 
     # -- which: screen -----------------------------------------------------------------------
@@ -214,7 +229,8 @@ def diagnose(
     say(f"validation error {before.E:.3g} × noise floor; screen took {timings['screen']:.1f} s")
 
     # -- which: refit, validate, select --------------------------------------------------------
-    search = Search(ws, validation, before, o, say)
+    say(f"gap gate {gate.value:.3f} ({gate.method})")
+    search = Search(ws, validation, before, o, say, gate=gate.value)
     search.null_base = null_base
     t0 = time.perf_counter()
     singles = search.singles(refit_order(scr, o))
@@ -233,9 +249,9 @@ def diagnose(
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
-        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, o.gap_gate,
+        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
                               sel.possible),
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
-        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= o.gap_gate,
+        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
     )

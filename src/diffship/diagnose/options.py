@@ -32,10 +32,13 @@ class DiagnoseOptions:
         max_iter: Levenberg–Marquardt iterations per refit; fit_steps: of the base fit.
 
     Acceptance rule (see :mod:`.which`):
-        gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor; 1.1 is a
-            structural RMS error of 0.46 σ — with the coloured-noise floor E of no-effect data
-            stays at 1.00 ± 0.01 in the independent benchmark, and the validation-gain rules
-            guard the rest).
+        gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor). None
+            (default): from the data — the scatter of E under no structural error given the
+            validation and noise-floor sample counts, :func:`~.where.structural_gate` (z =
+            ``gate_z``); a number fixes it (the former rule was a fixed 1.1, which ignored how
+            many samples measured E). The drop of E an effect must give (``min_gain`` aside) is
+            the same noise band, gate − 1 (or 2 SE of the per-run gains, when larger).
+        gate_z: standard deviations of the null scatter of E² the gate sits above.
         min_gain: smallest relative validation gain.
         possible_min_dE: under the gate, the smallest drop of E for a *possible* effect (low
             confidence, not attributed; :mod:`.which`): twice the ±0.01 scatter of E on
@@ -57,7 +60,8 @@ class DiagnoseOptions:
     max_pairs: int = 3
     max_iter: int = 30
     fit_steps: int = 200
-    gap_gate: float = 1.1
+    gap_gate: float | None = None
+    gate_z: float = 3.0
     min_gain: float = 0.05
     possible_min_dE: float = 0.02
     min_shrink: float = 0.3

@@ -172,7 +172,7 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
                  "noise floor); no effect attributed.")
         if possible:
             p = r[possible[0]]
-            which = (f"Which: no structural gap at the gate (E {E_before:.3f} < {gap_gate}); possible effect "
+            which = (f"Which: no structural gap at the gate (E {E_before:.3f} < {gap_gate:.3g}); possible effect "
                      f"(low confidence): {p.effect} ({format_params(p.params, p.stderr)}; validation E "
                      f"{E_before:.3f} → {p.validation_E:.3f} on {p.runs_improved} runs improved, "
                      f"{100 * p.shrink:.0f} % of the small gap)"
@@ -201,7 +201,7 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
                  + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")
         if E_after >= gap_gate:
             which += (f" Partial: {'they close' if len(selected) > 1 else 'it closes'} {100 * shrink:.0f} % of the "
-                      f"structural gap; E {E_after:.2f} stays above the gate ({gap_gate}), the rest is unexplained "
+                      f"structural gap; E {E_after:.2f} stays above the gate ({gap_gate:.3g}), the rest is unexplained "
                       "(an effect outside the library, or a variant of the selected one, e.g. time-varying).")
     how = (f"How far: validation error {E_before:.2f} → {E_after:.2f} × noise floor; "
            f"{100 * shrink:.0f} % of the structural gap removed"

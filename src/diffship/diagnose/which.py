@@ -8,11 +8,16 @@ validation runs (:mod:`.shrink`).
 
 **Acceptance rule** for an effect (all must hold):
 
-* the structural gap exists: :math:`E_{base} \ge` ``gap_gate`` (1.1; E normalised by the noise
-  floor, so :math:`E_{floor} = 1`);
+* the structural gap exists: :math:`E_{base} \ge` the gate (E normalised by the noise floor, so
+  :math:`E_{floor} = 1`). The gate comes from the data (:func:`~.where.structural_gate`): 1 plus
+  three standard deviations of E's scatter with no structural error, from the validation and
+  noise-floor sample counts — about 1.05 on two 70-s zigzags. (A fixed 1.1 was used before; it
+  ignored the sample count, and weak effects with E 1.06–1.09 whose refits were 14-σ significant
+  and closed the gap on every validation run went unattributed.)
 * validation error drops by at least ``min_gain`` (5 %) **and** by more than the noise-level
-  threshold ``max(0.1, 2·SE)`` in normalised units (SE of the mean per-run gain, with four or
-  more validation runs), on a majority of the validation runs;
+  threshold ``max(gate − 1, 2·SE)`` in normalised units — the same noise band as the gate
+  (SE of the mean per-run gain, with four or more validation runs) — on a majority of the
+  validation runs;
 * at least one effect parameter has a 95 % interval that excludes the null, and the effect is
   relevant: |φ̂ − φ₀| ≥ MIN_RELEVANT, or its term is what lowers the validation error by the
   amounts above (against the refitted base, so not by extra base iterations) — an absolute
@@ -66,7 +71,10 @@ from .options import DiagnoseOptions
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace
 from .shrink import PathStep, Score, Validation, structural_shrink
 
-__all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search"]
+__all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search", "FALLBACK_GATE"]
+
+#: gap gate of a :class:`Search` built without the data's sample counts (the former fixed rule)
+FALLBACK_GATE = 1.1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,14 +137,17 @@ class Search:
     """
 
     def __init__(self, ws: Workspace, validation: Validation, base: Score, options: DiagnoseOptions,
-                 say: Callable[[str], None]):
+                 say: Callable[[str], None], gate: float | None = None):
         self.ws = ws
         self.validation = validation
         self.base = base
         self.options = options
         self.say = say
         self.null_base: dict[str, float] | None = None  # set when the base fit was continued
-        self.has_gap = base.E >= options.gap_gate
+        # the gap gate: given, or the options' fixed value, or FALLBACK_GATE (a Search built without
+        # the data's sample counts); diagnose() passes the one from structural_gate()
+        self.gate = gate if gate is not None else (options.gap_gate if options.gap_gate is not None else FALLBACK_GATE)
+        self.has_gap = base.E >= self.gate
 
     def effect(self, name: str) -> Effect:
         return next(e for e in self.ws.effects if e.name == name)
@@ -170,7 +181,7 @@ class Search:
         d = np.array([ref.E_runs[k] - new.E_runs[k] for k in new.E_runs])
         # run-to-run standard error only when there are enough validation runs to estimate it
         se = float(np.std(d, ddof=1) / math.sqrt(d.size)) if d.size >= 4 else 0.0
-        thr = max(0.1, 2 * se)
+        thr = max(self.gate - 1.0, 2 * se)  # the noise band of E (the gate's), or the run scatter
         majority = bool(np.sum(d > 0) > d.size / 2)
         relevant, ci_ok = False, False
         for e in self.ws.effects:
