@@ -250,7 +250,7 @@ def diagnose(
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
         verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
-                              sel.possible),
+                              sel.possible, o.min_shrink),
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
         possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,

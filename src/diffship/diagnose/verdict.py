@@ -150,13 +150,14 @@ def nearest_miss(ranking: Sequence[RankedEffect]) -> RankedEffect | None:
 
 def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[RankedEffect], selected: Sequence[str],
                   E_before: float, E_after: float, shrink: float, gap_gate: float,
-                  possible: Sequence[str] = ()) -> tuple[str, str, str]:
+                  possible: Sequence[str] = (), min_shrink: float = 0.3) -> tuple[str, str, str]:
     r"""Where, which, how far — one line each.
 
     *Which* says what it knows: the selected effects with their confidence, and **partial** when
     a structural gap remains after them (:math:`E_{after} \ge` ``gap_gate``: the same test that
     says a gap exists), with the share closed; with nothing accepted, the **nearest miss** (the
-    candidate with the largest validation gain, its shrink and the failed parts of the rule);
+    candidate with the largest validation gain, its shrink and the failed parts of the rule; below
+    ``min_shrink`` (:class:`~.options.DiagnoseOptions`) the line says at most a small part of the gap is of its kind);
     under the gate, a **possible** effect (low confidence) with the experiment that settles it.
     """
     pc = where.per_channel
@@ -186,7 +187,7 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
             which += (f"; nearest miss: {m.effect} ({format_params(m.params, m.stderr)}; validation gain "
                       f"{100 * m.validation_gain:.1f} % on {m.runs_improved} runs improved, shrink {m.shrink:.2f}; "
                       f"failed: {m.why or m.verdict})")
-            if m.shrink < 0.3:
+            if m.shrink < min_shrink:
                 which += ": at most a small part of the gap is of this kind"
             which += "."
         else:

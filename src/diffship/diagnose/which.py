@@ -25,7 +25,7 @@ validation runs (:mod:`.shrink`).
 * to be selected first, the removed part is at least ``min_shrink`` (30 %) of the structural gap.
 
 **Possible effects** (under the gate, 1 < E_base < ``gap_gate``): nothing is attributed, but a
-candidate whose parameter is relevant with a 95 % interval excluding the null, that lowers E on
+candidate with a parameter whose 95 % interval excludes the null, that lowers E on
 a majority of the validation runs by more than ``max(possible_min_dE, 2·SE)`` (the scatter of E on
 no-effect data) and closes at least ``min_shrink`` of the small structural gap is reported as a
 **possible** effect with *low* confidence and the experiment that would settle it (more
@@ -195,8 +195,10 @@ class Search:
         # lowers the validation error materially (the reference is the refitted base, so the gain
         # is not the base's extra iterations). An absolute coefficient threshold alone is
         # vessel-scale dependent: it rejected a 20-σ |v|v term that closed a small USV's whole gap.
+        # ``material`` is required anyway, so a passing effect is relevant by its gain; ``relevant``
+        # only words the reason of a rejection.
         material = gain >= o.min_gain and (E_ref - E) > thr
-        ok = self.has_gap and rf.ok and material and majority and (relevant or material) and ci_ok
+        ok = self.has_gap and rf.ok and material and majority and ci_ok
         shrink = structural_shrink(self.base.E, self.base.E, E)
         # under the gate (1 < E < gap_gate): a significant effect that closes the small gap on most
         # validation runs is a *possible* effect (low confidence), never an attribution
