@@ -101,9 +101,9 @@ STIFF = PredictionErrorOptions(estimate_noise=False, process_noise={"r": 1e-9, "
                                measurement_noise={"psi": 1e3, "r": 1e3})
 ESTIMATORS = {
     "output_error": lambda priors=None, blowup=False: OutputError(reference_priors=False, priors=priors,
-                                                                  estimate_x0=X0),
+                                                                  estimate_x0=X0, ee_start=False),
     "multiple_shooting": lambda priors=None, blowup=False: MultipleShooting(
-        oe=OutputError(reference_priors=False, priors=priors, estimate_x0=X0),
+        oe=OutputError(reference_priors=False, priors=priors, estimate_x0=X0, ee_start=False),
         shooting=ShootingOptions(segment_s=20.0, polish=False)),
     "prediction_error": lambda priors=None, blowup=False: PredictionError(
         oe=OutputError(reference_priors=False, priors=priors), **({"noise": STIFF} if blowup else {})),
@@ -126,7 +126,7 @@ def _fit(name, start=None, spec=None, priors=None, n_starts=1, runs=RUNS, blowup
         if start:
             s = s.with_values(start)
         _cache[key] = fit(Nomoto2(), runs, ESTIMATORS[name](priors, blowup), spec=s, n_starts=n_starts,
-                          ee_start=False, throw=not blowup)
+                          throw=not blowup)
     return _cache[key]
 
 
@@ -226,7 +226,7 @@ def test_covariance_against_finite_differences(name):
     assert np.linalg.norm(A - B) < 1e-3 * np.linalg.norm(B)
     first = (dataclasses.replace(est, oe=dataclasses.replace(est.oe, choose="first")) if hasattr(est, "oe")
              else dataclasses.replace(est, choose="first"))  # the same start as above, alone
-    res = fit(Nomoto2(), RUNS, first, spec=spec, ee_start=False)
+    res = fit(Nomoto2(), RUNS, first, spec=spec)
     if not res.info["covariance"].startswith("white") or "inputs" in res.info["covariance"]:
         return
     # the one covariance function on the finite-difference Jacobian (it drops directions the data do not

@@ -26,7 +26,7 @@ def fit_both(
     methods: Sequence[str] = ("equation_error", "output_error"),
     init: Mapping[str, float] | None = None,
     flt: Filter = Filter(),
-    estimate_x0: Sequence[str] | str = (),
+    estimate_x0: Sequence[str] | str = "fitted",
     channels: Sequence[str] | None = None,
     options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
@@ -41,9 +41,9 @@ def fit_both(
     many starts reached it and whether the user's own start ended higher.
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
-    ``estimate_x0=()`` (default) takes every run's initial state from the data — the state every metric
-    starts from, so the fit minimises what it is judged by — and ``"fitted"`` estimates the initial
-    values of the fitted channels' states (within their noise: ``OutputError.x0_prior``); ``options`` holds the other output-error settings.
+    ``estimate_x0="fitted"`` (default) estimates the initial values of the fitted channels' states within
+    their noise (``OutputError.x0_prior``: a heading offset never decays, and a noisy first sample taken
+    as it is biases the estimates), ``()`` takes them from the data; ``options`` holds the other output-error settings.
     """
     say = progress or (lambda s: None)
     spec = spec or model.spec()
@@ -67,8 +67,9 @@ def fit_both(
             est = model.states_for_channels(chans)
         else:
             est = tuple(estimate_x0)
-        opts = dataclasses.replace(options, estimate_x0=est, flt=flt)
+        # equation error ran above: its estimate is a named start already (or it failed: no second try)
+        opts = dataclasses.replace(options, estimate_x0=est, flt=flt,
+                                   ee_start=options.ee_start and "equation_error" not in methods)
         out["output_error"] = fit_output_error(model, runs, spec=spec, init=init, starts=starts, channels=channels,
-                                               options=opts, progress=progress, n_starts=n_starts,
-                                               ee_start="equation_error" not in methods)
+                                               options=opts, progress=progress, n_starts=n_starts)
     return out

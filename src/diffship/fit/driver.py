@@ -6,8 +6,8 @@ Every estimator (:mod:`diffship.fit.estimator`) runs through :func:`fit`, which 
 * **priors** — the model's reference set where it applies (``reference_priors``) merged with the
   estimator's explicit ``priors`` (:mod:`diffship.fit.priors`); the optimum is then the MAP estimate;
 * **starts** — the model's values (with the user's ``--init``), the caller's named starts, the
-  equation-error estimate where the model has an equation-error form, the reference values, and
-  spread starts up to ``n_starts`` (:mod:`diffship.fit.starts`); every start is simulated first and
+  estimator's own (output error: the equation-error estimate where the model has an equation-error
+  form; equation error: the linear regression), the reference values, and spread starts up to ``n_starts`` (:mod:`diffship.fit.starts`); every start is simulated first and
   one that blows up is never used;
 * **multi-start** — the estimator's first solve runs from every finite start together
   (:meth:`~diffship.fit.estimator.AbstractEstimator.first_solves`: the kernel's batch of solves);
@@ -44,7 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
-from ..errors import DiffshipError, FitError
+from ..errors import FitError
 from ..models import AbstractModel
 from ..params import ParamSpec
 from .covariance import covariance, relabelled
@@ -82,18 +82,17 @@ def _has_equation_form(model: AbstractModel) -> bool:
 def fit(
     model: AbstractModel,
     runs: Sequence[Run],
-    estimator: AbstractEstimator | None = None,
+    estimator: AbstractEstimator,
     *,
     spec: ParamSpec | None = None,
     init: Mapping[str, float] | None = None,
     starts: Sequence[Mapping[str, float]] | Mapping[str, Mapping[str, float]] = (),
     n_starts: int | None = None,
-    ee_start: bool = True,
     channels: Sequence[str] | None = None,
     progress: Callable[[str], None] | None = None,
     throw: bool = True,
 ) -> FitResult:
-    """Fit ``model`` to ``runs`` with ``estimator`` (default :class:`~diffship.fit.OutputError`).
+    """Fit ``model`` to ``runs`` with ``estimator`` (e.g. :class:`~diffship.fit.OutputError`).
 
     Args:
         model: the model; its parameter values are the defaults of the fit.
@@ -106,17 +105,11 @@ def fit(
         starts: further named starts (``{label: values}`` or a sequence).
         n_starts: how many starts in all (default :data:`DEFAULT_STARTS`; ``1``: the best named
             start alone). Named starts are never dropped.
-        ee_start: add the equation-error estimate as a start where the model has an
-            equation-error form and the estimator is not equation error itself.
         channels: measured channels to fit (default: the model's outputs in every run except positions).
         progress: optional ``progress(text)`` for people watching.
         throw: raise :class:`~diffship.errors.FitError` when no start can be used (else a result
             with ``result == RESULTS.all_starts_blew_up``).
     """
-    if estimator is None:
-        from .output_error import OutputError
-
-        estimator = OutputError()
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
     spec = spec or model.spec()
@@ -132,19 +125,9 @@ def fit(
     # -- candidate starts -----------------------------------------------------------------------
     named = dict(starts.items()) if isinstance(starts, Mapping) else {f"start {i + 1}": s for i, s in enumerate(starts)}
     messages: list[str] = [prior_note]
-    if (ee_start and estimator.method != "equation_error" and _has_equation_form(model)
-            and not any("equation-error" in k for k in named)):
-        from .equation_error import EquationError
-
-        try:
-            say("starts: the equation-error estimate...")
-            ee = fit(model, runs, EquationError(), spec=spec, n_starts=1, ee_start=False, throw=False)
-            if ee.usable and all(math.isfinite(ee.params[n]) for n in ee.free):
-                named["the equation-error estimate"] = {n: ee.params[n] for n in ee.free}
-        except DiffshipError as exc:  # no equation-error form on these runs (e.g. a channel missing)
-            messages.append(f"no equation-error start: {exc}")
-    for k, v in problem.state.get("extra_starts", {}).items():  # the estimator's own (e.g. a linear regression)
-        named.setdefault(k, v)
+    for k, v in problem.state.get("extra_starts", {}).items():  # the estimator's own (a linear regression,
+        named.setdefault(k, v)                                    # the equation-error estimate)
+    messages.extend(problem.state.get("start_notes", ()))
     reference = {p.name: p.value for p in type(model).PARAMS}
     first = "your start (--init)" if init else "the model's values"
     cands = named_starts(spec, named, reference, first_label=first)

@@ -56,7 +56,7 @@ import optimistix as optx
 from jaxtyping import Array, Float
 
 from ..data import Run
-from ..errors import FitError, ModelError
+from ..errors import DiffshipError, FitError, ModelError
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter, auto_cutoff, smooth_and_derivative
@@ -69,7 +69,7 @@ from .identifiability import per_scale_columns
 from .priors import Priors, prior_arrays
 from .result import FitResult
 
-__all__ = ["EquationError", "fit_equation_error", "EquationSamples", "equation_data", "equation_samples", "equation_residuals",
+__all__ = ["EquationError", "equation_error_start", "fit_equation_error", "EquationSamples", "equation_data", "equation_samples", "equation_residuals",
            "TRIM", "cutoffs"]
 
 #: Fraction of each run dropped at both ends before the fit (filter edge effects).
@@ -360,6 +360,20 @@ class EquationError(AbstractEstimator):
                   **({"smoother": {k_: v for k_, v in s["smoother"].items() if k_ != "method"}} if s["smoother"] else {})})
 
 
+def equation_error_start(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec) -> tuple[dict | None, str]:
+    """The equation-error estimate as a start for another estimator, or ``None`` with the reason
+    (no equation-error form, a channel missing, an estimate that is not usable)."""
+    if not model.EQUATIONS or not model.EQUATION_CHANNELS:
+        return None, ""
+    try:
+        ee = fit(model, runs, EquationError(), spec=spec, n_starts=1, throw=False)
+    except DiffshipError as exc:  # e.g. a channel the equations need is not measured
+        return None, f"no equation-error start: {exc}"
+    if not ee.usable:
+        return None, f"no equation-error start: {ee.status}"
+    return {n: ee.params[n] for n in ee.free}, ""
+
+
 def fit_equation_error(
     model: AbstractModel,
     runs: Sequence[Run],
@@ -380,7 +394,7 @@ def fit_equation_error(
     regression (the baseline as practised); ``n_starts`` adds spread starts."""
     _check_form(model)
     return fit(model, runs, EquationError(flt=flt, max_steps=max_steps, priors=priors), spec=spec,
-               n_starts=n_starts, ee_start=False, throw=throw)
+               n_starts=n_starts, throw=throw)
 
 
 def _smoother_note(info: dict) -> str:

@@ -51,6 +51,7 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from . import status as st
 from .driver import fit, fit_priors
+from .equation_error import equation_error_start
 from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import per_scale_columns
 from .input_noise import input_noise_levels, meat_request, measured_input_meat
@@ -91,6 +92,8 @@ class OutputError(AbstractEstimator):
         effective_samples: with priors, weight each channel's data by its effective sample size
             (:func:`~diffship.fit.weights.correlation_time`): autocorrelated residuals carry less
             information than their count says, and must not outvote a prior. No effect without priors.
+        ee_start: the equation-error estimate is one of the starts, where the model has an
+            equation-error form (:func:`~diffship.fit.equation_error.equation_error_start`).
         x0_prior: an estimated initial state moves from the measured (filtered) one only within its
             noise: a Gaussian prior row on each offset with the standard deviation of the channel's
             sample noise (robust second-difference estimate, at least 1 % of its spread) where the state
@@ -117,6 +120,7 @@ class OutputError(AbstractEstimator):
     prior_rel_sd: float = 0.5
     effective_samples: bool = True
     x0_prior: bool = True
+    ee_start: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
@@ -154,8 +158,19 @@ class OutputError(AbstractEstimator):
         x0_w = None
         if o.x0_prior and o.estimate_x0:
             noise = np.sqrt(np.maximum(np.diag(input_noise_levels(batch.ys, batch.mask)), 0.0))
-            w = [x0_scale[i] / max(noise[batch.channels.index(s_)], 1e-2 * spread[batch.channels.index(s_)])
-                 if s_ in batch.channels else 1.0 for i, s_ in enumerate(o.estimate_x0)]
+            dt = float(np.median(np.diff(batch.ts[0, : batch.lengths[0]])))
+            rate_of = getattr(model, "STATE_RATE_OF", {})
+
+            def sd(s_):
+                if s_ in batch.channels:
+                    j = batch.channels.index(s_)
+                    return max(noise[j], 1e-2 * spread[j])
+                if rate_of.get(s_) in batch.channels:  # the rate of a channel: a numerical derivative's noise
+                    j = batch.channels.index(rate_of[s_])
+                    return math.sqrt(2.0) * max(noise[j], 1e-2 * spread[j]) / dt
+                return None
+
+            w = [x0_scale[i] / sd(s_) if sd(s_) else 1.0 for i, s_ in enumerate(o.estimate_x0)]
             x0_w = np.tile(np.asarray(w, dtype=np.float64), len(runs))
         data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale,
                            prior_mean=p_mean, prior_w=p_w, x0_prior_w=x0_w)
@@ -173,11 +188,18 @@ class OutputError(AbstractEstimator):
             [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})]
             + ([("solve", z_shape, data.head(n_warm), lm)] if n_warm else []), extra=[meat] if meat else [])
         names = tuple(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)
+        extra, notes = {}, []
+        if o.ee_start and o.choose == "best":
+            say("output error: the equation-error estimate as a start...")
+            ee, note = equation_error_start(model, runs, spec)
+            if ee is not None:
+                extra["the equation-error estimate"] = ee
+            notes += [note] if note else []
         return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_x0,
                        nuisance_names=names, priors=priors, compile_seconds=compile_s,
                        state=dict(kernel=kernel, data=data, batch=batch, res_fn=res_fn, solve_fn=solve_fn,
                                   n_warm=n_warm, spread=spread, integrator=o.integrator,
-                                  n_rows=batch.n_residuals))
+                                  n_rows=batch.n_residuals, extra_starts=extra, start_notes=notes))
 
     # -- starts --------------------------------------------------------------------------------------
     def start_cost(self, problem: Problem, z: np.ndarray) -> float:
@@ -361,11 +383,9 @@ def fit_output_error(
     progress: Callable[[str], None] | None = None,
     init: Mapping[str, float] | None = None,
     n_starts: int | None = None,
-    ee_start: bool = True,
     throw: bool = True,
 ) -> FitResult:
     """Fit ``model`` to ``runs`` by output error: :func:`diffship.fit.fit` with ``options`` as the
-    estimator (see there for ``starts``, ``init``, ``n_starts``, ``ee_start``, ``throw``)."""
-    return fit(model, runs, options, spec=spec, init=init, starts=starts, n_starts=1 if options.choose == "first"
-               else n_starts, ee_start=ee_start and options.choose != "first", channels=channels, progress=progress,
-               throw=throw)
+    estimator (see there for ``starts``, ``init``, ``n_starts``, ``throw``)."""
+    return fit(model, runs, options, spec=spec, init=init, starts=starts, n_starts=n_starts, channels=channels,
+               progress=progress, throw=throw)

@@ -516,4 +516,4 @@ def fit_prediction_error(
     Returns a :class:`~diffship.fit.FitResult` (``method="prediction_error"``) whose ``info`` holds
     the estimated noise levels (``measurement_sd`` per channel, ``process_sd`` per state per √s)."""
     return fit(model, runs, PredictionError(oe=options, noise=noise), spec=spec, starts=starts, n_starts=n_starts,
-               ee_start=False, channels=channels, progress=progress, throw=throw)
+               channels=channels, progress=progress, throw=throw)

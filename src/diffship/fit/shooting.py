@@ -513,4 +513,4 @@ def fit_multiple_shooting(
     ``starts``): multiple shooting is itself the remedy for a poor start. Returns a
     :class:`~diffship.fit.FitResult` with ``info["shooting"]`` describing the stage."""
     return fit(model, runs, MultipleShooting(oe=options, shooting=shooting), spec=spec, starts=starts,
-               n_starts=n_starts, ee_start=False, channels=channels, progress=progress, throw=throw)
+               n_starts=n_starts, channels=channels, progress=progress, throw=throw)

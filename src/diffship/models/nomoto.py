@@ -104,6 +104,9 @@ class Nomoto2(AbstractModel):
     state_names: ClassVar[tuple[str, ...]] = ("psi", "r", "xi_dot")
     output_names: ClassVar[tuple[str, ...]] = ("psi", "r")
     STATE_CHANNEL: ClassVar[dict[str, str]] = {"r": "r", "xi_dot": "r"}
+    #: ξ̇(0) is the yaw acceleration ṙ(0) where T3 = 0 or the rudder is still: an estimated ξ̇(0) moves from
+    #: the measured ṙ(0) only within the noise of a numerical derivative of r (``OutputError.x0_prior``)
+    STATE_RATE_OF: ClassVar[dict[str, str]] = {"xi_dot": "r"}
     EQUATIONS: ClassVar[tuple[str, ...]] = ("r_ddot",)
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("r",)
     EQUATION_ORDER: ClassVar[int] = 2
