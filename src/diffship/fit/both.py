@@ -26,7 +26,7 @@ def fit_both(
     methods: Sequence[str] = ("equation_error", "output_error"),
     init: Mapping[str, float] | None = None,
     flt: Filter = Filter(),
-    estimate_x0: Sequence[str] | str = "fitted",
+    estimate_x0: Sequence[str] | str = (),
     channels: Sequence[str] | None = None,
     options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
@@ -41,9 +41,10 @@ def fit_both(
     many starts reached it and whether the user's own start ended higher.
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
-    ``estimate_x0="fitted"`` (default) estimates the initial values of the fitted channels' states within
-    their noise (``OutputError.x0_prior``: a heading offset never decays, and a noisy first sample taken
-    as it is biases the estimates), ``()`` takes them from the data; ``options`` holds the other output-error settings.
+    ``estimate_x0=()`` (default) takes every run's initial state from the data — the measured (filtered)
+    state every metric starts from, so the fit minimises what it is judged by; ``"fitted"`` estimates the
+    initial values of the fitted channels' states within their noise (``OutputError.x0_prior``), for data
+    whose first sample is noisy (a heading offset never decays and biases the estimates); ``options`` holds the other output-error settings.
     """
     say = progress or (lambda s: None)
     spec = spec or model.spec()
