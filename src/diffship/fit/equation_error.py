@@ -197,6 +197,11 @@ def _regression_start(model: AbstractModel, samples: EquationSamples) -> dict[st
     return model.from_regression(coefficients)
 
 
+def _unbounded(spec: ParamSpec) -> ParamSpec:
+    """The structural spec with every bound removed (the linear space θ/scale)."""
+    return ParamSpec(tuple(dataclasses.replace(p, value=0.0, lower=-math.inf, upper=math.inf) for p in spec.params))
+
+
 def _ee_residuals(z, w, prior_mean, prior_w, model, samples, spec):
     """Weighted equation residuals at the scaled unknowns ``z`` (then the prior rows)."""
     theta = spec.full_values(z, model.theta()[: len(spec.params)])
@@ -213,7 +218,7 @@ _ee_residuals_jit = eqx.filter_jit(_ee_residuals)
 @eqx.filter_jit
 def _ee_solve(z0, w, prior_mean, prior_w, model, samples, spec, max_steps):
     """The one Levenberg–Marquardt (:class:`~diffship.fit._lm.MaterialisedLM`) on the equation residuals."""
-    solver = MaterialisedLM(rtol=1e-10, atol=1e-12, norm=rms_norm, ftol=1e-13, gntol=float("inf"))
+    solver = MaterialisedLM(rtol=1e-8, atol=1e-10, norm=rms_norm, ftol=1e-10, gntol=float("inf"))
     sol = optx.least_squares(lambda z, a: _ee_residuals(z, *a, model, samples, spec), solver, z0,
                              args=(w, prior_mean, prior_w), max_steps=max_steps, throw=False)
     return sol.value, sol.result, sol.stats["num_steps"], _ee_residuals(sol.value, w, prior_mean, prior_w, model,
@@ -285,14 +290,38 @@ class EquationError(AbstractEstimator):
         return Problem(
             model=model, spec=spec, runs=tuple(runs), channels=eq_names, n_nuisance=0, nuisance_names=(),
             priors=priors, compile_seconds=0.0,
-            state=dict(samples=samples, spec_s=spec.structural(), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
+            state=dict(samples=samples, spec_s=spec.structural(), spec_lin=_unbounded(spec), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
                        pw=jnp.asarray(p_w), messages=messages, x0_flt=x0_flt, cut=cut, flt_text=flt_text,
                        smoother=smoother, n_rows=int(samples.z.shape[0]) * len(eq_names), prep_s=time.perf_counter() - t0,
                        extra_starts={"the linear-regression estimate": regression} if regression else {}))
 
-    def _args(self, problem, w):
+    def _args(self, problem, w, space="spec_s"):
         s = problem.state
-        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"], s["spec_s"])
+        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"], s[space])
+
+    def _solve(self, problem, z, w):
+        """LM from ``z`` (the spec's scaled space): first in the unbounded linear space θ/scale (a linear
+        regression, e.g. inverse dynamics in force space, is then solved in one step, as in the seeds);
+        only where that optimum leaves a parameter's bounds, again in the bounded space from inside them.
+        Returns ``(z, result, steps, residuals, space)``."""
+        s, spec = problem.state, problem.spec
+        free = spec.free_names
+        theta = {n: float(v) for n, v in zip(free, np.asarray(spec.from_z(jnp.asarray(z))))}
+        zl = s["spec_lin"].to_z(theta)
+        zl, result, k, r = _ee_solve(jnp.asarray(zl), *self._args(problem, w, "spec_lin"), self.max_steps)
+        th = np.asarray(s["spec_lin"].from_z(zl))
+        if np.all(np.isfinite(th)) and all(spec[n].lower < v < spec[n].upper for n, v in zip(free, th)):
+            return np.asarray(zl), result, int(k), np.asarray(r), "spec_lin"
+        inside, _ = spec.nudged({**spec.values(), **{n: float(v) for n, v in zip(free, th) if np.isfinite(v)}})
+        zb, result, k2, r = _ee_solve(jnp.asarray(spec.to_z(inside)), *self._args(problem, w), self.max_steps)
+        return np.asarray(zb), result, int(k) + int(k2), np.asarray(r), "spec_s"
+
+    @staticmethod
+    def _to_spec_z(problem, z, space):
+        if space == "spec_s":
+            return np.asarray(z)
+        th = np.asarray(problem.state["spec_lin"].from_z(jnp.asarray(z)))
+        return problem.spec.to_z(dict(zip(problem.spec.free_names, (float(v) for v in th))))
 
     def start_cost(self, problem, z) -> float:
         r = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, np.ones(problem.state["n_eq"]))))
@@ -305,11 +334,9 @@ class EquationError(AbstractEstimator):
         out = []
         t0 = time.perf_counter()
         for z in zs:
-            zf, result, k, r = _ee_solve(jnp.asarray(z), *self._args(problem, np.ones(problem.state["n_eq"])),
-                                         self.max_steps)
-            r = np.asarray(r)
+            zf, result, k, r, space = self._solve(problem, z, np.ones(problem.state["n_eq"]))
             c = 0.5 * float(r @ r)
-            out.append((np.asarray(zf), c if math.isfinite(c) else math.inf, int(k)))
+            out.append((self._to_spec_z(problem, zf, space), c if math.isfinite(c) else math.inf, k))
         problem.state["first_s"] = time.perf_counter() - t0
         return out
 
@@ -328,12 +355,14 @@ class EquationError(AbstractEstimator):
         e = r0[: s["samples"].z.shape[0] * n_eq].reshape(-1, n_eq)
         w = np.sqrt(np.mean(e * e, axis=0)) + 1e-300
         s["w"] = w
-        zf, result, k, r = _ee_solve(jnp.asarray(z), *self._args(problem, w), self.max_steps)
-        zf, r = np.asarray(zf), np.asarray(r)
-        if not np.all(np.isfinite(zf)):
+        zs_, result, k, r, space = self._solve(problem, z, w)
+        if not np.all(np.isfinite(zs_)):
             raise FitError(f"equation error for {model.name} produced non-finite parameters on runs "
                            f"{', '.join(r_.name for r_ in problem.runs)}; check the inputs and the filter")
-        J = np.asarray(_ee_jacobian(jnp.asarray(zf), *self._args(problem, w))) * per_scale_columns(spec, zf, n_p)
+        # the Jacobian in θ/scale units (the linear space is that already)
+        J = np.asarray(_ee_jacobian(jnp.asarray(zs_), *self._args(problem, w, space))) * per_scale_columns(
+            s[space], zs_, n_p)
+        zf = self._to_spec_z(problem, zs_, space)
         n_data = s["samples"].z.shape[0] * n_eq
         r_d, J_d, r_p, J_p = r[:n_data], J[:n_data], r[n_data:], J[n_data:]
         # residuals of filtered data are coloured: the per-run HAC sandwich where they are not white

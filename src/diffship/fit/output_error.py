@@ -17,8 +17,9 @@ are assembled and which schedule of solves runs:
    with ``warmup``, the first part of every run (growing horizon: cheap steps, and a short
    horizon keeps LM out of the local minima of long simulations), then the whole runs, with
    ``s_c`` = the signal spread of each channel;
-2. with ``weights="noise"`` (default), each channel's residual RMS ``σ_c`` is estimated and the fit
-   solved again with ``s_c = σ_c`` — the maximum-likelihood weighting for white Gaussian channel
+2. with ``weights="noise"`` (default), each channel's residual RMS ``σ_c`` is estimated (from the first
+   part of the runs of the best start after a warm-up, the same weights for every start; else from the
+   whole runs) and the fit solved again with ``s_c = σ_c`` — the maximum-likelihood weighting for white Gaussian channel
    noise, under which the Gauss–Newton covariance ``σ̂²(JᵀJ)⁻¹`` is an honest standard error;
 3. with priors and ``effective_samples``, each channel's data are weighted by their effective
    sample size ``N/τ_c`` (:func:`~diffship.fit.weights.correlation_time`) and solved again;
@@ -221,10 +222,21 @@ class OutputError(AbstractEstimator):
             # Growing horizon: converge on the first part of every run, then the whole runs (a fit on
             # the first part that blows up on the whole runs is dropped: that start goes on from itself)
             warm = kernel.solve_many(np.stack(zs), data.head(n_warm), **self.lm)
-            for i, (zw, _, k, _) in enumerate(warm):
+            best_w = None
+            for i, (zw, _, k, rw) in enumerate(warm):
                 steps[i] += int(k)
                 if math.isfinite(self.start_cost(problem, np.asarray(zw))):
                     zs[i] = np.asarray(zw)
+                    rw = np.asarray(kernel.split(np.asarray(rw), data.head(n_warm))[0])
+                    if best_w is None or rw @ rw < best_w @ best_w:
+                        best_w = rw
+            if best_w is not None and self.weights == "noise" and not self.channel_scales:
+                # the noise weights from the best start's first part, the same for every start (costs stay
+                # comparable) — the noise pass of the whole runs is then not repeated
+                batch = st_["batch"]
+                sigma = channel_rms(best_w, batch.mask[:, :n_warm], np.asarray(data.scales))
+                data = data.replace(scales=jnp.asarray(np.maximum(sigma, 1e-6 * st_["spread"])))
+                st_["data"], st_["noise_done"] = data, True
             say(f"output error: first {n_warm} samples of each run fitted ({', '.join(map(str, steps))} steps); "
                 "now the whole runs")
         outs = kernel.solve_many(np.stack(zs), data, jacobian=True, **self.lm)
@@ -264,10 +276,11 @@ class OutputError(AbstractEstimator):
         z, r = run_solve(z, data)
         taus: list[np.ndarray] = []
         if o.weights == "noise" and not o.channel_scales:
-            # floor: on noise-free data the residuals are round-off, which must not set the weights
-            scales = np.maximum(channel_rms(r, batch.mask, scales), 1e-6 * spread)
-            data = data.replace(scales=jnp.asarray(scales))
-            z, r = run_solve(z, data)
+            if not st_.get("noise_done"):
+                # floor: on noise-free data the residuals are round-off, which must not set the weights
+                scales = np.maximum(channel_rms(r, batch.mask, scales), 1e-6 * spread)
+                data = data.replace(scales=jnp.asarray(scales))
+                z, r = run_solve(z, data)
             if data.prior_w.shape[0] and o.effective_samples:
                 # data weight of an effective sample size N/τ_c (τ from the noise-weighted residuals)
                 taus.append(correlation_time(r, batch.mask, len(batch.channels)))
