@@ -50,6 +50,10 @@ Run (from the repository root; needs ``pip install -e ".[bench]"`` for casadi)::
     PYTHONPATH=src .venv/bin/python benchmarks/cold_start.py [--quick] [--out benchmarks/results]
 
 Writes ``OUT/cold_start.md`` and ``OUT/cold_start.csv`` (``--quick``: ``cold_start_quick.*``).
+
+Layout: this module sets up the problem and measures; ``cold_start_timing.py`` holds the timing
+harness (load, medians, timed subprocesses, the time-bounded scipy peer) and
+``cold_start_report.py`` writes the Markdown report; the CasADi peer is ``casadi_peer.py``.
 """
 
 from __future__ import annotations
@@ -65,9 +69,7 @@ import argparse  # noqa: E402
 import csv  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import platform  # noqa: E402
 import shutil  # noqa: E402
-import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -80,12 +82,13 @@ if __name__ == "__main__":
     sys.path[0] = str(ROOT)  # run as a script: import `benchmarks` from the repo root
 
 import jax  # noqa: E402
-import scipy  # noqa: E402
-from scipy.optimize import least_squares  # noqa: E402
 
 from benchmarks import casadi_peer as cp  # noqa: E402
 from benchmarks.fitapi import (FLT_NONE, fit_oe, initial_states, kernel_jacobian, kernel_residuals,  # noqa: E402
                                kernel_solver, oe_kernel)
+from benchmarks.cold_start_report import markdown  # noqa: E402
+from benchmarks.cold_start_timing import (fmt, loadavg, max_rel_params, med, ratio, rel, scipy_fd,  # noqa: E402
+                                          timed_process)
 from benchmarks.peers import Fossen3Problem  # noqa: E402
 from diffship.data import load_runs  # noqa: E402
 from diffship.models import Fossen3  # noqa: E402
@@ -94,72 +97,6 @@ from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 CHANNELS = ("psi", "u", "v", "r")
 PEER = ROOT / "benchmarks" / "casadi_peer.py"
 SAME_COST = 1e-6  # "reached the best cost": within this relative distance
-
-
-# -- helpers ---------------------------------------------------------------------------------------
-def loadavg() -> str:
-    a, b, c = os.getloadavg()
-    return f"{a:.2f} {b:.2f} {c:.2f}"
-
-
-def med(xs):
-    return statistics.median(xs) if xs else math.nan
-
-
-def fmt(xs, digits=2):
-    """median, with (min–max) when there are several."""
-    if not xs:
-        return "–"
-    if len(xs) == 1:
-        return f"{xs[0]:.{digits}f}"
-    return f"{med(xs):.{digits}f} ({min(xs):.{digits}f}–{max(xs):.{digits}f})"
-
-
-def rel(a, b):
-    return abs(a - b) / max(abs(b), 1e-300)
-
-
-def max_rel_params(p, q, names):
-    return max(rel(p[n], q[n]) for n in names)
-
-
-def timed_process(cmd, env, cwd):
-    t = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, cwd=cwd, capture_output=True, text=True)
-    wall = time.perf_counter() - t
-    if proc.returncode not in (0, 1):
-        raise RuntimeError(f"{' '.join(map(str, cmd[:4]))} ... failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
-    return wall
-
-
-class _TimeUp(Exception):
-    pass
-
-
-def scipy_fd(prob, z0, guard_s):
-    """scipy least_squares lm (MINPACK, 2-point differences) over the NumPy RK4, wall-clock guard."""
-    best = {"cost": math.inf, "z": np.array(z0, dtype=np.float64)}
-    calls = [0]
-    t0 = time.perf_counter()
-
-    def fun(z):
-        if time.perf_counter() - t0 > guard_s:
-            raise _TimeUp
-        r = prob.residuals(z)
-        calls[0] += 1
-        c = 0.5 * float(r @ r)
-        if c < best["cost"]:
-            best.update(cost=c, z=np.array(z, copy=True))
-        return r
-
-    try:
-        res = least_squares(fun, np.asarray(z0, dtype=np.float64), method="lm", **cp.TOL)
-        out = dict(z=res.x, cost=float(res.cost), finished=res.status > 0, status=res.message)
-    except _TimeUp:
-        out = dict(z=best["z"], cost=best["cost"], finished=False,
-                   status=f"stopped by the {guard_s:.0f} s guard (best cost seen)")
-    out.update(wall=time.perf_counter() - t0, calls=calls[0])
-    return out
 
 
 # -- the measurement -------------------------------------------------------------------------------------
@@ -474,9 +411,6 @@ def main(argv=None):
         for n in free:
             rec("final", k, n, p[n], "SI")
 
-    def ratio(a, b):
-        return a / b if b > 0 else math.nan
-
     W = {k: med(v) for k, v in proc.items()}
     ca_jit_solve, ca_vm_solve, ds_w = med(ca_in["jit"]["solves"]), med(ca_in["nojit"]["solves"]), med(ds_warm)
     ratios = [
@@ -504,129 +438,12 @@ def main(argv=None):
         if not math.isnan(c):
             rec("ratio", name, "diffship_over_casadi_cache", ratio(d, c), "")
 
-    cpu_model = ""
-    try:
-        cpu_model = next(ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    import casadi
-
-    env_line = (f"{cpu_model or platform.machine()}, {os.cpu_count()} CPUs (shared with other jobs), "
-                f"{platform.platform()}; Python {platform.python_version()}, JAX {jax.__version__} "
-                f"({jax.default_backend()}), NumPy {np.__version__}, SciPy {scipy.__version__}, "
-                f"CasADi {casadi.__version__}. diffship source: {label}")
-    n_rep = f"median of {repeats} (min–max)" if repeats > 1 else "one run"
-
-    def r3(x):
-        return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.2f}"
-
-    L = [
-        f"## Cold start: diffship vs CasADi on the fossen3 output-error fit ({'quick' if quick else 'full'} mode)",
-        "",
-        f"Problem: seed-002 USV truth, {len(runs)} runs × {duration:g} s at 10 Hz (realistic noise, seed 0), "
-        f"channels {', '.join(CHANNELS)} ({n_res} residuals); {len(free)} free parameters from ±50 % of the truth "
-        f"+ {z0.size - len(free)} initial-state offsets = {z0.size} unknowns; weights = channel spread; diffship's "
-        f"integrator: {kernel.integrator.describe()} (the peers: classical RK4, one step per sample, first-order-hold "
-        f"inputs). Machine load (1/5/15 min) at the start **{load_start}**, at the end **{load_end}**; "
-        f"{env_line}. Total benchmark time {total / 60:.1f} min. Times in seconds, {n_rep}.",
-        "",
-        "### Ratios (diffship / CasADi: below 1 diffship is faster)",
-        "",
-        "| comparison | diffship [s] | CasADi JIT [s] | ratio | CasADi no JIT [s] | ratio "
-        "| CasADi codegen cache [s] | ratio |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for name, d, a, b, c in ratios:
-        L.append(f"| {name} | {r3(d)} | {r3(a)} | **{r3(ratio(d, a))}** | {r3(b)} | {r3(ratio(d, b))} | {r3(c)} | "
-                 f"{r3(ratio(d, c))} |")
-    L += [
-        "",
-        "### Whole process (subprocess wall clock, start to exit)",
-        "",
-        "| command | wall [s] | inside the process |",
-        "|---|---:|---|",
-        f"| diffship CLI, empty cache (`DIFFSHIP_CACHE_DIR` = new folder) | {fmt(proc['ds_empty'])} | compile "
-        f"{fmt([d['methods']['output_error']['compile_seconds'] for d in proc_json['ds_empty']])}, fit "
-        f"{fmt([d['methods']['output_error']['fit_seconds'] for d in proc_json['ds_empty']])} (as reported in --json); "
-        f"the rest: Python, imports, CSV, metrics simulation, report |",
-        f"| diffship CLI, warm cache (same folder, 2nd process) | {fmt(proc['ds_warm'])} | compile "
-        f"{fmt([d['methods']['output_error']['compile_seconds'] for d in proc_json['ds_warm']])} (tracing, lowering "
-        f"and loading from the cache), fit "
-        f"{fmt([d['methods']['output_error']['fit_seconds'] for d in proc_json['ds_warm']])} |",
-    ]
-    for key, label in (("ca_jit", "CasADi JIT (gcc -O2) + MINPACK"),
-                       ("ca_nojit", "CasADi no JIT (virtual machine) + MINPACK"),
-                       ("ca_cache_empty", "CasADi codegen cache, empty (generate C, gcc -O2, casadi.external)"),
-                       ("ca_cache_warm", "CasADi codegen cache, warm (load the .so)")):
-        ds_ = proc_json[key]
-        L.append(f"| {label} | {fmt(proc[key])} | import {fmt([d['import_s'] for d in ds_])}, setup "
-                 f"{fmt([d['setup_s'] for d in ds_])}, solve {fmt([d['solve_s'] for d in ds_])} |")
-    L += [
-        "",
-        "### In process",
-        "",
-        "| method | first call / setup [s] | warm fit / solve [s] | final cost | steps / f-evals | note |",
-        "|---|---:|---:|---:|---:|---|",
-        f"| diffship `fit_output_error` | {ds_calls[0][0]:.2f} (compile {ds_calls[0][1].compile_seconds:.2f}, no "
-        f"persistent cache) | {fmt(ds_warm)} | {ds.cost:.10g} | {ds.iterations} | growing horizon (first 25 % of "
-        f"each run, then all) when a run has ≥ 800 samples; covariance included |",
-    ]
-    for mode, label in (("jit", "CasADi JIT + MINPACK"), ("nojit", "CasADi no JIT + MINPACK")):
-        s = ca_in[mode]["sol"]
-        L.append(f"| {label} | {ca_in[mode]['setup']:.2f} | {fmt(ca_in[mode]['solves'])} | {s['cost']:.10g} | "
-                 f"{s['nfev']} f / {s['njev']} J | {s['message']} |")
-    L.append(f"| scipy FD + NumPy RK4 | 0 | {sp['wall']:.2f} | {sp['cost']:.10g} | {sp['calls']} residuals | "
-             f"{sp['status']}; one NumPy simulation {t_sim * 1e3:.0f} ms |")
-    L += [
-        "",
-        f"### Batch of {n_batch} fits (starts log-uniform ×0.5…×2 around the truth, rng seed 0, same starts for all)",
-        "",
-        "| method | compile / setup [s] | run [s] | per fit [s] | per fit incl. compile [s] | reached the best cost |",
-        "|---|---:|---:|---:|---:|---:|",
-    ]
-    for name, comp, run, h, ms in batch_rows:
-        L.append(f"| {name} | {comp:.2f} | {run:.2f} | {run / n_batch:.3f} | {(run + comp) / n_batch:.3f} | "
-                 f"{h}/{n_batch} |")
-    L += [
-        "",
-        f"Best cost {best:.12g}; \"reached\" = within {SAME_COST:g} relative. The vmapped LM runs all fits in lockstep "
-        f"until the slowest stops ({batch_rows[0][4]} steps).",
-        "",
-        "### Same problem, same optimum",
-        "",
-        "| check | value |",
-        "|---|---:|",
-    ]
-    for k, v in checks.items():
-        L.append(f"| {k} | {v if isinstance(v, bool) else f'{v:.3g}'} |")
-    L += [
-        "",
-        "Residual and Jacobian checks at diffship's in-process optimum (CasADi JIT vs `Kernel.residuals` / "
-        "`Kernel.jacobian`); `tight_tol_*`: `Kernel.solve` (rtol = atol = 1e-12, ftol 1e-15) and CasADi + MINPACK "
-        "(ftol = xtol = gtol = 1e-14) from the same start.",
-        "",
-        "| result | cost | max rel. param diff vs diffship in-process |" + "".join(f" {n} |" for n in free),
-        "|---|---:|---:|" + "---:|" * len(free),
-    ]
-    for k, p in finals.items():
-        c = costs.get(k)
-        dd = "–" if k in ("truth", "start") else f"{max_rel_params(p, ref, free):.1e}"
-        L.append(f"| {k} | {'–' if c is None else f'{c:.10g}'} | {dd} |" + "".join(f" {p[n]:.6g} |" for n in free))
-    L += [
-        "",
-        "Notes:",
-        "* diffship's CLI process also simulates the runs for its fit metrics and prints a report; CasADi's process "
-        "only fits. Both read the same CSV files with pandas.",
-        "* Tolerances: diffship rtol = atol = 1e-6 (scaled unknowns, cost), stall at relative cost decrease 1e-9, "
-        "200 steps; MINPACK peers ftol 1e-9, xtol 1e-6, gtol 1e-8, max_nfev 200. The criteria are not identical "
-        "algorithms; at these settings the final parameters agree to the relative differences in the table.",
-        "* diffship fits the first 25 % of each run first (growing horizon, its default) when a run has at least 800 "
-        "samples; the peers fit the whole runs at once from the same start. The batch uses the whole runs for all.",
-        "* CasADi codegen cache: the same C code as the JIT, generated once with `CodeGenerator`, compiled with "
-        "gcc -O2 into a folder and loaded with `casadi.external` in later processes — the CasADi counterpart of "
-        "diffship's persistent cache (a few lines a user writes; CasADi's JIT itself compiles in every process).",
-    ]
-    md = "\n".join(L) + "\n"
+    md = markdown(quick=quick, n_runs=len(runs), duration=duration, channels=CHANNELS, n_res=n_res, free=free,
+                  n_unknowns=z0.size, integrator=kernel.integrator.describe(), load_start=load_start,
+                  load_end=load_end, label=label, total=total, repeats=repeats, ratios=ratios, proc=proc,
+                  proc_json=proc_json, ds_calls=ds_calls, ds_warm=ds_warm, ds=ds, ca_in=ca_in, sp=sp, t_sim=t_sim,
+                  n_batch=n_batch, batch_rows=batch_rows, best=best, same_cost=SAME_COST, checks=checks,
+                  finals=finals, costs=costs, ref=ref)
     print()
     print(md)
     (out_dir / f"{stem}.md").write_text(md)

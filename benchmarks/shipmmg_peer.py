@@ -10,9 +10,10 @@ parameters (the ``ship_KVLCC2_L7_model`` fixture of its ``tests/test_mmg_3dof.py
 below) and its own simulator :func:`shipmmg.mmg_3dof.simulate_mmg_3dof` (one call per rudder order
 of a zigzag, with the steering logic of its ``zigzag_test_mmg_3dof``; :func:`peer_zigzag` says
 why that function is not called as it is). **Nothing from diffship
-generates the data**: the first half of this file (``peer_*``) imports only numpy, scipy and
-shipmmg (``tests/test_shipmmg_peer.py`` checks it), diffship is imported lazily in the second
-half, which only fits and judges.
+generates the data**: this file's ``peer_*`` functions import only numpy, scipy and
+shipmmg (``tests/test_shipmmg_peer.py`` checks it); the fits and the judging
+(``shipmmg_judge.py``) and the report (``shipmmg_report.py``) import diffship, and this module
+re-exports their names lazily (importing it never imports diffship).
 
 **Conventions (checked in shipmmg 0.0.11's source; every conversion is the identity).**
 
@@ -83,6 +84,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -251,271 +253,31 @@ def add_noise(rec: dict, levels: dict[str, float], seed: int) -> dict:
 
 
 # ------------------------------------------------------------------------------------------
-# Part 2: fit and judge with diffship (imported here, never used to make the data above)
+# Part 2 (fit and judge with diffship: ``shipmmg_judge.py``) and the report
+# (``shipmmg_report.py``), re-exported lazily so that importing this module never imports diffship
 # ------------------------------------------------------------------------------------------
-#: Free sets: the MMG default, and every hull derivative of Y and N.
-HULL = ("Yv", "Yr", "Yvvv", "Yvvr", "Yvrr", "Yrrr", "Nv", "Nr", "Nvvv", "Nvvr", "Nvrr", "Nrrr")
-FREE_SETS = {"default": None, "hull": (*HULL, "Jz", "f_alpha", "R0", "delta0"), "study": "study"}
-#: Fit settings (those of diffship.studies.kvlcc2): channels, sample interval, LM steps per pass.
-CHANNELS, FIT_DT, MAX_STEPS = ("psi", "u", "v", "r"), 0.2, 60
-#: Simulated durations [s] of the judged manoeuvres (the peer's and the fitted model's).
-TURN_S, ZIGZAG_S = 120.0, 100.0
+_JUDGE = ("HULL", "FREE_SETS", "CHANNELS", "FIT_DT", "MAX_STEPS", "TURN_S", "ZIGZAG_S", "to_run", "fly",
+          "partial_turn", "metrics", "judge", "peer_metrics", "peer_particulars", "fit_variant",
+          "yaw_damping_limit", "residual_memory", "fit_summary", "variants", "ZIGZAGS")
+_REPORT = ("figure", "max_rprime", "verdict", "report")
 
 
-def to_run(rec: dict, name: str):
-    """A peer record as a diffship Run (every conversion is the identity; see the module docstring)."""
-    from diffship.data import Run
+def _sibling(name: str):
+    """``benchmarks.<name>`` (the repository root put on ``sys.path`` if this file was loaded alone)."""
+    import importlib
 
-    ch = rec["channels"]
-    meta = {**rec["meta"], "rudder_sign_in_source": "starboard", "reference_point": "midship",
-            "units": "SI, rad, rev/s"}
-    return Run(name, ch["time"], {k: v for k, v in ch.items() if k != "time"}, meta)
-
-
-def _tag(rec: dict) -> str:
-    m = rec["meta"]
-    if m["manoeuvre"] == "zigzag":
-        return f"{m['rudder_angle_deg']:g}/{m['switch_heading_deg']:g} {m['first_rudder'][0].upper()}"
-    return f"turn 35 {m['first_rudder'][0].upper()}"
+    root = str(Path(__file__).resolve().parents[1])
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    return importlib.import_module(f"benchmarks.{name}")
 
 
-def fly(model, rec: dict, n: float):
-    """The peer's manoeuvre ``rec`` flown by a diffship ``model`` (closed loop); None if it blows up."""
-    from diffship.errors import ModelError
-    from diffship.manoeuvres import turning_circle, zigzag
-
-    m = rec["meta"]
-    kw = {"inputs": {"n": n}, "rudder_rate_deg_s": HELM_RATE_DEG_S, "dt": PEER_DT, "first": m["first_rudder"]}
-    x0 = model.initial_state({"u": U0})
-    try:
-        if m["manoeuvre"] == "zigzag":
-            return zigzag(model, x0, rudder_deg=m["rudder_angle_deg"], switch_deg=m["switch_heading_deg"],
-                          duration=ZIGZAG_S, **kw)
-        return turning_circle(model, x0, rudder_deg=m["rudder_angle_deg"], duration=TURN_S, **kw)
-    except ModelError:
-        return None
-
-
-def partial_turn(model, rec: dict, n: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Midship track (x0, y0) of a turning circle up to its blow-up, and the blow-up time [s] (for figures)."""
-    import jax.numpy as jnp
-
-    from diffship.manoeuvres import ScheduleLaw, closed_loop
-
-    s = 1.0 if rec["meta"]["first_rudder"] == "starboard" else -1.0
-    ts = np.arange(0.0, TURN_S + 0.5 * PEER_DT, PEER_DT)
-    law = ScheduleLaw(jnp.asarray([0.0]), jnp.asarray([s * math.radians(rec["meta"]["rudder_angle_deg"])]))
-    u_const = jnp.asarray([0.0, n])
-    xs, _, valid = closed_loop(model, law, jnp.asarray(ts), jnp.asarray(model.initial_state({"u": U0})), u_const,
-                               model.input_names.index("delta"), jnp.asarray(math.radians(HELM_RATE_DEG_S)),
-                               jnp.asarray(math.radians(35.0)), jnp.asarray(0.0))
-    xs, valid = np.asarray(xs), np.asarray(valid)
-    k = int(np.argmin(valid)) if not valid.all() else len(ts)
-    i, j = model.state_names.index("x0"), model.state_names.index("y0")
-    return xs[:k, i], xs[:k, j], float(ts[k - 1])
-
-
-def metrics(run, rec: dict) -> dict:
-    """Turning (TD, advance [m]) or zigzag (1st, 2nd overshoot [°]) metrics of a Run; NaN if none."""
-    from diffship.manoeuvres import turning_metrics, zigzag_metrics
-
-    if run is None:
-        return {"TD": math.nan, "advance": math.nan, "os1": math.nan, "os2": math.nan}
-    if rec["meta"]["manoeuvre"] == "turning_circle":
-        tm = turning_metrics(run, length=7.0)
-        return {"TD": tm.tactical_diameter, "advance": tm.advance}
-    zm = zigzag_metrics(run, smooth_s=0.0)
-    return {"os1": zm.first_overshoot, "os2": zm.second_overshoot}
-
-
-def judge(model, fit, train: list, peer: dict, n: float) -> dict:
-    """Turning circles, held-out zigzags and admissibility of a (fitted) diffship model."""
-    from diffship.admissibility import admissibility
-    from diffship.models.mmg import kvlcc2_mmg
-
-    row: dict = {}
-    for key, rec in peer.items():
-        run = fly(model, rec, n)
-        m, p = metrics(run, rec), peer_metrics(rec)
-        row[f"{key}_run"] = run
-        if rec["meta"]["manoeuvre"] == "turning_circle":
-            row[f"{key}_blowup"] = run is None
-            for k in ("TD", "advance"):
-                row[f"{key}_{k}"] = m[k]
-                row[f"{key}_{k}_err_pct"] = 100.0 * (m[k] - p[k]) / p[k]
-        else:
-            for k in ("os1", "os2"):
-                row[f"{key}_{k}"] = m[k]
-                row[f"{key}_{k}_err"] = m[k] - p[k]
-    adm = admissibility(model, initial={"u": U0}, inputs={"n": n}, training=train, reference=kvlcc2_mmg(),
-                        free=fit.free if fit is not None else (), helm_rate_deg_s=HELM_RATE_DEG_S, turn_s=TURN_S,
-                        zigzag_s=ZIGZAG_S)
-    row["admissible"] = adm.ok
-    row["admissibility"] = adm.summary()
-    row["offending"] = adm.offending
-    row["blowup"] = any(v for k, v in row.items() if k.endswith("_blowup"))
-    return row
-
-
-_PEER_METRICS: dict = {}
-
-
-def peer_metrics(rec: dict) -> dict:
-    key = id(rec)
-    if key not in _PEER_METRICS:
-        _PEER_METRICS[key] = metrics(to_run(rec, "peer " + _tag(rec)), rec)
-    return _PEER_METRICS[key]
-
-
-def peer_particulars() -> dict[str, float]:
-    """The peer's fixed particulars in diffship's MMG names (x_G, k_zz, x'_P, m, ρ)."""
-    basic, _, rho = peer_params()
-    return {"xG": basic.x_G, "kzz": math.sqrt(basic.I_zG / basic.m) / basic.L_pp, "xP": basic.x_P, "m": basic.m,
-            "rho": rho}
-
-
-def fit_variant(train: list, free: str, priors: bool, *, prior_rel_sd: float = 0.5, extra_free: tuple = (),
-                fix: tuple = (), nrrr_upper: float | None = None, particulars: dict | None = None):
-    """Output-error fit of diffship's KVLCC2 MMG (the study's settings) to the training Runs.
-
-    ``particulars``: fixed values replacing the reference vessel's; the reference priors are
-    then passed explicitly (``default_priors`` turns them off for another vessel).
-    """
-    import dataclasses
-
-    from diffship.fit import OutputErrorOptions, fit_output_error
-    from diffship.fit.priors import reference_priors
-    from diffship.models.mmg import kvlcc2_mmg
-    from diffship.params import ParamSpec
-
-    model = kvlcc2_mmg(**(particulars or {}))
-    spec = model.spec()
-    if FREE_SETS[free] == "study":  # the KVLCC2 study's default: all 30 hydrodynamic coefficients
-        from diffship.studies.kvlcc2 import DEFAULT_FREE
-        spec = spec.only_free(list(DEFAULT_FREE))
-    elif FREE_SETS[free] is not None:
-        spec = spec.only_free(list(FREE_SETS[free]))
-    spec = spec.free(extra_free).fix(fix)
-    if nrrr_upper is not None:  # a sign constraint: N'_rrr < bound (yaw damping never turns destabilising)
-        spec = ParamSpec(tuple(dataclasses.replace(p, upper=nrrr_upper) if p.name == "Nrrr" else p
-                               for p in spec.params))
-    runs = [r.resample(FIT_DT) for r in train]
-    explicit = reference_priors(kvlcc2_mmg(), spec, prior_rel_sd) if particulars and priors else None
-    opts = OutputErrorOptions(max_steps=MAX_STEPS, reference_priors=priors, prior_rel_sd=prior_rel_sd,
-                              priors=explicit)
-    return fit_output_error(model, runs, spec=spec, channels=CHANNELS, options=opts)
-
-
-def yaw_damping_limit(p: dict) -> float:
-    """r' above which ∂N'_H/∂r' = N'_r + 3 N'_rrr r'² (at v' = 0) turns positive (inf if never)."""
-    return math.sqrt(-p["Nr"] / (3.0 * p["Nrrr"])) if p["Nrrr"] > 0 and p["Nr"] < 0 else math.inf
-
-
-def residual_memory(fit, train: list) -> dict[str, float]:
-    """Integrated autocorrelation time τ [samples] of the fit's output-error residuals, per channel.
-
-    τ = 1 + 2 Σ_k ρ_k (summed until ρ_k first drops below 0), averaged over the runs. The fit
-    weighs its N residuals as independent; with τ ≫ 1 (model-structure error, not white noise)
-    the data are over-counted about τ-fold against the priors — a ±50 % prior then acts like
-    one of ±50 %·√τ.
-    """
-    from diffship.metrics import simulate_run
-
-    out: dict[str, list[float]] = {c: [] for c in CHANNELS}
-    for run, x0 in zip((r.resample(FIT_DT) for r in train), fit.initial_states):
-        ys = np.asarray(simulate_run(fit.model, run, np.asarray(x0)).ys)
-        for c in CHANNELS:
-            e = ys[:, fit.model.output_names.index(c)] - run[c]
-            e = e - e.mean()
-            acf = np.correlate(e, e, "full")[e.size - 1:] / max(float(e @ e), 1e-300)
-            neg = np.nonzero(acf < 0)[0]
-            out[c].append(1.0 + 2.0 * float(np.sum(acf[1:neg[0] if neg.size else acf.size])))
-    return {c: float(np.mean(v)) for c, v in out.items()}
-
-
-def fit_summary(fit) -> dict:
-    ident = fit.info["identifiability"]
-    pri = fit.info.get("priors", {})
-    far = sorted(((n, v["z_from_prior"]) for n, v in pri.items()), key=lambda kv: -abs(kv[1]))[:3]
-    return {"status": fit.status, "converged": fit.converged, "iterations": fit.iterations,
-            "fit_s": fit.fit_seconds, "compile_s": fit.compile_seconds, "prior_note": fit.info["prior_note"],
-            "params": {n: fit.params[n] for n in fit.free}, "stderr": dict(fit.stderr),
-            "far_from_prior": far, "weak": [w["text"] for w in ident["weak_directions"]],
-            "sign_flips": [f["name"] for f in ident["sign_flips"]], "warnings": ident["warnings"],
-            "rp_crit": yaw_damping_limit({**fit.params}),
-            "condition": ident["condition"]}
-
-
-def variants(quick: bool) -> list[dict]:
-    train = ("20/20 S",) if quick else ("10/10 S", "20/20 S")
-    out = []
-    for free in (("default",) if quick else ("default", "hull", "study")):
-        for noise in ("none", "model-test"):
-            for priors in (True, False):
-                out.append({"train": train, "free": free, "priors": priors, "noise": noise, "group": "main"})
-    if not quick:  # two more noise seeds for the default free set
-        out += [{"train": train, "free": "default", "priors": priors, "noise": noise, "group": "main"}
-                for noise in list(NOISE_SEEDS)[1:] for priors in (True, False)]
-    if not quick:  # what would fix the default-prior fit (diagnosis, same clean data)
-        base = {"train": train, "free": "default", "priors": True, "noise": "none", "group": "remedy"}
-        out += [{**base, "remedy": "N'_rrr < 0 (sign constraint)", "nrrr_upper": 0.0},
-                {**base, "remedy": "priors ±20 %", "prior_rel_sd": 0.2},
-                {**base, "remedy": "wake C1, C2± free", "extra_free": ("C1", "C2_plus", "C2_minus")},
-                {**base, "remedy": "N'_vvr, N'_rrr fixed at reference", "fix": ("Nvvr", "Nrrr")},
-                {**base, "remedy": "peer's x_G, k_zz, x'_P, m, ρ (fixed)", "particulars": peer_particulars()},
-                {**base, "remedy": "+ 35/5 zigzag in training", "train": (*train, "35/5 S")},
-                {**base, "remedy": "wake C1, C2± free and N'_rrr < 0", "extra_free": ("C1", "C2_plus", "C2_minus"),
-                 "nrrr_upper": 0.0},
-                {**base, "remedy": "priors ±50 %/√τ (τ: residual memory of the default fit)", "tau_scaled": True}]
-    return out
-
-
-ZIGZAGS = {"10/10 S": (10, 10, "starboard"), "20/20 S": (20, 20, "starboard"), "35/5 S": (35, 5, "starboard")}
-
-
-def _fmt(v, spec=".1f"):
-    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
-
-
-def _figure(path: Path, peer: dict, rows: list[dict]) -> None:
-    """Turning tracks (both sides) and the held-out 20/20 heading: one row of panels per group of fits."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    groups = [[r for r in rows if r["group"] in ("reference", "main")], [r for r in rows if r["group"] == "remedy"]]
-    groups = [g for g in groups if g]
-    fig, axes = plt.subplots(len(groups), 3, figsize=(19, 5.2 * len(groups)), squeeze=False)
-    for gi, (group, ax_row) in enumerate(zip(groups, axes)):
-        colours = plt.cm.tab10(np.linspace(0, 1, 10))
-        for ax, key in zip(ax_row[:2], ("turnS", "turnP")):
-            c = peer[key]["channels"]
-            ax.plot(c["y0"] / 7.0, c["x0"] / 7.0, "k", lw=2.5, label="shipmmg (peer)")
-            for k, row in enumerate(group):
-                lab = row["label"] if row["group"] != "remedy" else row["remedy"]
-                run = row.get(f"{key}_run")
-                if run is not None:
-                    ax.plot(run["y0"] / 7.0, run["x0"] / 7.0, lw=1, color=colours[k % 10], label=lab)
-                elif row.get("model") is not None:
-                    x, y, t_bad = partial_turn(row["model"], peer[key], row["n"])
-                    ax.plot(y / 7.0, x / 7.0, lw=1, ls=":", color=colours[k % 10],
-                            label=f"{lab} (blows up at {t_bad:.0f} s)")
-                    ax.plot(y[-1:] / 7.0, x[-1:] / 7.0, "x", color=colours[k % 10])
-            ax.set(xlabel="y0 / L (starboard)", ylabel="x0 / L (approach course)", aspect="equal",
-                   title=f"35° turning circle, {'starboard' if key == 'turnS' else 'port'}"
-                   + (" — fits" if gi == 0 else " — remedies (clean data, priors on)"))
-            ax.legend(fontsize=6, loc="lower left" if key == "turnS" else "lower right")
-        c = peer["zz20P"]["channels"]
-        ax_row[2].plot(c["time"], np.degrees(c["psi"]), "k", lw=2.5, label="shipmmg (peer)")
-        for k, row in enumerate(group):
-            run = row.get("zz20P_run")
-            if run is not None:
-                ax_row[2].plot(run.time, np.degrees(run["psi"]), lw=1, color=colours[k % 10])
-        ax_row[2].set(xlabel="t [s]", ylabel="ψ [°]", title="held-out 20/20 zigzag, port first (closed loop)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+def __getattr__(name: str):
+    if name in _JUDGE:
+        return getattr(_sibling("shipmmg_judge"), name)
+    if name in _REPORT:
+        return getattr(_sibling("shipmmg_report"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main(argv=None) -> int:
@@ -524,6 +286,11 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=OUT)
     a = p.parse_args(argv)
     t_start = time.perf_counter()
+    J, R = _sibling("shipmmg_judge"), _sibling("shipmmg_report")
+    (TURN_S, ZIGZAG_S, ZIGZAGS, to_run, judge, variants, fit_variant, fit_summary, residual_memory,
+     peer_metrics) = (J.TURN_S, J.ZIGZAG_S, J.ZIGZAGS, J.to_run, J.judge, J.variants, J.fit_variant, J.fit_summary,
+                      J.residual_memory, J.peer_metrics)
+    figure, max_rprime, report = R.figure, R.max_rprime, R.report
     import shipmmg
 
     import diffship  # noqa: F401  (float64)
@@ -569,7 +336,7 @@ def main(argv=None) -> int:
     pm["20/20 S (zigzag_test_mmg_3dof as is)"] = peer_metrics(builtin)
     suffix = "_quick" if a.quick else ""
     a.out.mkdir(parents=True, exist_ok=True)
-    _figure(a.out / f"shipmmg_peer{suffix}.png", peer, rows)
+    figure(a.out / f"shipmmg_peer{suffix}.png", peer, rows)
     keep = lambda r: {k: v for k, v in r.items() if not k.endswith("_run") and k != "model"}
     (a.out / f"shipmmg_peer{suffix}.json").write_text(json.dumps(
         {"n_rps": n, "U0": U0, "peer_metrics": pm, "rows": [keep(r) for r in rows]}, indent=1, default=str))
@@ -580,146 +347,6 @@ def main(argv=None) -> int:
     (a.out / f"shipmmg_peer{suffix}.md").write_text(text)
     print(text)
     return 0
-
-
-def _row_cells(r: dict) -> list[str]:
-    f = r.get("fit") or {}
-    par = f.get("params", {})
-    adm = "ADMISSIBLE" if r["admissible"] else "NOT admissible" + (f" ({', '.join(r['offending'])})"
-                                                                  if r["offending"] else "")
-    return [_fmt(r["turnS_TD_err_pct"], "+.1f"), _fmt(r["turnP_TD_err_pct"], "+.1f"),
-            _fmt(r["turnS_advance_err_pct"], "+.1f"), _fmt(r["turnP_advance_err_pct"], "+.1f"),
-            "**yes**" if r["blowup"] else "no", adm,
-            f"{_fmt(r['zz10P_os1_err'], '+.2f')} / {_fmt(r['zz10P_os2_err'], '+.2f')}",
-            f"{_fmt(r['zz20P_os1_err'], '+.2f')} / {_fmt(r['zz20P_os2_err'], '+.2f')}",
-            _fmt(par.get("Nrrr", -0.013), "+.4f"), _fmt(par.get("Nvvr", -0.294), "+.3f"),
-            _fmt(f.get("rp_crit", math.inf), ".2f") if f else "∞"]
-
-
-_HEAD = ("| TD err S % | TD err P % | adv. err S % | adv. err P % | blow-up in 35° turn | admissibility | "
-         "held-out 10/10 P: Δ1st / Δ2nd overshoot [°] | held-out 20/20 P: Δ1st / Δ2nd [°] | N'_rrr | N'_vvr | "
-         "r'_crit |")
-
-
-def _meets(r: dict) -> bool:
-    """Done-when of issue 12: no blow-up in the 35° turns, TD within 5 % of the peer's on both sides."""
-    return (not r["blowup"]) and all(abs(r[f"{k}_TD_err_pct"]) <= 5.0 for k in ("turnS", "turnP"))
-
-
-def max_rprime(recs) -> float:
-    """Largest non-dimensional yaw rate |r| L / U over peer records (L = 7 m, U midship speed)."""
-    return max(float(np.max(np.abs(c["r"]) * 7.0 / np.hypot(c["u"], c["v"]))) for c in (r["channels"] for r in recs))
-
-
-def verdict(rows: list[dict], rp: dict[str, float] | None = None) -> list[str]:
-    """The done-when verdict and the diagnosis, from the numbers."""
-    L = ["## Verdict (issue 12: no blow-up in a 35° turn, tactical diameter within 5 % of the peer's)", ""]
-    dflt = [r for r in rows if r["group"] == "main" and r["free"] == "default" and r["priors"]]
-    for r in dflt + [r for r in rows if r["group"] == "main" and r["free"] == "study" and r["priors"]]:
-        L.append(f"- {r['free']} free set, default priors, noise {r['noise']}: "
-                 + ("blows up in the 35° turn" if r["blowup"] else
-                    f"TD error {r['turnS_TD_err_pct']:+.1f} % (S) / {r['turnP_TD_err_pct']:+.1f} % (P)")
-                 + f" → **{'MET' if _meets(r) else 'NOT MET'}**; admissibility check: "
-                 + ("admissible" if r["admissible"] else "NOT admissible, offending " + ", ".join(r["offending"])))
-    clean = next((r for r in dflt if r["noise"] == "none"), None)
-    if clean is None:
-        return L
-    f = clean["fit"]
-    z = dict(f["far_from_prior"]).get("Nrrr", math.nan)
-    tau = float(np.median(list(f["tau"].values())))
-    if f["params"]["Nrrr"] < 0:
-        return L + ["", "## Why", "",
-                    f"- **No blow-up.** N'_rrr stays negative ({f['params']['Nrrr']:+.4f}: the MMG's damping "
-                    "derivatives are bounded ≤ 0, and with priors the data are weighted by their effective sample "
-                    f"size; residual memory τ ≈ {tau:.0f} samples).",
-                    "- **The remaining tactical-diameter error is structural**: the peer's wake (exp(−4β_P²), "
-                    "drift at −x_G) differs from Yasukawa's C1/C2± wake. The ten-parameter default set cannot absorb "
-                    "it; freeing the wake's manoeuvring correction (the `study` free set of "
-                    "`diffship.studies.kvlcc2`, 33 coefficients under their priors, or `wake C1, C2± free` below) "
-                    "does."]
-    L += ["", "## Why", "",
-          (f"- **N'_rrr turns positive.** The clean default-prior fit moves N'_rrr from −0.013 to "
-          f"{f['params']['Nrrr']:+.4f} ({z:+.1f} prior SDs), so the hull's yaw damping N'_r + 3N'_rrr r'² changes "
-          f"sign at r' = {f['rp_crit']:.2f}; the peer's 35° turns reach r' = {rp['turn']:.2f}, the training zigzags "
-          f"{rp['train']:.2f}. "
-          "The identifiability report finds no poorly identified direction (condition number "
-          f"{f['condition'] if isinstance(f['condition'], str) else format(f['condition'], '.3g')}) but warns "
-          f"of the sign flip ({', '.join(f['sign_flips'])}) and the distance from the prior; the admissibility "
-          f"check fails r-motion self-damping and names {', '.join(clean['offending'])}."),
-          ("- **It is not noise and not a lack of data: the data pull it there.** The peer and diffship's MMG "
-          "differ in structure (module docstring: drift angle at −x_G, a symmetric wake exp(−4β_P²) against "
-          "Yasukawa's C1/C2± wake, x_G, k_zz, x'_P), and N'_rrr (with N'_vvr, J'_z) absorbs that misfit on the "
-          "zigzags. Without priors the same happens, further."),
-          (f"- **Why the ±50 % priors lose.** The fit weighs its residuals as independent, but the residuals of a "
-          f"structural misfit have memory: integrated autocorrelation time τ ≈ {tau:.0f} samples "
-          f"({', '.join(f'{c} {t:.0f}' for c, t in f['tau'].items())}), so the data are over-counted about "
-          f"{tau:.0f}-fold against the priors and a ±50 % prior acts like ±{50 * math.sqrt(tau):.0f} %.")]
-    rem = [r for r in rows if r["group"] == "remedy"]
-    if rem:
-        ok = [r["remedy"] for r in rem if _meets(r) and r["admissible"]]
-        L += [(f"- **What fixes it** (table below; same clean data): meeting the target *and* admissible: "
-              f"{'; '.join(ok) or 'none of the changes tried'}.")]
-        for r in rem:
-            L.append(f"  - {r['remedy']}: " + ("blows up" if r["blowup"] else
-                     f"TD {r['turnS_TD_err_pct']:+.1f} / {r['turnP_TD_err_pct']:+.1f} %")
-                     + f", {'admissible' if r['admissible'] else 'not admissible'}")
-    return L + [""]
-
-
-def report(rows: list[dict], pm: dict, n: float, *, quick: bool, wall: float, version: str,
-           rp: dict[str, float]) -> str:
-    main_rows = [r for r in rows if r["group"] in ("reference", "main")]
-    rem = [r for r in rows if r["group"] == "remedy"]
-    train = next((r["train"] for r in rows if r["group"] == "main"), ())
-    L = [f"# shipmmg peer: fit diffship's MMG on another implementation's zigzags{' (quick)' if quick else ''}", "",
-         (f"Command: `PYTHONPATH=src python benchmarks/shipmmg_peer.py{' --quick' if quick else ''}`; wall time "
-         f"{wall / 60:.1f} min on a shared 2-core machine (timings disturbed by other sessions). Peer: shipmmg "
-         f"{version} with its own KVLCC2 L7 parameters and simulators (module docstring of "
-         "`benchmarks/shipmmg_peer.py`: conventions, conversions, structural differences)."), "",
-         (f"Model scale L = 7 m, U0 = {U0} m/s, propeller {n:.3f} rev/s (the peer's self-propulsion point at U0), "
-         f"helm {HELM_RATE_DEG_S} °/s. Training zigzags (first rudder to starboard): {', '.join(train)}. "
-         f"Fit: output error on {', '.join(CHANNELS)} resampled to {FIT_DT} s, {MAX_STEPS} LM steps per pass. "
-         f"Model-test noise: {', '.join(f'{k} {v:.3g}' for k, v in MODEL_TEST_NOISE.items())} (SI, rad), white, one seed per noisy variant (`model-test`, `#2`, `#3`: different seeds)."), "",
-         *verdict(rows, rp),
-         "## Peer's own manoeuvres (the truth)", "",
-         "| manoeuvre | tactical diameter | advance | 1st overshoot | 2nd overshoot |", "|---|---|---|---|---|"]
-    for k, m in pm.items():
-        L.append(f"| {k} | {_fmt(m.get('TD'), '.2f')} m ({_fmt(m.get('TD', math.nan) / 7.0, '.2f')} L) | "
-                 f"{_fmt(m.get('advance'), '.2f')} m | {_fmt(m.get('os1'), '.2f')}° | {_fmt(m.get('os2'), '.2f')}° |")
-    L += ["", "## Fits on the zigzags, judged on the 35° turns and held-out zigzags", "",
-          ("Errors are diffship − peer (TD, advance in % of the peer's; overshoots in degrees). `reference` is "
-          "diffship's KVLCC2 L7 model with the published coefficients, not fitted. r'_crit: the "
-          "non-dimensional yaw rate above which the fitted hull's yaw damping ∂N'_H/∂r' = N'_r + 3N'_rrr r'² "
-          f"(v' = 0) turns positive (the peer's 35° turns reach r' = {rp['turn']:.2f})."), "",
-          "| free set | priors | noise " + _HEAD, "|---" * 14 + "|"]
-    for r in main_rows:
-        pri = "–" if r["group"] == "reference" else ("reference ±50 %" if r["priors"] else "off")
-        L.append(f"| {r.get('free', 'none (published)')} | {pri} | {r.get('noise', '–')} | "
-                 + " | ".join(_row_cells(r)) + " |")
-    if rem:
-        L += ["", "## What would fix the default-prior fit (same clean training data, default free set, priors on)", "",
-              "| change " + _HEAD, "|---" * 12 + "|"]
-        for r in rem:
-            L.append(f"| {r['remedy']} | " + " | ".join(_row_cells(r)) + " |")
-    L += ["", "## Fits in detail", ""]
-    for r in rows:
-        f = r.get("fit")
-        if not f:
-            continue
-        par = ", ".join(f"{k} {v:+.4g}" for k, v in f["params"].items())
-        far = ", ".join(f"{k} {z:+.1f} σ" for k, z in f["far_from_prior"]) or "–"
-        L += [f"### {r['label']}", "",
-              (f"- fit: {f['status']} after {f['iterations']} steps, {f['fit_s']:.0f} s (+ compile {f['compile_s']:.0f} s); "
-              f"{f['prior_note']}"),
-              f"- parameters: {par}",
-              (f"- furthest from the prior mean (in prior SDs): {far}; sign flips against the reference: "
-              f"{', '.join(f['sign_flips']) or 'none'}; condition number {_fmt(f['condition'], '.3g') if isinstance(f['condition'], float) else f['condition']}"),
-              f"- poorly identified directions (identifiability report): {'; '.join(f['weak']) or 'none'}",
-              "- residual autocorrelation time τ [samples of 0.2 s] (data over-counted ≈τ-fold against the priors): "
-              + ", ".join(f"{c} {t:.0f}" for c, t in f["tau"].items()),
-              "", "```", r["admissibility"], "```", ""]
-    return "\n".join(L) + "\n"
-
 
 if __name__ == "__main__":
     raise SystemExit(main())
