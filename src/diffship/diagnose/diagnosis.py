@@ -24,6 +24,7 @@ from ..models.effects import Augmented, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
+from .start import StartRule
 from .verdict import RankedEffect, rank, verdict_lines
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
@@ -50,7 +51,9 @@ class Diagnosis:
     (the base refitted by the refit procedure with no effect, when that lowers its training cost);
     ``possible`` effects under the gap gate (low confidence, not selected); ``partial`` whether a
     structural gap (E ≥ the gate) remains after the selected effects; ``gate`` the gap gate used
-    (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`).
+    (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`);
+    ``start`` the held-out start rule (:mod:`.start`) and the start the base and final models used
+    (offsets from the logged state in noise floors, the bounds that were active).
     """
 
     model_name: str
@@ -80,6 +83,7 @@ class Diagnosis:
     possible: tuple[str, ...] = ()
     partial: bool = False
     gate: GapGate | None = None
+    start: dict | None = None
 
     @property
     def gap_gate(self) -> float:
@@ -118,6 +122,7 @@ class Diagnosis:
             "not_applicable": self.skipped,
             "reference": self.reference,
             "gap_gate": dataclasses.asdict(self.gate) if self.gate is not None else None,
+            "start": self.start,
             "timings_s": self.timings,
         }
 
@@ -201,7 +206,8 @@ def diagnose(
     scr, sinfo = ws.screen()
     timings["screen"] = time.perf_counter() - t0
     timings["screen_cpu"] = time.process_time() - c0  # CPU time of all threads, compilation included
-    validation = Validation(ws, val, floor, chans)
+    start_rule = StartRule(bound=o.start_bound)
+    validation = Validation(ws, val, floor, chans, start_rule)
 
     # -- where ---------------------------------------------------------------------------------
     t0 = time.perf_counter()
@@ -254,4 +260,7 @@ def diagnose(
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
         possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
+        start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
+               "base": before.start.to_dict() if before.start else None,
+               "final": sel.final.start.to_dict() if sel.final.start else None},
     )

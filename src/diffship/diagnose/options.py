@@ -31,6 +31,12 @@ class DiagnoseOptions:
             candidates jointly (two effects that compensate each other alone).
         max_iter: Levenberg–Marquardt iterations per refit; fit_steps: of the base fit.
 
+    Held-out start (:mod:`.start`):
+        start_bound: every compared model starts each held-out run at the logged state, its
+            logged states (position, heading, velocities, rate) moved at most this many noise
+            floors to fit the run (the same rule for the base and every candidate; ``inf``: the
+            former free estimate, which lets a wrong model hide its error in the start).
+
     Acceptance rule (see :mod:`.which`):
         gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor). None
             (default): from the data — the scatter of E under no structural error given the
@@ -60,6 +66,7 @@ class DiagnoseOptions:
     max_pairs: int = 3
     max_iter: int = 30
     fit_steps: int = 200
+    start_bound: float = 3.0
     gap_gate: float | None = None
     gate_z: float = 3.0
     min_gain: float = 0.05
@@ -77,6 +84,8 @@ class DiagnoseOptions:
             if bad:
                 raise DataError(f"unknown effect(s) {', '.join(map(repr, bad))}; "
                                 f"choose from: {', '.join(EFFECT_NAMES)}")
+        if not self.start_bound > 0:
+            raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
         if self.channels is not None:
             object.__setattr__(self, "channels", tuple(self.channels))
 
