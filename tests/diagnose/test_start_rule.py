@@ -56,15 +56,17 @@ def test_an_effect_recovered_exactly_is_accepted_on_held_out_runs(effect):
         j = Search(ws, v, base, DiagnoseOptions(), lambda s: None, gate=gate).judge(exact, base, cand, [effect])
         if accepted:
             assert j.ok, j.why
-            assert base.E > 2.0
+            assert base.E > 1.5  # a clear structural gap (the gate is about 1.03)
             # the base wanted to start further from the log than the noise allows; the exact model did not
             assert any(base.start.at_bound.values())
             assert not any(cand.start.at_bound.values())
             assert all(abs(o) <= 3.0 + 1e-6 for run in base.start.offset_sigma.values() for o in run.values())
         else:
             free_base_E = base.E
-    # a free start hides part of the structural error in the start (what the rule prevents)
-    assert free_base_E < 0.9 * Validation(ws, val, floor, CHANNELS, StartRule()).base().E
+    # a free start hides part of a current's drift in the start (what the rule prevents); a heading
+    # bias it cannot hide (the compass channel holds the heading)
+    if effect == "current":
+        assert free_base_E < 0.9 * Validation(ws, val, floor, CHANNELS, StartRule()).base().E
 
 
 def test_projected_lm_solves_a_bounded_least_squares_problem():
