@@ -68,13 +68,18 @@ def test_nomoto_effects_exact_at_null(cls):
     base = cls()
     run = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=20.0)[0]
     effs, skipped = library(base, [run])
-    assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "damping_rr"}
-    assert "already has a rudder offset" in skipped["rudder_offset"]
+    assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "rudder_offset", "damping_rr"}
+    assert "rudder_offset" not in skipped
     ref = _sim(base, run)
     everything = Augmented(base, effs)
     assert float(jnp.max(jnp.abs(_sim(everything, run).ys - ref.ys))) <= 1e-12
     for e in effs:
         assert float(jnp.max(jnp.abs(_sim(everything.with_params(e.PROBE), run).ys - ref.ys))) > 1e-5, e.name
+    # the rudder offset is the model's own delta0 (ṙ = (K(δ + δ0) − r)/T1): the same simulation
+    off = _sim(augment(base, "rudder_offset", delta_off=0.01), run)
+    own = _sim(base.with_params({"delta0": 0.01}), run)
+    assert float(jnp.max(jnp.abs(off.ys - own.ys))) <= 1e-12
+    assert float(jnp.max(jnp.abs(off.ys - ref.ys))) > 1e-3
 
 
 def test_current_shifts_ground_velocity_by_the_current():

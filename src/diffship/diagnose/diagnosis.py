@@ -20,7 +20,7 @@ from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..models.effects import Augmented, library
+from ..models.effects import Augmented, applicability, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
@@ -53,7 +53,8 @@ class Diagnosis:
     structural gap (E ≥ the gate) remains after the selected effects; ``gate`` the gap gate used
     (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`);
     ``start`` the held-out start rule (:mod:`.start`) and the start the base and final models used
-    (offsets from the logged state in noise floors, the bounds that were active).
+    (offsets from the logged state in noise floors, the bounds that were active); ``notes`` what
+    the diagnosis changed in the base fit (a model's own rudder offset held at 0).
     """
 
     model_name: str
@@ -84,6 +85,7 @@ class Diagnosis:
     partial: bool = False
     gate: GapGate | None = None
     start: dict | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def gap_gate(self) -> float:
@@ -123,6 +125,7 @@ class Diagnosis:
             "reference": self.reference,
             "gap_gate": dataclasses.asdict(self.gate) if self.gate is not None else None,
             "start": self.start,
+            "notes": list(self.notes),
             "timings_s": self.timings,
         }
 
@@ -169,6 +172,16 @@ def diagnose(
                         "held-out runs only, never on the training fit")
     t0 = time.perf_counter()
     spec = spec or model.spec()
+    notes = []
+    # a model with its own rudder offset (Nomoto's delta0) would absorb the rudder_offset
+    # candidate: the base fit holds it at 0 and the candidate is the offset (:mod:`..models.effects.actuator`)
+    own_offset = "delta0" in spec.free_names and "rudder_offset" in o.effect_names and not applicability(
+        model, "rudder_offset", train)
+    if fit is None and own_offset:
+        spec = spec.fix({"delta0": 0.0})
+        notes.append("the base model's own rudder offset delta0 is held at 0 in the base fit: the rudder_offset "
+                     "candidate stands for it")
+        say(notes[-1])
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
         chans0 = o.channels or diagnosis_channels(model, train)
@@ -198,6 +211,10 @@ def diagnose(
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
     effs, skipped = library(base, train, o.effect_names)
+    if "delta0" in fit.free and any(e.name == "rudder_offset" for e in effs):
+        effs = [e for e in effs if e.name != "rudder_offset"]
+        skipped["rudder_offset"] = (f"the given base fit estimated the model's own rudder offset delta0 = "
+                                    f"{fit.params['delta0']:.4g} rad (the same effect)")
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
     say(f"screening {len(effs)} candidate effects ({', '.join(e.name for e in effs)})...")
@@ -263,4 +280,5 @@ def diagnose(
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
+        notes=tuple(notes),
     )

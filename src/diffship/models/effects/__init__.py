@@ -18,6 +18,7 @@ from .actuator import ActuatorLag as ActuatorLag
 from .actuator import InputDelay as InputDelay
 from .actuator import RateLimit as RateLimit
 from .actuator import RudderOffset as RudderOffset
+from .actuator import NomotoRudderOffset as NomotoRudderOffset
 from .augmented import Augmented as Augmented
 from .current import Current as Current
 from .damping import DampingRR as DampingRR
@@ -39,6 +40,6 @@ from .wind import Wind as Wind
 __all__ = [
     "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "applicability", "make_effect",
     "library", "augment", "is_ship3", "steering_inputs",
-    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset",
+    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset",
     "DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR", "Wind",
 ]

@@ -14,6 +14,8 @@ rate_limit         T_slew [s]                       steering slew rate limited t
                                                     (A_i = largest |input| in the training data)
 rudder_offset      Y0 [N], N0 [N m]                 constant sway force and yaw moment (prop walk,
                                                     rudder/jet offset); 3-DOF models
+                   delta_off [rad] (Nomoto)         rudder angle offset δ + δ_off (the base's own
+                                                    delta0 held at 0 in the diagnosis' base fit)
 heading_bias       b_psi [rad]                      compass reads ψ + b; shows only in positions
 damping_vv         Nvv                              N_|v|v |v|v   (3-DOF; Y_|v|v is in fossen3)
 damping_rr         Yrr  (Norrbin c_rr for Nomoto)   Y_|r|r |r|r   (N_|r|r is in fossen3)
@@ -40,7 +42,7 @@ import jax.numpy as jnp
 from ...errors import ModelError
 from .._base import AbstractModel
 from ._base import DataFacts, Effect
-from .actuator import ActuatorLag, InputDelay, RateLimit, RudderOffset
+from .actuator import ActuatorLag, InputDelay, NomotoRudderOffset, RateLimit, RudderOffset
 from .augmented import Augmented
 from .current import Current
 from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
@@ -55,7 +57,7 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "input_delay": (InputDelay,),
     "actuator_lag": (ActuatorLag,),
     "rate_limit": (RateLimit,),
-    "rudder_offset": (RudderOffset,),
+    "rudder_offset": (RudderOffset, NomotoRudderOffset),
     "heading_bias": (HeadingBias,),
     "damping_vv": (DampingVV,),
     "damping_rr": (DampingRR, NorrbinRR),
