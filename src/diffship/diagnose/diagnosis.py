@@ -26,7 +26,8 @@ from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
 from .verdict import RankedEffect, rank, verdict_lines
-from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
+from .where import (GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, physical_position_floor,
+                    structural_gate, where_analysis)
 from .which import Search, refit_order
 
 __all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]
@@ -197,7 +198,8 @@ def diagnose(
         floor = dict(o.noise)
         noise_info = {c: {"sigma": floor[c], "method": "given (DiagnoseOptions.noise)"} for c in chans}
     else:
-        est = noise_estimates(list(train) + list(val), chans, base.angle_outputs)
+        est = physical_position_floor(noise_estimates(list(train) + list(val), chans, base.angle_outputs), val,
+                                      o.position_accuracy, o.position_drift)
         floor = {c: e.sigma for c, e in est.items()}
         noise_info = {c: dataclasses.asdict(e) for c, e in est.items()}
     # the gap gate: the null scatter of E for these sample counts (p/N: the base fit's parameters)

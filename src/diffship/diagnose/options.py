@@ -20,6 +20,10 @@ class DiagnoseOptions:
         channels: channels of the base fit (default: what the model predicts and the runs have,
             positions included — :func:`~.diagnosis.diagnosis_channels`).
         noise: per-channel noise floor (known sensor noise); estimated from the data if None.
+        position_accuracy: accuracy of the positioning system [m] (None: unknown); the position
+            floor is at least this (:func:`~.where.physical_position_floor`).
+        position_drift: drift per distance sailed [-] the position floor allows (default
+            0.1 %: a track off by 0.1 % of the distance sailed is at the floor).
 
     Effort:
         max_refits: candidates refitted by screening rank, plus up to ``max_absorbed`` of those
@@ -59,6 +63,8 @@ class DiagnoseOptions:
     effects: Sequence[str] | str = "all"
     channels: Sequence[str] | None = None
     noise: Mapping[str, float] | None = None
+    position_accuracy: float | None = None
+    position_drift: float = 1e-3
     max_refits: int = 4
     max_absorbed: int = 3
     refit_all: bool = False

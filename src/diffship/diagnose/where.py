@@ -70,8 +70,9 @@ from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..preprocess import Filter, smooth_and_derivative
 from ..models.effects import is_ship3, steering_inputs
+from .words import channel_words, overshoots, where_in_words
 
-__all__ = ["noise_floor", "noise_estimates", "NoiseEstimate", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
+__all__ = ["noise_floor", "noise_estimates", "physical_position_floor", "distance_sailed", "NoiseEstimate", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
            "gap_budget", "force_residuals", "PHASES", "structural_gate", "GapGate"]
 
 PHASES = ("approach", "transient", "steady_turn", "counter_steer", "straight")
@@ -152,6 +153,63 @@ def noise_estimates(runs: Sequence[Run], channels: Sequence[str], angles=("psi",
     return out
 
 
+PHYSICAL = "physical"
+
+
+def distance_sailed(run: Run) -> np.ndarray:
+    """Distance sailed since the first sample [m]: ∫ U dt with U from the logged u, v, or from
+    the position track differenced over 1 s where the velocities are not logged."""
+    t = np.asarray(run.time, dtype=float)
+    if run.has("u"):
+        U = np.hypot(np.asarray(run["u"], float), np.asarray(run["v"], float) if run.has("v") else 0.0)
+        return np.concatenate([[0.0], np.cumsum(0.5 * (U[1:] + U[:-1]) * np.diff(t))])
+    if run.has("x0", "y0"):
+        dt = float(np.median(np.diff(t)))
+        k = max(1, int(round(1.0 / dt)))
+        x, y = np.asarray(run["x0"], float), np.asarray(run["y0"], float)
+        idx = np.arange(0, t.size, k)
+        seg = np.hypot(np.diff(x[idx]), np.diff(y[idx]))
+        return np.interp(t, t[idx], np.concatenate([[0.0], np.cumsum(seg)]))
+    return np.zeros_like(t)
+
+
+def physical_position_floor(est: dict[str, NoiseEstimate], runs: Sequence[Run], accuracy: float | None = None,
+                            drift: float = 1e-3) -> dict[str, NoiseEstimate]:
+    r"""Position floors a positioning system can deliver, not the scatter of a smooth track.
+
+    A tracked position is smooth: its second differences measure the tracker's filter, not its
+    accuracy (0.15 mm on the HSVA KVLCC2 logs, where heading was within 0.5°), and position
+    errors then swamp every other channel of E. The floor of ``x0``, ``y0`` is
+
+    .. math::
+        \sigma_{pos} = \max(\hat\sigma_{stat},\ a,\ \kappa\,\mathrm{RMS}_k\, s_k)
+
+    with *a* the positioning system's accuracy (``accuracy`` [m], when known: millimetres for
+    optical tracking in a basin, about 0.02 m for RTK GNSS, metres for plain GNSS) and the
+    **drift per distance** κ (``drift``, default 0.1 % of the distance sailed, the order of the
+    scale and calibration errors of tracking and dead reckoning over a run): a track whose scale is
+    off by κ is off by κ s(t) after a distance s(t), RMS κ·RMS(s) over the scored samples
+    (:func:`distance_sailed` of ``runs``, the held-out runs). The estimate that sets the floor
+    is named in ``method``."""
+    out = dict(est)
+    if not any(c in est for c in ("x0", "y0")):
+        return out
+    s = np.concatenate([distance_sailed(r) for r in runs]) if runs else np.zeros(1)
+    by_drift = drift * float(np.sqrt(np.mean(s ** 2)))
+    acc = float(accuracy) if accuracy else 0.0
+    for c in ("x0", "y0"):
+        e = est.get(c)
+        if e is None:
+            continue
+        phys = max(acc, by_drift)
+        if phys > e.sigma:
+            how = (f"{PHYSICAL}: positioning accuracy {acc:g} m" if acc >= by_drift else
+                   f"{PHYSICAL}: drift {100 * drift:g} % of the distance sailed (RMS {by_drift / drift:.3g} m)")
+            out[c] = dataclasses.replace(e, sigma=float(phys), method=how,
+                                         note=f"statistical estimate {e.sigma:.3g} m (a smooth track's scatter) is below it")
+    return out
+
+
 #: relative variance × N of the white second-difference variance estimator (module docstring)
 SECOND_DIFF_VAR = 140.0 / 36.0
 
@@ -181,7 +239,7 @@ def structural_gate(channels: Sequence[str], floor_runs: Sequence[Run], val_runs
         phi = min(e.rho, 0.98) if e is not None and e.method == COLOURED else 0.0
         kappa = (1 + phi * phi) / (1 - phi * phi)
         v += 2 * kappa / max(n_v, 1)
-        if est is not None:
+        if est is not None and not (e is not None and e.method.startswith(PHYSICAL)):
             v += SECOND_DIFF_VAR * kappa / max(n_f, 1)
     sd = math.sqrt(v) / max(len(channels), 1)
     how = "given noise: validation sampling only" if est is None else "validation sampling and noise-floor estimation"
@@ -249,7 +307,9 @@ class WhereAnalysis:
 
     ``per_channel``: RMSE, noise floor, ratio and share of the error per channel; ``per_run``:
     E and RMSE per run; ``per_phase``: time share, E and RMSE per manoeuvre phase;
-    ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``residual_tests``:
+    ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``in_words``: per
+    channel (heading, rate, speed first) the error in user units and what it is, ``zigzag``: the
+    overshoot angles measured and simulated per zigzag run [°] (:mod:`.words`); ``residual_tests``:
     ACF, CCF with the input and its rate, whiteness/independence flags; ``force_residuals``:
     inverse-dynamics RMS and mean per DOF (3-DOF models only, else None). ``residuals`` and
     ``phases`` (per run and channel / sample) feed the figures, not the JSON.
@@ -263,9 +323,17 @@ class WhereAnalysis:
     residuals: dict[str, dict[str, np.ndarray]]
     phases: dict[str, np.ndarray]
     force_residuals: dict | None = None
+    in_words: tuple[dict, ...] = ()
+    zigzag: dict | None = None
+
+    @property
+    def summary(self) -> str:
+        """The miss in a naval architect's words (:func:`~.words.where_in_words`)."""
+        return where_in_words(list(self.in_words), self.zigzag or {}, self.per_phase, self.per_region)
 
     def to_dict(self) -> dict:
-        out = {"per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
+        out = {"in_words": list(self.in_words), "zigzag_overshoots_deg": self.zigzag or {},
+               "per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
                "per_region": self.per_region, "residual_tests": self.residual_tests}
         if self.force_residuals is not None:
             out["force_residuals"] = self.force_residuals
@@ -366,9 +434,19 @@ def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, fl
                    "white": bool(np.mean(np.abs(acf[1:]) > band) <= 0.1),
                    "independent_of_input": bool(np.mean(np.abs(ccf) > band) <= 0.1 and np.mean(np.abs(ccd) > band) <= 0.1),
                    "ccf_peak_lag_s": float(np.argmax(np.abs(ccd)) * dt)}
+    lpp = model.param_values().get("Lpp") if "Lpp" in model.param_names else None
+    words = channel_words(runs, ev.simulated, {c: ev.rmse[c] for c in chans}, floor, model.angle_outputs, lpp)
+    zig = {}
+    if "psi" in chans:
+        for run in runs:
+            m = overshoots(run.time, _steer(model, run), np.asarray(run["psi"]))
+            if m:
+                p = overshoots(run.time, _steer(model, run), np.asarray(ev.simulated[run.name]["psi"]))
+                zig[run.name] = {"measured": [float(np.degrees(x)) for x in m], "model": [float(np.degrees(x)) for x in p]}
     return WhereAnalysis(per_channel=per_channel, per_run=per_run, per_phase=per_phase, per_region=per_region,
                          residual_tests=corr, residuals=res, phases=labels,
-                         force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None)
+                         force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None,
+                         in_words=tuple(words), zigzag=zig)
 
 
 def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:
