@@ -25,6 +25,7 @@ from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
+from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, rank, verdict_lines
 from .where import (GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, physical_position_floor,
                     structural_gate, where_analysis)
@@ -55,7 +56,9 @@ class Diagnosis:
     (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`);
     ``start`` the held-out start rule (:mod:`.start`) and the start the base and final models used
     (offsets from the logged state in noise floors, the bounds that were active); ``notes`` what
-    the diagnosis changed in the base fit (a model's own rudder offset held at 0).
+    the diagnosis changed in the base fit (a model's own rudder offset held at 0);
+    ``time_variation`` the check of the first selected effect for a change along the run
+    (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``).
     """
 
     model_name: str
@@ -87,6 +90,7 @@ class Diagnosis:
     gate: GapGate | None = None
     start: dict | None = None
     notes: tuple[str, ...] = ()
+    time_variation: TimeVariation | None = None
 
     @property
     def gap_gate(self) -> float:
@@ -127,6 +131,7 @@ class Diagnosis:
             "gap_gate": dataclasses.asdict(self.gate) if self.gate is not None else None,
             "start": self.start,
             "notes": list(self.notes),
+            "time_variation": self.time_variation.to_dict() if self.time_variation else None,
             "timings_s": self.timings,
         }
 
@@ -263,24 +268,32 @@ def diagnose(
     t0 = time.perf_counter()
     sel = search.select(singles)
     timings["greedy"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    tv = time_variation(search, singles, sel.selected, say)
+    timings["time_variation"] = time.perf_counter() - t0
 
     # -- how far and verdicts --------------------------------------------------------------------
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
                    sel.rivals, sel.note, sel.possible)
     shrink = sel.shrink(before.E)
+    lines = verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
+                          sel.possible, o.min_shrink)
+    possible = sel.possible
+    if tv is not None and tv.possible:
+        lines = (*lines, tv.line())
+        possible = (*possible, tv.varying)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
-        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
-                              sel.possible, o.min_shrink),
+        verdict=lines,
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
-        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
+        possible=possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
-        notes=tuple(notes),
+        notes=tuple(notes), time_variation=tv,
     )

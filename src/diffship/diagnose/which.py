@@ -66,7 +66,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..models import AbstractModel
-from ..models.effects import Augmented, Effect
+from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
 from .options import DiagnoseOptions
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace
 from .shrink import PathStep, Score, Validation, structural_shrink
@@ -120,6 +120,8 @@ class Selection:
 
 def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:
     """Candidates to refit, in screening order (see the module docstring)."""
+    # effects that are only ever possible (a changing current or lag) are refitted by :mod:`.variation`
+    screen = [s for s in screen if s.effect not in POSSIBLE_ONLY]
     order = [s.effect for s in screen if s.orthogonal_fraction > 0 or s.predicted_fraction > 0]
     if options.refit_all:
         return order

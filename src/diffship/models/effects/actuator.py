@@ -38,7 +38,7 @@ import jax.numpy as jnp
 
 from ._base import DataFacts, Effect, is_ship3, param, scalar
 
-__all__ = ["InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset"]
+__all__ = ["InputDelay", "ActuatorLag", "LagTrend", "RateLimit", "RudderOffset", "NomotoRudderOffset"]
 
 
 class _InputEffect(Effect):
@@ -120,6 +120,35 @@ class ActuatorLag(_InputEffect):
     def apply_input(self, base, t, xb, xe, ub):
         on = self.T_act > 0.0
         T = jnp.maximum(jnp.where(on, self.T_act, 1.0), 0.5 * self.dt)
+        return self._put(ub, xe, on), (self._sel(ub) - xe) / T
+
+
+class LagTrend(_InputEffect):
+    r"""An actuator lag that changes during a run, :math:`T_a(t) = T_{a,0} + \dot T_a\,t` (t: the
+    run's clock; null: no lag) — a *possible* effect only (:mod:`diffship.diagnose`): a steering
+    gear that slows as its oil warms, or a lag that depends on the load. Settled by the
+    ``separating`` experiment, not by the fit."""
+
+    name: ClassVar[str] = "lag_trend"
+    input_order: ClassVar[int] = 2
+    PROBE: ClassVar[dict[str, float]] = {"T_act0": 1.0, "dT_act": 0.01}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_act0": 0.2, "dT_act": 1e-3}
+    signature: ClassVar[str] = "a lag residual after steering steps that grows (or shrinks) along the run"
+    confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag",)
+    separating: ClassVar[str] = ("rudder steps of one size at the start and at the end of a long run, with the rudder "
+                                 "angle logged at the stock (the lag read off directly)")
+    T_act0: jnp.ndarray = param(0.0, lower=0.0, scale=0.5, unit="s", description="actuator time constant at t = 0")
+    dT_act: jnp.ndarray = param(0.0, scale=0.01, unit="s/s", description="rate of change of the time constant")
+
+    def extra_states(self, base):
+        return self._names(base)
+
+    def extra_init(self, base, y0):
+        return [float(y0.get(n, 0.0)) for n in self._names(base)]
+
+    def apply_input(self, base, t, xb, xe, ub):
+        on = (self.T_act0 > 0.0) | (self.dT_act != 0.0)
+        T = jnp.maximum(jnp.where(on, self.T_act0 + self.dT_act * t, 1.0), 0.5 * self.dt)
         return self._put(ub, xe, on), (self._sel(ub) - xe) / T
 
 

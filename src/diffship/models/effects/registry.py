@@ -24,6 +24,10 @@ damping_rv         Yrv, Nrv                         (Y, N)_|r|v |r| v
 speed_dependence   k_U [-]                          linear damping scaled by 1 + k_U (U − U0)/U0
 wind               Cwx, Cwy, Cwn [N/(m/s)², ·m]     ½ρA C(γ) V_rw² from measured wind_speed,
                                                     wind_dir (direction the wind comes from)
+current_trend      Vcx_0, Vcy_0 [m/s], dVcx, dVcy   a current changing linearly along the run
+                   [m/s²]                           (possible only: :data:`POSSIBLE_ONLY`)
+lag_trend          T_act0 [s], dT_act [s/s]         an actuator lag changing along the run
+                                                    (possible only)
 =================  ===============================  ==============================================
 
 Each name maps to its implementations (:data:`EFFECTS`); the first whose
@@ -42,14 +46,14 @@ import jax.numpy as jnp
 from ...errors import ModelError
 from .._base import AbstractModel
 from ._base import DataFacts, Effect
-from .actuator import ActuatorLag, InputDelay, NomotoRudderOffset, RateLimit, RudderOffset
+from .actuator import ActuatorLag, InputDelay, LagTrend, NomotoRudderOffset, RateLimit, RudderOffset
 from .augmented import Augmented
-from .current import Current
+from .current import Current, CurrentTrend
 from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
 from .sensor import HeadingBias
 from .wind import Wind
 
-__all__ = ["EFFECTS", "EFFECT_NAMES", "FAMILY", "applicability", "make_effect", "library", "augment"]
+__all__ = ["EFFECTS", "EFFECT_NAMES", "POSSIBLE_ONLY", "FAMILY", "applicability", "make_effect", "library", "augment"]
 
 #: Implementations per effect name, in the order of the issue (first applicable wins).
 EFFECTS: dict[str, tuple[type[Effect], ...]] = {
@@ -65,7 +69,13 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "damping_rv": (DampingRV,),
     "speed_dependence": (SpeedDependence,),
     "wind": (Wind,),
+    "current_trend": (CurrentTrend,),
+    "lag_trend": (LagTrend,),
 }
+
+#: Effects that are only ever *possible* (never attributed), with the constant effect they vary:
+#: a trend stands for any slow change, and whether the change is real is settled by an experiment.
+POSSIBLE_ONLY: dict[str, str] = {"current_trend": "current", "lag_trend": "actuator_lag"}
 
 #: Effect names accepted by ``--effects``.
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
