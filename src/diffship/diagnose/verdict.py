@@ -16,7 +16,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
-from ..models.effects import FAMILY, Effect
+from ..models.effects import FAMILY, POSSIBLE_ONLY, Effect
 from .options import DiagnoseOptions
 from .screen import ScreenResult
 from .where import GapBudget, WhereAnalysis
@@ -101,7 +101,10 @@ def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects:
                   "confusable_with": tuple(e.confusable_with), "separating_manoeuvre": e.separating}
         c = singles.get(n)
         if c is None:
-            if s.orthogonal_fraction == 0.0 and s.predicted_fraction == 0.0:
+            if n in POSSIBLE_ONLY:
+                verdict = (f"possible only (a {POSSIBLE_ONLY[n]} changing along the run): checked for the selected "
+                           "effect, see time_variation")
+            elif s.orthogonal_fraction == 0.0 and s.predicted_fraction == 0.0:
                 verdict = "not identifiable from these runs (no effect on the fitted channels)"
             else:
                 verdict = "not refitted (screen negligible)"
