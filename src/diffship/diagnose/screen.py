@@ -367,7 +367,8 @@ class Workspace:
         effect, a warm start on the whole runs crawls (a current's refit stopped at 40 % of the
         true current after 120 steps); on the short horizon the effect and the base parameters
         move back together (the same current to 0.5 %). Returns the start of the whole-run solve
-        (``z_start`` when the warm-up blows up on the whole runs) and the warm-up's steps."""
+        (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost)
+        and the warm-up's steps."""
         n_full = int(kd.ts.shape[1])
         n_warm = int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
         if not n_warm:
@@ -376,6 +377,11 @@ class Workspace:
                                            atol=1e-8, ftol=1e-12)
         rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
+            return z_start, int(steps)
+        # kept only when it also helps on the whole runs: from a base already fitted to the whole
+        # runs, a short-horizon fit of a wrong candidate (or of no effect) lands in a worse basin
+        r0 = np.asarray(self.kernel.call("residuals", z_start, kd))
+        if float(rw @ rw) >= float(r0 @ r0):
             return z_start, int(steps)
         return np.asarray(zw), int(steps)
 
