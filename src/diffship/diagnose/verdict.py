@@ -170,7 +170,7 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
     where_line = (f"Where: validation error {E_before:.2f}× the noise floor "
                   f"({100 * gap.share_struct:.0f} % structural); mostly in {worst} "
                   f"({100 * pc[worst]['share']:.0f} % of the error), worst phase: {worst_phase}.")
-    if where.in_words:
+    if getattr(where, "in_words", ()):
         # in a naval architect's words: heading, rate and speed first (:mod:`.words`)
         where_line = (f"Where: validation error {E_before:.2f}× the noise floor "
                       f"({100 * gap.share_struct:.0f} % structural, {100 * pc[worst]['share']:.0f} % of it in {worst}): "
