@@ -74,3 +74,23 @@ def test_position_floor_is_physical_not_the_scatter_of_a_smooth_track():
     g_est = structural_gate(("x0",), [run], [run], smooth)
     g_phys = structural_gate(("x0",), [run], [run], out)
     assert g_phys.sd_E2 < g_est.sd_E2
+
+
+def test_a_periodic_residual_not_driven_by_the_rudder_is_found():
+    """A 7-s oscillation in the residual (a wave-like push) is found with its period; a residual at
+    the zigzag's own period is the model's answer to the rudder and is not reported; noise alone
+    gives nothing."""
+    from diffship.diagnose.periodic import periodic_residual
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0, 120, 0.1)
+    runs = [Run(f"r{i}", t, {"psi": 0 * t}) for i in range(2)]
+    steer = {r.name: 0.2 * np.sign(np.sin(2 * np.pi * t / 40)) for r in runs}
+    wave = {r.name: {"psi": 0.01 * np.sin(2 * np.pi * t / 7.0 + i) + rng.normal(0, 0.01, t.size)}
+            for i, r in enumerate(runs)}
+    hit = periodic_residual(runs, wave, steer, ["psi"])
+    assert hit is not None and hit["period_s"] == pytest.approx(7.0, rel=0.05) and hit["channels"] == ["psi"]
+    driven = {r.name: {"psi": 0.01 * np.sin(2 * np.pi * t / 40) + rng.normal(0, 0.01, t.size)} for r in runs}
+    assert periodic_residual(runs, driven, steer, ["psi"]) is None
+    noise = {r.name: {"psi": rng.normal(0, 0.01, t.size)} for r in runs}
+    assert periodic_residual(runs, noise, steer, ["psi"]) is None

@@ -70,6 +70,7 @@ from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..preprocess import Filter, smooth_and_derivative
 from ..models.effects import is_ship3, steering_inputs
+from .periodic import periodic_residual
 from .words import channel_words, overshoots, where_in_words
 
 __all__ = ["noise_floor", "noise_estimates", "physical_position_floor", "distance_sailed", "NoiseEstimate", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
@@ -309,7 +310,8 @@ class WhereAnalysis:
     E and RMSE per run; ``per_phase``: time share, E and RMSE per manoeuvre phase;
     ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``in_words``: per
     channel (heading, rate, speed first) the error in user units and what it is, ``zigzag``: the
-    overshoot angles measured and simulated per zigzag run [°] (:mod:`.words`); ``residual_tests``:
+    overshoot angles measured and simulated per zigzag run [°] (:mod:`.words`); ``periodic``: a
+    periodic residual the steering does not drive (:mod:`.periodic`); ``residual_tests``:
     ACF, CCF with the input and its rate, whiteness/independence flags; ``force_residuals``:
     inverse-dynamics RMS and mean per DOF (3-DOF models only, else None). ``residuals`` and
     ``phases`` (per run and channel / sample) feed the figures, not the JSON.
@@ -325,14 +327,16 @@ class WhereAnalysis:
     force_residuals: dict | None = None
     in_words: tuple[dict, ...] = ()
     zigzag: dict | None = None
+    periodic: dict | None = None
 
     @property
     def summary(self) -> str:
         """The miss in a naval architect's words (:func:`~.words.where_in_words`)."""
-        return where_in_words(list(self.in_words), self.zigzag or {}, self.per_phase, self.per_region)
+        return where_in_words(list(self.in_words), self.zigzag or {}, self.per_phase, self.per_region, self.periodic)
 
     def to_dict(self) -> dict:
         out = {"in_words": list(self.in_words), "zigzag_overshoots_deg": self.zigzag or {},
+               "periodic_residual": self.periodic,
                "per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
                "per_region": self.per_region, "residual_tests": self.residual_tests}
         if self.force_residuals is not None:
@@ -446,7 +450,8 @@ def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, fl
     return WhereAnalysis(per_channel=per_channel, per_run=per_run, per_phase=per_phase, per_region=per_region,
                          residual_tests=corr, residuals=res, phases=labels,
                          force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None,
-                         in_words=tuple(words), zigzag=zig)
+                         in_words=tuple(words), zigzag=zig,
+                         periodic=periodic_residual(runs, res, {r.name: _steer(model, r) for r in runs}, chans))
 
 
 def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:

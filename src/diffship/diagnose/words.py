@@ -152,8 +152,10 @@ def region_words(per_region: dict) -> str:
     return f"worst at {name} {k * b['low']:.3g}–{k * b['high']:.3g} {unit}".rstrip()
 
 
-def where_in_words(words: list[dict], zigzag: dict, per_phase: dict, per_region: dict) -> str:
-    """One sentence: channels (heading, rate, speed first), overshoots, worst phase and region."""
+def where_in_words(words: list[dict], zigzag: dict, per_phase: dict, per_region: dict,
+                   periodic: dict | None = None) -> str:
+    """One sentence: channels (heading, rate, speed first), overshoots, worst phase and region, and
+    a periodic residual the rudder does not drive (:mod:`.periodic`)."""
     parts = [_phrase(w) for w in words]
     s = "; ".join(parts)
     os_ = [(k, v) for k, v in zigzag.items() if v.get("measured")]
@@ -171,4 +173,7 @@ def where_in_words(words: list[dict], zigzag: dict, per_phase: dict, per_region:
     reg = region_words(per_region)
     if reg:
         s += f", {reg}"
+    if periodic:
+        s += (f"; a periodic residual at {periodic['period_s']:.3g} s in {', '.join(periodic['channels'])}, not driven "
+              "by the steering (a wave-like disturbance?)")
     return s
