@@ -8,7 +8,8 @@ import pytest
 
 import diffship  # noqa: F401
 from diffship.data import Run
-from diffship.diagnose.where import NoiseEstimate, WHITE, distance_sailed, physical_position_floor, structural_gate
+from diffship.diagnose.floors import distance_sailed, physical_position_floor
+from diffship.diagnose.where import NoiseEstimate, WHITE, structural_gate
 from diffship.diagnose.words import channel_words, overshoots, reversals, where_in_words
 
 D = math.pi / 180

@@ -27,8 +27,8 @@ from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
 from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, rank, verdict_lines
-from .where import (GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, physical_position_floor,
-                    structural_gate, where_analysis)
+from .floors import physical_position_floor
+from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
 __all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]

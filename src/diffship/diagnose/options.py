@@ -21,7 +21,7 @@ class DiagnoseOptions:
             positions included — :func:`~.diagnosis.diagnosis_channels`).
         noise: per-channel noise floor (known sensor noise); estimated from the data if None.
         position_accuracy: accuracy of the positioning system [m] (None: unknown); the position
-            floor is at least this (:func:`~.where.physical_position_floor`).
+            floor is at least this (:func:`~.floors.physical_position_floor`).
         position_drift: drift per distance sailed [-] the position floor allows (default
             0.1 %: a track off by 0.1 % of the distance sailed is at the floor).
 
