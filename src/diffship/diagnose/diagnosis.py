@@ -20,7 +20,7 @@ from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..models.effects import Augmented, applicability, library
+from ..models.effects import Augmented, applicability, is_ship3, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
@@ -179,10 +179,11 @@ def diagnose(
     t0 = time.perf_counter()
     spec = spec or model.spec()
     notes = []
-    # a model with its own rudder offset (Nomoto's delta0) would absorb the rudder_offset
-    # candidate: the base fit holds it at 0 and the candidate is the offset (:mod:`..models.effects.actuator`)
-    own_offset = "delta0" in spec.free_names and "rudder_offset" in o.effect_names and not applicability(
-        model, "rudder_offset", train)
+    # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same
+    # rudder angle offset): the base fit holds it at 0 and the candidate is the offset
+    # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is a sway force and yaw moment
+    own_offset = ("delta0" in spec.free_names and "rudder_offset" in o.effect_names and not is_ship3(model)
+                  and not applicability(model, "rudder_offset", train))
     if fit is None and own_offset:
         spec = spec.fix({"delta0": 0.0})
         notes.append("the base model's own rudder offset delta0 is held at 0 in the base fit: the rudder_offset "
@@ -218,7 +219,7 @@ def diagnose(
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
     effs, skipped = library(base, train, o.effect_names)
-    if "delta0" in fit.free and any(e.name == "rudder_offset" for e in effs):
+    if "delta0" in fit.free and not is_ship3(base) and any(e.name == "rudder_offset" for e in effs):
         effs = [e for e in effs if e.name != "rudder_offset"]
         skipped["rudder_offset"] = (f"the given base fit estimated the model's own rudder offset delta0 = "
                                     f"{fit.params['delta0']:.4g} rad (the same effect)")
