@@ -200,7 +200,8 @@ def _fit(args, say) -> int:
         check_rudder_sign(train + list(val), args.rudder_sign)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
-    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
+    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights,
+                                 x0_prior=args.x0 == "estimate", **_prior_options(args))
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
     results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
@@ -388,9 +389,10 @@ def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
 def write_outputs(args, model_name, results, ev_train, ev_val, train, val, report, say) -> None:
     """``--out DIR``: report.txt, fit.png, report.json and the fit file fit.json; ``--json``, ``--save``."""
     doc = to_json_dict(model_name, results, ev_train, ev_val)
-    best = results.get("output_error") or next(iter(results.values()))
-    extra = {"metrics": {"train": doc["methods"][best.method]["train"],
-                         "validation": doc["methods"][best.method]["validation"],
+    key = "output_error" if "output_error" in results else next(iter(results))
+    best = results[key]
+    extra = {"metrics": {"train": doc["methods"][key]["train"],
+                         "validation": doc["methods"][key]["validation"],
                          "validation_runs": [r.name for r in val]}}
     if "delta" in best.model.input_names:
         extra["training_manoeuvres"] = train_types_json(train)
