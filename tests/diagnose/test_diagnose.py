@@ -21,7 +21,7 @@ OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "final_params",
-             "not_applicable", "reference", "gap_gate", "timings_s"]
+             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "timings_s"]
 
 
 def _runs(truth, seed):
@@ -134,3 +134,17 @@ def test_force_residuals_say_when_smoothing_falls_back():
     assert all("bumpy" in n for n in out["notes"]) and len(out["notes"]) == 3
     assert "notes" not in force_residuals(usv_truth(), [run])
     assert out["X"]["rms"] >= 0.0
+
+
+@pytest.mark.slow
+def test_rudder_offset_on_a_nomoto_ship_is_attributed():
+    """A first-order Nomoto ship whose rudder is 0.8° off: the base fit holds the model's own
+    delta0 at 0 (the rudder_offset candidate stands for it) and the offset is attributed on the
+    held-out zigzags with its value (issue 28: it used to be absorbed, nothing attributed)."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.8 * D)
+    train, val = _runs(truth, 3)
+    d = diagnose(Nomoto1(), train, val, options=DiagnoseOptions(effects=("rudder_offset", "actuator_lag", "damping_rr")))
+    assert d.selected[:1] == ("rudder_offset",)
+    assert d.final_model.param_values()["delta_off"] == pytest.approx(0.8 * D, rel=0.1)
+    assert d.base_fit.params["delta0"] == 0.0 and "delta0" not in d.base_fit.free
+    assert any("delta0" in n for n in d.notes)

@@ -44,7 +44,7 @@ def _sim(model, run):
 def test_every_fossen3_effect_is_exact_at_null_and_acts_at_probe(usv):
     base, run = usv
     effs, skipped = library(base, [run])
-    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured here, so all 12 apply
+    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured here, so all 14 apply
     ref = _sim(base, run)
     # all twelve composed in one model (one compilation): identical at null ...
     everything = Augmented(base, effs)
@@ -68,13 +68,19 @@ def test_nomoto_effects_exact_at_null(cls):
     base = cls()
     run = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=20.0)[0]
     effs, skipped = library(base, [run])
-    assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "damping_rr"}
-    assert "already has a rudder offset" in skipped["rudder_offset"]
+    assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "rudder_offset", "damping_rr",
+                                      "lag_trend"}
+    assert "rudder_offset" not in skipped
     ref = _sim(base, run)
     everything = Augmented(base, effs)
     assert float(jnp.max(jnp.abs(_sim(everything, run).ys - ref.ys))) <= 1e-12
     for e in effs:
         assert float(jnp.max(jnp.abs(_sim(everything.with_params(e.PROBE), run).ys - ref.ys))) > 1e-5, e.name
+    # the rudder offset is the model's own delta0 (ṙ = (K(δ + δ0) − r)/T1): the same simulation
+    off = _sim(augment(base, "rudder_offset", delta_off=0.01), run)
+    own = _sim(base.with_params({"delta0": 0.01}), run)
+    assert float(jnp.max(jnp.abs(off.ys - own.ys))) <= 1e-12
+    assert float(jnp.max(jnp.abs(off.ys - ref.ys))) > 1e-3
 
 
 def test_current_shifts_ground_velocity_by_the_current():
@@ -87,6 +93,22 @@ def test_current_shifts_ground_velocity_by_the_current():
     cur = simulate_run(m, t, inp, np.array([0, 0, 0, 2.0, 0, 0]))
     assert cur["u"][-1] - plain["u"][-1] == pytest.approx(0.3, abs=1e-6)
     assert cur["x0"][-1] - plain["x0"][-1] == pytest.approx(0.3 * 200.0, rel=0.05)
+
+
+def test_changing_current_moves_the_ground_velocity_with_it():
+    """A current changing along the run, v_c(t) = v_c0 + v̇_c t: in steady straight motion the
+    over-ground velocity follows it (the Rᵀ v̇_c term), and with no trend it is the constant current."""
+    base = usv_truth()
+    t = np.arange(0.0, 200.0, 0.1)
+    inp = {"tau_x": np.full(t.size, 3000.0), "tau_y": np.zeros(t.size), "tau_z": np.zeros(t.size)}
+    x0 = np.array([0, 0, 0, 2.0, 0, 0])
+    plain = simulate_run(base, t, inp, x0)
+    tr = simulate_run(augment(base, "current_trend", Vcx_0=0.1, dVcx=1e-3), t, inp, x0)
+    assert tr["u"][-1] - plain["u"][-1] == pytest.approx(0.1 + 1e-3 * t[-1], abs=2e-3)
+    assert tr["x0"][-1] - plain["x0"][-1] == pytest.approx(0.1 * t[-1] + 0.5e-3 * t[-1] ** 2, rel=0.05)
+    const = simulate_run(augment(base, "current", Vcx=0.1), t, inp, x0)
+    same = simulate_run(augment(base, "current_trend", Vcx_0=0.1), t, inp, x0)
+    assert np.max(np.abs(const["x0"] - same["x0"])) < 1e-9
 
 
 def test_parameters_and_bad_names():

@@ -20,11 +20,14 @@ from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..models.effects import Augmented, library
+from ..models.effects import Augmented, applicability, is_ship3, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
+from .start import StartRule
+from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, rank, verdict_lines
+from .floors import physical_position_floor
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
@@ -50,7 +53,12 @@ class Diagnosis:
     (the base refitted by the refit procedure with no effect, when that lowers its training cost);
     ``possible`` effects under the gap gate (low confidence, not selected); ``partial`` whether a
     structural gap (E ≥ the gate) remains after the selected effects; ``gate`` the gap gate used
-    (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`).
+    (from the sample counts unless ``DiagnoseOptions.gap_gate`` fixes it; :func:`~.where.structural_gate`);
+    ``start`` the held-out start rule (:mod:`.start`) and the start the base and final models used
+    (offsets from the logged state in noise floors, the bounds that were active); ``notes`` what
+    the diagnosis changed in the base fit (a model's own rudder offset held at 0);
+    ``time_variation`` the check of the first selected effect for a change along the run
+    (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``).
     """
 
     model_name: str
@@ -80,6 +88,9 @@ class Diagnosis:
     possible: tuple[str, ...] = ()
     partial: bool = False
     gate: GapGate | None = None
+    start: dict | None = None
+    notes: tuple[str, ...] = ()
+    time_variation: TimeVariation | None = None
 
     @property
     def gap_gate(self) -> float:
@@ -118,6 +129,9 @@ class Diagnosis:
             "not_applicable": self.skipped,
             "reference": self.reference,
             "gap_gate": dataclasses.asdict(self.gate) if self.gate is not None else None,
+            "start": self.start,
+            "notes": list(self.notes),
+            "time_variation": self.time_variation.to_dict() if self.time_variation else None,
             "timings_s": self.timings,
         }
 
@@ -164,6 +178,17 @@ def diagnose(
                         "held-out runs only, never on the training fit")
     t0 = time.perf_counter()
     spec = spec or model.spec()
+    notes = []
+    # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same
+    # rudder angle offset): the base fit holds it at 0 and the candidate is the offset
+    # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is a sway force and yaw moment
+    own_offset = ("delta0" in spec.free_names and "rudder_offset" in o.effect_names and not is_ship3(model)
+                  and not applicability(model, "rudder_offset", train))
+    if fit is None and own_offset:
+        spec = spec.fix({"delta0": 0.0})
+        notes.append("the base model's own rudder offset delta0 is held at 0 in the base fit: the rudder_offset "
+                     "candidate stands for it")
+        say(notes[-1])
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
         chans0 = o.channels or diagnosis_channels(model, train)
@@ -179,7 +204,8 @@ def diagnose(
         floor = dict(o.noise)
         noise_info = {c: {"sigma": floor[c], "method": "given (DiagnoseOptions.noise)"} for c in chans}
     else:
-        est = noise_estimates(list(train) + list(val), chans, base.angle_outputs)
+        est = physical_position_floor(noise_estimates(list(train) + list(val), chans, base.angle_outputs), val,
+                                      o.position_accuracy, o.position_drift)
         floor = {c: e.sigma for c, e in est.items()}
         noise_info = {c: dataclasses.asdict(e) for c, e in est.items()}
     # the gap gate: the null scatter of E for these sample counts (p/N: the base fit's parameters)
@@ -193,6 +219,10 @@ def diagnose(
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
     effs, skipped = library(base, train, o.effect_names)
+    if "delta0" in fit.free and not is_ship3(base) and any(e.name == "rudder_offset" for e in effs):
+        effs = [e for e in effs if e.name != "rudder_offset"]
+        skipped["rudder_offset"] = (f"the given base fit estimated the model's own rudder offset delta0 = "
+                                    f"{fit.params['delta0']:.4g} rad (the same effect)")
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
     say(f"screening {len(effs)} candidate effects ({', '.join(e.name for e in effs)})...")
@@ -201,7 +231,8 @@ def diagnose(
     scr, sinfo = ws.screen()
     timings["screen"] = time.perf_counter() - t0
     timings["screen_cpu"] = time.process_time() - c0  # CPU time of all threads, compilation included
-    validation = Validation(ws, val, floor, chans)
+    start_rule = StartRule(bound=o.start_bound)
+    validation = Validation(ws, val, floor, chans, start_rule)
 
     # -- where ---------------------------------------------------------------------------------
     t0 = time.perf_counter()
@@ -238,20 +269,32 @@ def diagnose(
     t0 = time.perf_counter()
     sel = search.select(singles)
     timings["greedy"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    tv = time_variation(search, singles, sel.selected, say)
+    timings["time_variation"] = time.perf_counter() - t0
 
     # -- how far and verdicts --------------------------------------------------------------------
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
                    sel.rivals, sel.note, sel.possible)
     shrink = sel.shrink(before.E)
+    lines = verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
+                          sel.possible, o.min_shrink)
+    possible = sel.possible
+    if tv is not None and tv.possible:
+        lines = (*lines, tv.line())
+        possible = (*possible, tv.varying)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
         rmse_before=rmse_per_channel(before.evaluation, chans),
         rmse_after=rmse_per_channel(sel.final.evaluation, chans),
         E_before=before.E, E_after=sel.final.E, shrink=shrink,
-        verdict=verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
-                              sel.possible, o.min_shrink),
+        verdict=lines,
         base_fit=fit, final_model=search.final_model(sel), eval_before=before.evaluation,
         eval_after=sel.final.evaluation, skipped=skipped, timings=timings, val_runs=tuple(val), reference=reference,
-        possible=sel.possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
+        possible=possible, partial=bool(sel.selected) and sel.final.E >= gate.value, gate=gate,
+        start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
+               "base": before.start.to_dict() if before.start else None,
+               "final": sel.final.start.to_dict() if sel.final.start else None},
+        notes=tuple(notes), time_variation=tv,
     )

@@ -20,6 +20,10 @@ class DiagnoseOptions:
         channels: channels of the base fit (default: what the model predicts and the runs have,
             positions included — :func:`~.diagnosis.diagnosis_channels`).
         noise: per-channel noise floor (known sensor noise); estimated from the data if None.
+        position_accuracy: accuracy of the positioning system [m] (None: unknown); the position
+            floor is at least this (:func:`~.floors.physical_position_floor`).
+        position_drift: drift per distance sailed [-] the position floor allows (default
+            0.1 %: a track off by 0.1 % of the distance sailed is at the floor).
 
     Effort:
         max_refits: candidates refitted by screening rank, plus up to ``max_absorbed`` of those
@@ -30,6 +34,12 @@ class DiagnoseOptions:
         max_pairs: when no single effect passes, refit up to this many pairs of the best single
             candidates jointly (two effects that compensate each other alone).
         max_iter: Levenberg–Marquardt iterations per refit; fit_steps: of the base fit.
+
+    Held-out start (:mod:`.start`):
+        start_bound: every compared model starts each held-out run at the logged state, its
+            logged states (position, heading, velocities, rate) moved at most this many noise
+            floors to fit the run (the same rule for the base and every candidate; ``inf``: the
+            former free estimate, which lets a wrong model hide its error in the start).
 
     Acceptance rule (see :mod:`.which`):
         gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor). None
@@ -53,6 +63,8 @@ class DiagnoseOptions:
     effects: Sequence[str] | str = "all"
     channels: Sequence[str] | None = None
     noise: Mapping[str, float] | None = None
+    position_accuracy: float | None = None
+    position_drift: float = 1e-3
     max_refits: int = 4
     max_absorbed: int = 3
     refit_all: bool = False
@@ -60,6 +72,7 @@ class DiagnoseOptions:
     max_pairs: int = 3
     max_iter: int = 30
     fit_steps: int = 200
+    start_bound: float = 3.0
     gap_gate: float | None = None
     gate_z: float = 3.0
     min_gain: float = 0.05
@@ -77,6 +90,8 @@ class DiagnoseOptions:
             if bad:
                 raise DataError(f"unknown effect(s) {', '.join(map(repr, bad))}; "
                                 f"choose from: {', '.join(EFFECT_NAMES)}")
+        if not self.start_bound > 0:
+            raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
         if self.channels is not None:
             object.__setattr__(self, "channels", tuple(self.channels))
 

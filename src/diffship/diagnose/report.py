@@ -33,6 +33,15 @@ def to_markdown(d) -> str:
         f"{c}: {CHANNEL_UNITS.get(c, ('SI', 1.0))[1] * v['sigma']:.3g} {CHANNEL_UNITS.get(c, ('SI', 1.0))[0]} ({v['method']}"
         + (f", lag-1 correlation {v['rho']:.2f}" if "rho" in v else "") + (f"; {v['note']}" if v.get("note") else "") + ")"
         for c, v in getattr(d, "noise_estimate", {}).items())]
+    st = getattr(d, "start", None) or {}
+    if st.get("rule"):
+        L += ["", f"Held-out start: {st['rule']}."]
+        for key, label in (("base", "base"), ("final", "final model")):
+            info = st.get(key) or {}
+            held = {r: s for r, s in (info.get("at_bound") or {}).items() if s}
+            if held:
+                L.append(f"- {label}: wanted to start further from the log than the noise allows in "
+                         + "; ".join(f"{r}: {', '.join(s)}" for r, s in held.items()))
     L += ["", "E: RMS error over the noise floor (dimensionless); parameters in SI units, angles in rad.", "",
           "| phase | time share | E |", "|---|---|---|"]
     for p, v in d.where.per_phase.items():
@@ -142,9 +151,15 @@ def plot_all(d, out: Path) -> list[Path]:
             ax.plot(t, np.asarray(run[c]), color="0.6", lw=0.8, label="measured")
             ax.plot(t, d.eval_before.simulated[run.name][c], "--", color="tab:red", lw=1, label="base")
             ax.plot(t, d.eval_after.simulated[run.name][c], color="tab:blue", lw=1, label="+ " + ("+".join(d.selected) or "nothing"))
+            # the start each model used (the held-out start rule, :mod:`.start`) and the logged one
+            ax.plot(t[0], float(np.asarray(run[c])[0]), "o", mfc="none", color="k", ms=6, label="logged start")
+            ax.plot(t[0], float(d.eval_before.simulated[run.name][c][0]), "x", color="tab:red", ms=6, label="base start")
+            ax.plot(t[0], float(d.eval_after.simulated[run.name][c][0]), "+", color="tab:blue", ms=8, label="final start")
             ax.set_ylabel(c)
             if i == 0:
-                ax.set_title(f"held-out run {run.name}", fontsize=9)
+                bound = (d.start or {}).get("bound_noise_floors")
+                rule = f"; start: logged ± {bound:g} noise floors" if bound is not None else ""
+                ax.set_title(f"held-out run {run.name}{rule}", fontsize=9)
                 ax.legend(fontsize=7)
             if i == len(d.channels) - 1:
                 ax.set_xlabel("time [s]")

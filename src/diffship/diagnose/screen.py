@@ -26,7 +26,8 @@ o_k ≈ 0 means the base parameters can mimic the effect to first order).
 
 **Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base
 parameters, the chosen effects' parameters and the per-run initial states, warm-started at θ̂
-from each given φ start; the start with the lowest cost wins. Which candidates are refitted,
+from each given φ start, with the base fit's growing horizon (the first quarter of every run,
+then the whole runs: :meth:`Workspace._warmup`); the start with the lowest cost wins. Which candidates are refitted,
 from which starts, and how they are judged on the held-out runs is decided in :mod:`.which`
 and :mod:`.shrink`.
 """
@@ -56,6 +57,8 @@ __all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX"]
 
 #: Largest number of effect parameters refitted at once (one or two effects).
 P_MAX = 5
+#: A refit's continuation stops when a round of 4·max_iter steps lowers the cost by less than this share.
+STALL = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,11 +98,12 @@ class Workspace:
         effects: candidate effects (at null).
         runs: training runs.
         channels: fitted channels; ``scales``: their normalisation (the base fit's noise σ).
+        warmup: fraction of every run each refit converges on first (:meth:`_warmup`; 0: none).
     """
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
                  scales: dict[str, float], x0_train: Sequence[np.ndarray] | None = None,
-                 integrator: AbstractIntegrator = Diffrax()):
+                 integrator: AbstractIntegrator = Diffrax(), warmup: float = 0.25):
         self.base = base
         self.spec = spec
         self.integrator = integrator
@@ -136,6 +140,7 @@ class Workspace:
         self.x0_scale = x0_scales(base, batch, [base.state_names[i] for i in self.x0_idx])
         self.train = self._data(runs, x0_train, batch)
         self.base_cost = math.inf  # the base fit's training cost, set by the screen
+        self.warmup = warmup
 
     def _data(self, runs, x0_base=None, batch=None) -> dict:
         b = batch if batch is not None else make_batch(self.model, runs, self.channels)
@@ -271,15 +276,16 @@ class Workspace:
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3,
-              finish: bool | None = None) -> RefitResult:
+              finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
-        Each start is solved by the output-error kernel's Levenberg–Marquardt (the unselected
+        Each start is solved by the output-error kernel's Levenberg–Marquardt, first on the first
+        quarter of every run (:meth:`_warmup`), then on the whole runs (the unselected
         effect coordinates have zero Jacobian columns and stay at zero); the start with the
         lowest cost wins, and — when it already removes half the base training cost — is
         continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
-        step cap and still lowers the cost (``converged`` says whether it ended before the cap);
+        step cap and still lowers the cost by :data:`STALL` (0.1 %) or more (``converged`` says whether it ended before the cap);
         ``finish=True`` continues it whatever its cost (the no-effect reference refit of
         :func:`~.diagnosis.diagnose`, so that it gets at least the effort of any candidate). Standard errors come from :func:`diffship.fit.covariance.covariance`
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
@@ -293,7 +299,7 @@ class Workspace:
         nk = self.n_theta + P_MAX
         active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))] + \
             list(range(nk, nk + self.n_x0()))
-        z_start = self.z0()
+        z_start = self.z0(base_values=base_start)  # the base fit's values unless given
         best = None
         for st in starts:  # LM from every start (non-smooth effects have flat regions)
             phi0 = base_phi.copy()
@@ -303,18 +309,21 @@ class Workspace:
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
                 continue
-            z, _, steps, r = self.kernel.call("solve", z_start, kd, max_steps=4 * max_iter, rtol=1e-8, atol=1e-8,
+            z1, warm_steps = self._warmup(z_start, kd, max_iter)
+            z, _, steps, r = self.kernel.call("solve", z1, kd, max_steps=4 * max_iter, rtol=1e-8, atol=1e-8,
                                               ftol=1e-12)
             r = np.asarray(r)
+            steps = int(steps) + warm_steps
             cost = 0.5 * float(r @ r)
             if math.isfinite(cost) and (best is None or cost < best[2]):
-                best = (np.asarray(z), r, cost, int(steps), phi0)
+                best = (np.asarray(z), r, cost, int(steps), phi0, warm_steps)
         if best is None:
             raise FitError(f"refit with {names}: every start blows up")
-        z, r, cost, it, phi0 = best
+        z, r, cost, it, phi0, warm_steps = best
+        it_whole = it - warm_steps
         # a refit that stops at the step cap has not converged: continue the best start (same
         # compiled program) while it still lowers the cost, up to ``rounds`` more times
-        converged = it < 4 * max_iter
+        converged = it_whole < 4 * max_iter
         # only a refit that already explains most of the training cost is worth finishing (a
         # wrong candidate far from the data crawls; its verdict does not depend on the last digits)
         promising = cost < 0.5 * self.base_cost if finish is None else finish
@@ -328,8 +337,11 @@ class Workspace:
             if not (math.isfinite(c1) and c1 < cost):
                 break
             converged = int(steps) < 4 * max_iter or (cost - c1) < 1e-9 * cost
+            stalled = (cost - c1) < STALL * cost
             z, r, it = np.asarray(z1), r1, it + int(steps)
             cost = c1
+            if stalled:  # a mis-specified model crawls: its verdict does not hang on the last 0.1 %
+                break
         J = self.jacobian(z, S, phi0)[:, active]
         cov = covariance(J, r, dof=self.train["batch"].n_residuals - len(active)).matrix
         w = self.selection(pn) @ z[self.n_theta:nk]
@@ -346,6 +358,32 @@ class Workspace:
                      + ", ".join(f"{n}={v:.4g}±{stderr[n]:.2g}" for n, v in values.items()))
         return RefitResult(tuple(names), {**fixed_out, **values}, stderr, base_values, cost, it,
                            time.perf_counter() - t0, ok, converged)
+
+
+    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int) -> tuple[np.ndarray, int]:
+        """Growing horizon, as the base fit (:func:`~diffship.fit.fit_output_error`, ``warmup``):
+        the refit first converges on the first quarter of every run (when that is at least 200
+        samples), then continues on the whole runs. From a base fit distorted by an unmodelled
+        effect, a warm start on the whole runs crawls (a current's refit stopped at 40 % of the
+        true current after 120 steps); on the short horizon the effect and the base parameters
+        move back together (the same current to 0.5 %). Returns the start of the whole-run solve
+        (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost)
+        and the warm-up's steps."""
+        n_full = int(kd.ts.shape[1])
+        n_warm = int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
+        if not n_warm:
+            return z_start, 0
+        zw, _, steps, _ = self.kernel.call("solve", z_start, kd.head(n_warm), max_steps=4 * max_iter, rtol=1e-8,
+                                           atol=1e-8, ftol=1e-12)
+        rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
+        if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
+            return z_start, int(steps)
+        # kept only when it also helps on the whole runs: from a base already fitted to the whole
+        # runs, a short-horizon fit of a wrong candidate (or of no effect) lands in a worse basin
+        r0 = np.asarray(self.kernel.call("residuals", z_start, kd))
+        if float(rw @ rw) >= float(r0 @ r0):
+            return z_start, int(steps)
+        return np.asarray(zw), int(steps)
 
 
 def _inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:

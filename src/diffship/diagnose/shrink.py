@@ -1,8 +1,8 @@
 r"""How far the gap shrinks: candidate models scored on the held-out runs, and the greedy path.
 
 Every compared model (the base, each refit, each pair or greedy step) is simulated on the
-validation runs with its initial states estimated per run exactly as for the base
-(:meth:`~.screen.Workspace.fitted_x0`), and scored by the noise-normalised error
+validation runs from the start the same rule gives every model (:mod:`.start`: logged states
+move only within a few noise floors of the log), and scored by the noise-normalised error
 
 .. math::
     E = \sqrt{\mathrm{mean}_c (\mathrm{RMSE}_c/\sigma_c)^2}
@@ -33,6 +33,7 @@ from ..data import Run
 from ..metrics import Evaluation, evaluate
 from ..models import AbstractModel
 from .screen import RefitResult, Workspace
+from .start import StartInfo, StartRule, held_out_starts
 from .where import normalised_error
 
 __all__ = ["Score", "Validation", "PathStep", "structural_gap", "structural_shrink", "rmse_per_channel"]
@@ -60,33 +61,41 @@ class Score:
     evaluation: Evaluation
     E: float
     E_runs: dict[str, float]
+    start: StartInfo | None = None
 
 
 class Validation:
     """The held-out runs, their noise floor and channels; scores the workspace's models."""
 
-    def __init__(self, ws: Workspace, runs: Sequence[Run], floor: dict[str, float], channels: Sequence[str]):
+    def __init__(self, ws: Workspace, runs: Sequence[Run], floor: dict[str, float], channels: Sequence[str],
+                 start: StartRule = StartRule()):
         self.ws = ws
+        self.start = start
         self.runs = tuple(runs)
         self.floor = floor
         self.channels = tuple(channels)
         self.data = ws.data(self.runs)
 
-    def _score(self, model: AbstractModel, x0) -> Score:
+    def _score(self, model: AbstractModel, x0, start: StartInfo) -> Score:
         ev = evaluate(model, self.runs, x0=x0, integrator=self.ws.integrator)
         return Score(model, ev, normalised_error(ev, self.floor, self.channels),
-                     {r.name: normalised_error(ev, self.floor, self.channels, r.name) for r in self.runs})
+                     {r.name: normalised_error(ev, self.floor, self.channels, r.name) for r in self.runs}, start)
+
+    def starts(self, values: dict[str, float], base_values: dict[str, float] | None):
+        """Initial states of the held-out runs by the start rule (:mod:`.start`)."""
+        return held_out_starts(self.ws, self.data, values, base_values, self.floor, self.start,
+                               [r.name for r in self.runs])
 
     def base(self) -> Score:
         """The base model (no effects)."""
         nb = len(self.ws.base.state_names)
-        x0 = self.ws.fitted_x0(self.data, {}, None)
-        return self._score(self.ws.base, [x[:nb] for x in x0])
+        x0, info = self.starts({}, None)
+        return self._score(self.ws.base, [x[:nb] for x in x0], info)
 
     def refit(self, rf: RefitResult) -> Score:
         """The workspace model at a refit's effect and base values."""
-        return self._score(self.ws.model_with(rf.values, rf.base_values),
-                           self.ws.fitted_x0(self.data, rf.values, rf.base_values))
+        x0, info = self.starts(rf.values, rf.base_values)
+        return self._score(self.ws.model_with(rf.values, rf.base_values), x0, info)
 
 
 @dataclasses.dataclass(frozen=True)

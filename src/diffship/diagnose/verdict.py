@@ -16,7 +16,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
-from ..models.effects import FAMILY, Effect
+from ..models.effects import FAMILY, POSSIBLE_ONLY, Effect
 from .options import DiagnoseOptions
 from .screen import ScreenResult
 from .where import GapBudget, WhereAnalysis
@@ -101,7 +101,10 @@ def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects:
                   "confusable_with": tuple(e.confusable_with), "separating_manoeuvre": e.separating}
         c = singles.get(n)
         if c is None:
-            if s.orthogonal_fraction == 0.0 and s.predicted_fraction == 0.0:
+            if n in POSSIBLE_ONLY:
+                verdict = (f"possible only (a {POSSIBLE_ONLY[n]} changing along the run): checked for the selected "
+                           "effect, see time_variation")
+            elif s.orthogonal_fraction == 0.0 and s.predicted_fraction == 0.0:
                 verdict = "not identifiable from these runs (no effect on the fitted channels)"
             else:
                 verdict = "not refitted (screen negligible)"
@@ -167,6 +170,11 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
     where_line = (f"Where: validation error {E_before:.2f}× the noise floor "
                   f"({100 * gap.share_struct:.0f} % structural); mostly in {worst} "
                   f"({100 * pc[worst]['share']:.0f} % of the error), worst phase: {worst_phase}.")
+    if getattr(where, "in_words", ()):
+        # in a naval architect's words: heading, rate and speed first (:mod:`.words`)
+        where_line = (f"Where: validation error {E_before:.2f}× the noise floor "
+                      f"({100 * gap.share_struct:.0f} % structural, {100 * pc[worst]['share']:.0f} % of it in {worst}): "
+                      f"{where.summary}.")
     r = {x.effect: x for x in ranking}
     if E_before < gap_gate:
         which = (f"Which: no structural gap detected (validation error within {100 * (gap_gate - 1):.0f} % of the "

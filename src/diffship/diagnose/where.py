@@ -70,8 +70,10 @@ from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..preprocess import Filter, smooth_and_derivative
 from ..models.effects import is_ship3, steering_inputs
+from .periodic import periodic_residual
+from .words import channel_words, overshoots, where_in_words
 
-__all__ = ["noise_floor", "noise_estimates", "NoiseEstimate", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
+__all__ = ["noise_floor", "noise_estimates", "PHYSICAL", "NoiseEstimate", "normalised_error", "phases", "where_analysis", "WhereAnalysis", "GapBudget",
            "gap_budget", "force_residuals", "PHASES", "structural_gate", "GapGate"]
 
 PHASES = ("approach", "transient", "steady_turn", "counter_steer", "straight")
@@ -152,6 +154,10 @@ def noise_estimates(runs: Sequence[Run], channels: Sequence[str], angles=("psi",
     return out
 
 
+#: ``NoiseEstimate.method`` prefix of a floor set by the sensor, not estimated (:mod:`.floors`)
+PHYSICAL = "physical"
+
+
 #: relative variance × N of the white second-difference variance estimator (module docstring)
 SECOND_DIFF_VAR = 140.0 / 36.0
 
@@ -181,7 +187,7 @@ def structural_gate(channels: Sequence[str], floor_runs: Sequence[Run], val_runs
         phi = min(e.rho, 0.98) if e is not None and e.method == COLOURED else 0.0
         kappa = (1 + phi * phi) / (1 - phi * phi)
         v += 2 * kappa / max(n_v, 1)
-        if est is not None:
+        if est is not None and not (e is not None and e.method.startswith(PHYSICAL)):
             v += SECOND_DIFF_VAR * kappa / max(n_f, 1)
     sd = math.sqrt(v) / max(len(channels), 1)
     how = "given noise: validation sampling only" if est is None else "validation sampling and noise-floor estimation"
@@ -249,7 +255,10 @@ class WhereAnalysis:
 
     ``per_channel``: RMSE, noise floor, ratio and share of the error per channel; ``per_run``:
     E and RMSE per run; ``per_phase``: time share, E and RMSE per manoeuvre phase;
-    ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``residual_tests``:
+    ``per_region``: E and bias per quartile bin of U, |r|, |β|, |steering|; ``in_words``: per
+    channel (heading, rate, speed first) the error in user units and what it is, ``zigzag``: the
+    overshoot angles measured and simulated per zigzag run [°] (:mod:`.words`); ``periodic``: a
+    periodic residual the steering does not drive (:mod:`.periodic`); ``residual_tests``:
     ACF, CCF with the input and its rate, whiteness/independence flags; ``force_residuals``:
     inverse-dynamics RMS and mean per DOF (3-DOF models only, else None). ``residuals`` and
     ``phases`` (per run and channel / sample) feed the figures, not the JSON.
@@ -263,9 +272,19 @@ class WhereAnalysis:
     residuals: dict[str, dict[str, np.ndarray]]
     phases: dict[str, np.ndarray]
     force_residuals: dict | None = None
+    in_words: tuple[dict, ...] = ()
+    zigzag: dict | None = None
+    periodic: dict | None = None
+
+    @property
+    def summary(self) -> str:
+        """The miss in a naval architect's words (:func:`~.words.where_in_words`)."""
+        return where_in_words(list(self.in_words), self.zigzag or {}, self.per_phase, self.per_region, self.periodic)
 
     def to_dict(self) -> dict:
-        out = {"per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
+        out = {"in_words": list(self.in_words), "zigzag_overshoots_deg": self.zigzag or {},
+               "periodic_residual": self.periodic,
+               "per_channel": self.per_channel, "per_run": self.per_run, "per_phase": self.per_phase,
                "per_region": self.per_region, "residual_tests": self.residual_tests}
         if self.force_residuals is not None:
             out["force_residuals"] = self.force_residuals
@@ -366,9 +385,20 @@ def where_analysis(model: AbstractModel, runs: Sequence[Run], ev: Evaluation, fl
                    "white": bool(np.mean(np.abs(acf[1:]) > band) <= 0.1),
                    "independent_of_input": bool(np.mean(np.abs(ccf) > band) <= 0.1 and np.mean(np.abs(ccd) > band) <= 0.1),
                    "ccf_peak_lag_s": float(np.argmax(np.abs(ccd)) * dt)}
+    lpp = model.param_values().get("Lpp") if "Lpp" in model.param_names else None
+    words = channel_words(runs, ev.simulated, {c: ev.rmse[c] for c in chans}, floor, model.angle_outputs, lpp)
+    zig = {}
+    if "psi" in chans:
+        for run in runs:
+            m = overshoots(run.time, _steer(model, run), np.asarray(run["psi"]))
+            if m:
+                p = overshoots(run.time, _steer(model, run), np.asarray(ev.simulated[run.name]["psi"]))
+                zig[run.name] = {"measured": [float(np.degrees(x)) for x in m], "model": [float(np.degrees(x)) for x in p]}
     return WhereAnalysis(per_channel=per_channel, per_run=per_run, per_phase=per_phase, per_region=per_region,
                          residual_tests=corr, residuals=res, phases=labels,
-                         force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None)
+                         force_residuals=force_residuals(model, runs, flt) if is_ship3(model) else None,
+                         in_words=tuple(words), zigzag=zig,
+                         periodic=periodic_residual(runs, res, {r.name: _steer(model, r) for r in runs}, chans))
 
 
 def force_residuals(model: AbstractModel, runs: Sequence[Run], flt: Filter = Filter()) -> dict:

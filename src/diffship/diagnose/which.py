@@ -1,6 +1,7 @@
 r"""Which effect explains the gap: refits of the screened candidates, judged on held-out runs only.
 
-After the score-test screen (:mod:`.screen`), the top ``max_refits`` candidates by predicted
+After the score-test screen (:mod:`.screen`) — all candidates when there are no more than
+``max_refits + max_absorbed`` of them, else the top ``max_refits`` candidates by predicted
 fraction f_k, plus up to ``max_absorbed`` of those the base parameters absorb (0 < o_k < 0.1,
 which the screen under-rates), or all of them, are refitted with warm starts (smooth effects
 from the null, non-smooth ones from the probe magnitude × 1, 0.3, 3) and scored on the
@@ -66,7 +67,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..models import AbstractModel
-from ..models.effects import Augmented, Effect
+from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
 from .options import DiagnoseOptions
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace
 from .shrink import PathStep, Score, Validation, structural_shrink
@@ -120,8 +121,12 @@ class Selection:
 
 def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:
     """Candidates to refit, in screening order (see the module docstring)."""
+    # effects that are only ever possible (a changing current or lag) are refitted by :mod:`.variation`
+    screen = [s for s in screen if s.effect not in POSSIBLE_ONLY]
     order = [s.effect for s in screen if s.orthogonal_fraction > 0 or s.predicted_fraction > 0]
-    if options.refit_all:
+    # few candidates (a Nomoto model's five): refit them all, within the effort the rule allows anyway
+    # (a 1° rudder zero error on the KVLCC2 logs screened last, behind four probe secants, and was never refitted)
+    if options.refit_all or len(order) <= options.max_refits + options.max_absorbed:
         return order
     low = [s.effect for s in screen if 0 < s.orthogonal_fraction < 0.1 and s.effect not in order[:options.max_refits]]
     return order[:options.max_refits] + low[:options.max_absorbed]

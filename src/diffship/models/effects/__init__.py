@@ -18,6 +18,7 @@ from .actuator import ActuatorLag as ActuatorLag
 from .actuator import InputDelay as InputDelay
 from .actuator import RateLimit as RateLimit
 from .actuator import RudderOffset as RudderOffset
+from .actuator import NomotoRudderOffset as NomotoRudderOffset
 from .augmented import Augmented as Augmented
 from .current import Current as Current
 from .damping import DampingRR as DampingRR
@@ -29,16 +30,20 @@ from .damping import SpeedDependence as SpeedDependence
 from .registry import EFFECT_NAMES as EFFECT_NAMES
 from .registry import EFFECTS as EFFECTS
 from .registry import FAMILY as FAMILY
+from .registry import POSSIBLE_ONLY as POSSIBLE_ONLY
 from .registry import applicability as applicability
 from .registry import augment as augment
 from .registry import library as library
 from .registry import make_effect as make_effect
 from .sensor import HeadingBias as HeadingBias
+from .current import CurrentTrend as CurrentTrend
+from .actuator import LagTrend as LagTrend
 from .wind import Wind as Wind
 
 __all__ = [
-    "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "applicability", "make_effect",
+    "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "POSSIBLE_ONLY", "applicability", "make_effect",
     "library", "augment", "is_ship3", "steering_inputs",
-    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset",
+    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset",
     "DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR", "Wind",
+    "CurrentTrend", "LagTrend",
 ]

@@ -21,8 +21,12 @@ False``). Time constants are clamped below at a fraction of the sample interval 
 stable during fits.
 
 **Rudder offset** (propeller walk, rudder/jet offset, thrust asymmetry) is a constant sway
-force and yaw moment on a 3-DOF model (``force`` hook); Nomoto models already carry it as
-``delta0``.
+force and yaw moment on a 3-DOF model (``force`` hook). On a Nomoto model it is the rudder
+angle offset :math:`\delta_{off}` added to the rudder (:class:`NomotoRudderOffset`,
+:math:`\dot r = (K(\delta + \delta_{off}) - r)/T_1` for the first-order model): the model's own
+``delta0`` describes the same thing, so the diagnosis holds ``delta0`` at 0 in the base fit
+when ``rudder_offset`` is a candidate (:func:`~diffship.diagnose.diagnose`), and the effect is
+not applicable where a given base fit already estimated ``delta0``.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ import jax.numpy as jnp
 
 from ._base import DataFacts, Effect, is_ship3, param, scalar
 
-__all__ = ["InputDelay", "ActuatorLag", "RateLimit", "RudderOffset"]
+__all__ = ["InputDelay", "ActuatorLag", "LagTrend", "RateLimit", "RudderOffset", "NomotoRudderOffset"]
 
 
 class _InputEffect(Effect):
@@ -119,6 +123,35 @@ class ActuatorLag(_InputEffect):
         return self._put(ub, xe, on), (self._sel(ub) - xe) / T
 
 
+class LagTrend(_InputEffect):
+    r"""An actuator lag that changes during a run, :math:`T_a(t) = T_{a,0} + \dot T_a\,t` (t: the
+    run's clock; null: no lag) — a *possible* effect only (:mod:`diffship.diagnose`): a steering
+    gear that slows as its oil warms, or a lag that depends on the load. Settled by the
+    ``separating`` experiment, not by the fit."""
+
+    name: ClassVar[str] = "lag_trend"
+    input_order: ClassVar[int] = 2
+    PROBE: ClassVar[dict[str, float]] = {"T_act0": 1.0, "dT_act": 0.01}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"T_act0": 0.2, "dT_act": 1e-3}
+    signature: ClassVar[str] = "a lag residual after steering steps that grows (or shrinks) along the run"
+    confusable_with: ClassVar[tuple[str, ...]] = ("actuator_lag",)
+    separating: ClassVar[str] = ("rudder steps of one size at the start and at the end of a long run, with the rudder "
+                                 "angle logged at the stock (the lag read off directly)")
+    T_act0: jnp.ndarray = param(0.0, lower=0.0, scale=0.5, unit="s", description="actuator time constant at t = 0")
+    dT_act: jnp.ndarray = param(0.0, scale=0.01, unit="s/s", description="rate of change of the time constant")
+
+    def extra_states(self, base):
+        return self._names(base)
+
+    def extra_init(self, base, y0):
+        return [float(y0.get(n, 0.0)) for n in self._names(base)]
+
+    def apply_input(self, base, t, xb, xe, ub):
+        on = (self.T_act0 > 0.0) | (self.dT_act != 0.0)
+        T = jnp.maximum(jnp.where(on, self.T_act0 + self.dT_act * t, 1.0), 0.5 * self.dt)
+        return self._put(ub, xe, on), (self._sel(ub) - xe) / T
+
+
 class RateLimit(_InputEffect):
     r"""Steering slew-rate limit: the input moves by at most ``A_i / T_slew`` per second."""
 
@@ -173,3 +206,35 @@ class RudderOffset(Effect):
 
     def force(self, base, t, xb, ub, uext):
         return jnp.stack([jnp.zeros_like(self.Y0), self.Y0, self.N0])
+
+
+class NomotoRudderOffset(Effect):
+    r"""Rudder angle offset on a Nomoto model: the hull sees :math:`\delta + \delta_{off}`
+    (null: 0). Smooth and linear in the offset, so the screen uses its forward-mode column."""
+
+    name: ClassVar[str] = "rudder_offset"
+    family: ClassVar[str] = "bias"
+    hook: ClassVar[str] = "input"
+    input_order: ClassVar[int] = 3  # after delay, rate limit and lag: an offset of the rudder as it acts
+    PROBE: ClassVar[dict[str, float]] = {"delta_off": 0.01}
+    MIN_RELEVANT: ClassVar[dict[str, float]] = {"delta_off": 0.1 * 3.141592653589793 / 180}
+    signature: ClassVar[str] = "non-zero mean yaw-rate residual with the rudder amidships; port/starboard asymmetry"
+    confusable_with: ClassVar[tuple[str, ...]] = ("current", "wind")
+    separating: ClassVar[str] = "symmetric port and starboard zigzags at the same speed, and a straight run at 0° rudder"
+    idx: tuple[int, ...] = eqx.field(static=True, default=(0,))
+    delta_off: jnp.ndarray = param(0.0, scale=0.01, unit="rad", description="rudder angle offset")
+
+    @classmethod
+    def applicability(cls, base, runs=None) -> str:
+        if is_ship3(base):
+            return f"{base.name} is a 3-DOF model (the offset is a sway force and yaw moment there)"
+        if "delta" not in base.input_names:
+            return f"{base.name} has no rudder input 'delta'"
+        return ""
+
+    @classmethod
+    def for_data(cls, base, facts: DataFacts) -> Effect:
+        return cls(idx=(base.input_names.index("delta"),))
+
+    def apply_input(self, base, t, xb, xe, ub):
+        return ub.at[jnp.asarray(self.idx)].add(self.delta_off), jnp.zeros((0,), dtype=xb.dtype)

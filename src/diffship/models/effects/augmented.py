@@ -33,7 +33,7 @@ from ...errors import ModelError
 from .._base import AbstractModel
 from ...params import Param, ParamSpec
 from ._base import Effect, body_velocity, is_ship3
-from .current import Current
+from .current import Current, CurrentTrend
 from .sensor import HeadingBias
 
 __all__ = ["Augmented"]
@@ -161,9 +161,11 @@ class Augmented(AbstractModel):
         return ub, uext
 
     def _kin(self):
-        cur = [e for e in self.effects if isinstance(e, Current)]
+        """The current-like effects (constant or changing, :mod:`.current`; their currents add)
+        and the heading bias."""
+        cur = [e for e in self.effects if isinstance(e, (Current, CurrentTrend))]
         hb = [e for e in self.effects if isinstance(e, HeadingBias)]
-        return (cur[0] if cur else None), (hb[0] if hb else None)
+        return cur, (hb[0] if hb else None)
 
     def vector_field(self, t, x, u):
         r"""With a current the velocity states are **over ground** (what GNSS measures, so the
@@ -176,14 +178,20 @@ class Augmented(AbstractModel):
         xb, xes = self._split_x(x)
         ub, uext = self._split_u(u)
         cur, hb = self._kin()
-        kin = (cur is not None or hb is not None) and is_ship3(base)
+        kin = (bool(cur) or hb is not None) and is_ship3(base)
         xg = xb
         if kin:
             ip, iu = base.state_names.index("psi"), base.state_names.index("u")
             psi_t = xb[ip] - hb.b_psi if hb is not None else xb[ip]
             c, s = jnp.cos(psi_t), jnp.sin(psi_t)
-            if cur is not None:
-                vcb_x, vcb_y = c * cur.Vcx + s * cur.Vcy, -s * cur.Vcx + c * cur.Vcy
+            if cur:
+                vels = [e.velocity(t) for e in cur]
+                Vx = sum(v[0][0] for v in vels)
+                Vy = sum(v[0][1] for v in vels)
+                Ax = sum(v[1][0] for v in vels)
+                Ay = sum(v[1][1] for v in vels)
+                vcb_x, vcb_y = c * Vx + s * Vy, -s * Vx + c * Vy
+                acb_x, acb_y = c * Ax + s * Ay, -s * Ax + c * Ay
                 xb = xb.at[iu].add(-vcb_x).at[iu + 1].add(-vcb_y)  # through-water velocities
         extra_dots = []
         for e, xe in zip(self.effects, xes):
@@ -202,8 +210,9 @@ class Augmented(AbstractModel):
             ug, vg, rg = body_velocity(base, xg)
             xd, yd = c * ug - s * vg, s * ug + c * vg
             dx = dx.at[base.state_names.index("x0")].set(xd).at[base.state_names.index("y0")].set(yd)
-            if cur is not None:
-                dx = dx.at[iu].add(rg * vcb_y).at[iu + 1].add(-rg * vcb_x)
+            if cur:
+                # d/dt (Rᵀ v_c) = Ṙᵀ v_c + Rᵀ v̇_c (the second term only for a changing current)
+                dx = dx.at[iu].add(rg * vcb_y + acb_x).at[iu + 1].add(-rg * vcb_x + acb_y)
         return jnp.concatenate([dx] + [d for d in extra_dots if d.size]) if any(d.size for d in extra_dots) else dx
 
     def observe(self, x, u):

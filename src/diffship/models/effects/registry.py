@@ -14,6 +14,8 @@ rate_limit         T_slew [s]                       steering slew rate limited t
                                                     (A_i = largest |input| in the training data)
 rudder_offset      Y0 [N], N0 [N m]                 constant sway force and yaw moment (prop walk,
                                                     rudder/jet offset); 3-DOF models
+                   delta_off [rad] (Nomoto)         rudder angle offset δ + δ_off (the base's own
+                                                    delta0 held at 0 in the diagnosis' base fit)
 heading_bias       b_psi [rad]                      compass reads ψ + b; shows only in positions
 damping_vv         Nvv                              N_|v|v |v|v   (3-DOF; Y_|v|v is in fossen3)
 damping_rr         Yrr  (Norrbin c_rr for Nomoto)   Y_|r|r |r|r   (N_|r|r is in fossen3)
@@ -22,6 +24,10 @@ damping_rv         Yrv, Nrv                         (Y, N)_|r|v |r| v
 speed_dependence   k_U [-]                          linear damping scaled by 1 + k_U (U − U0)/U0
 wind               Cwx, Cwy, Cwn [N/(m/s)², ·m]     ½ρA C(γ) V_rw² from measured wind_speed,
                                                     wind_dir (direction the wind comes from)
+current_trend      Vcx_0, Vcy_0 [m/s], dVcx, dVcy   a current changing linearly along the run
+                   [m/s²]                           (possible only: :data:`POSSIBLE_ONLY`)
+lag_trend          T_act0 [s], dT_act [s/s]         an actuator lag changing along the run
+                                                    (possible only)
 =================  ===============================  ==============================================
 
 Each name maps to its implementations (:data:`EFFECTS`); the first whose
@@ -40,14 +46,14 @@ import jax.numpy as jnp
 from ...errors import ModelError
 from .._base import AbstractModel
 from ._base import DataFacts, Effect
-from .actuator import ActuatorLag, InputDelay, RateLimit, RudderOffset
+from .actuator import ActuatorLag, InputDelay, LagTrend, NomotoRudderOffset, RateLimit, RudderOffset
 from .augmented import Augmented
-from .current import Current
+from .current import Current, CurrentTrend
 from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
 from .sensor import HeadingBias
 from .wind import Wind
 
-__all__ = ["EFFECTS", "EFFECT_NAMES", "FAMILY", "applicability", "make_effect", "library", "augment"]
+__all__ = ["EFFECTS", "EFFECT_NAMES", "POSSIBLE_ONLY", "FAMILY", "applicability", "make_effect", "library", "augment"]
 
 #: Implementations per effect name, in the order of the issue (first applicable wins).
 EFFECTS: dict[str, tuple[type[Effect], ...]] = {
@@ -55,7 +61,7 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "input_delay": (InputDelay,),
     "actuator_lag": (ActuatorLag,),
     "rate_limit": (RateLimit,),
-    "rudder_offset": (RudderOffset,),
+    "rudder_offset": (RudderOffset, NomotoRudderOffset),
     "heading_bias": (HeadingBias,),
     "damping_vv": (DampingVV,),
     "damping_rr": (DampingRR, NorrbinRR),
@@ -63,7 +69,13 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "damping_rv": (DampingRV,),
     "speed_dependence": (SpeedDependence,),
     "wind": (Wind,),
+    "current_trend": (CurrentTrend,),
+    "lag_trend": (LagTrend,),
 }
+
+#: Effects that are only ever *possible* (never attributed), with the constant effect they vary:
+#: a trend stands for any slow change, and whether the change is real is settled by an experiment.
+POSSIBLE_ONLY: dict[str, str] = {"current_trend": "current", "lag_trend": "actuator_lag"}
 
 #: Effect names accepted by ``--effects``.
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
