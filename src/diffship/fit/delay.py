@@ -114,7 +114,9 @@ def estimate_input_delay(runs, input: str, output: str | None = None, *, model=N
         if fit == "equation_error":
             res = fit_equation_error(model, shifted, flt=flt)
         elif fit == "output_error":
-            res = fit_output_error(model, shifted, options=OutputErrorOptions(flt=flt, weights="spread"))
+            # a profile over the delay: one start (the model's values), as every point of a scan
+            res = fit_output_error(model, shifted, options=OutputErrorOptions(flt=flt, weights="spread", ee_start=False),
+                                   n_starts=1)
         else:
             raise DataError(f"unknown fit {fit!r}: use 'equation_error' or 'output_error'")
         ms.append(np.array([res.noise_std[c] ** 2 for c in res.channels]))
