@@ -200,8 +200,7 @@ def _fit(args, say) -> int:
         check_rudder_sign(train + list(val), args.rudder_sign)
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
-    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights,
-                                 x0_prior=args.x0 == "estimate", **_prior_options(args))
+    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
     results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),

@@ -95,8 +95,8 @@ class OutputError(AbstractEstimator):
             information than their count says, and must not outvote a prior. No effect without priors.
         ee_start: the equation-error estimate is one of the starts, where the model has an
             equation-error form (:func:`~diffship.fit.equation_error.equation_error_start`).
-        x0_prior: (``--x0 estimate`` on the command line) an estimated initial state moves from the
-            measured (filtered) one only within its noise: a Gaussian prior row on each offset with the standard deviation of the channel's
+        x0_prior: an estimated initial state moves from the measured (filtered) one only within its
+            noise: a Gaussian prior row on each offset with the standard deviation of the channel's
             sample noise (robust second-difference estimate, at least 1 % of its spread) where the state
             is a fitted channel, and one spread of its channel where it is not measured. Without it the
             offsets are free and soak up model error (measured on the SSPA zigzag: a yaw-rate offset of
