@@ -168,6 +168,8 @@ def assemble(path: str | Path, cmap: ChannelMap, tables: Mapping[str, Table],
             else:
                 yy = np.unwrap(y) if ch in _ANGLES else y
                 chans[ch] = np.interp(grid, t, yy)
+                if ch in _ANGLES:  # continuous within the piece, starting in (-pi, pi]
+                    chans[ch] = chans[ch] - 2 * np.pi * np.round(chans[ch][0] / (2 * np.pi))
         seg_name = name if len(segments) == 1 else f"{name}_{k + 1}"
         meta = {"source": str(path), "map": cmap.path or cmap.name, "frame": cmap.frame, "sources": src_meta,
                 "time_origin": origin + next(iter(tables.values())).epoch, "grid_dt": dt, "grid_reference": ref, "gaps": gaps,
