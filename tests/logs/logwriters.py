@@ -73,7 +73,7 @@ def ros_odom_wrench_bag(path, run, storage="sqlite3", wrench_factor=5, gaps=(), 
 
 
 def _fmt_record(type_id, name, fmt, columns):
-    length = 3 + struct.calcsize("<" + fmt.replace("n", "4s").replace("Z", "64s"))
+    length = 3 + struct.calcsize("<" + fmt.replace("n", "4s").replace("N", "16s").replace("Z", "64s"))
     return bytes([0xA3, 0x95, 128]) + struct.pack("<BB4s16s64s", type_id, length, name.encode(),
                                                   fmt.encode(), columns.encode())
 
