@@ -12,7 +12,7 @@ features this does not use (actors, a shared-memory object store, GPUs).
 Scheduling: jobs are grouped by (model, vessel file, channel map, run length rounded up to
 :data:`PAD` samples) — the grouping the batched solver pads by — and each group is cut into
 batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes with one
-thread each (``threads_per_worker=1``; JAX's own intra-op threads set to one), so a compiled
+thread each (``threads_per_worker=1``; BLAS threads set to one), so a compiled
 program is compiled once per worker and reused for every later fit of the same shape. A task
 writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
 skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
@@ -123,9 +123,9 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
     if not todo:
         summary.update(seconds=0.0, table=str(_write_table(out)))
         return summary
-    for k, v in {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
-                 "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}.items():
-        os.environ.setdefault(k, v)  # spawned workers inherit it: one thread per worker
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(k, "1")  # spawned workers inherit it: one BLAS thread per worker (XLA_FLAGS are left
+        # alone: they enter the persistent compilation cache's key, and a changed flag recompiles everything)
     with dask.config.set({"distributed.scheduler.allowed-failures": retries,
                           "distributed.worker.multiprocessing-method": "spawn",
                           "distributed.worker.daemon": False}):
