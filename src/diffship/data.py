@@ -431,14 +431,9 @@ class Run:
         return cls.from_dataframe(df, name, **kw)
 
 
-def load_runs(paths: str | os.PathLike | Iterable[str | os.PathLike], *, channel_map: Any = None,
-              **kw: Any) -> list[Run]:
-    """Load several CSV files with the same options; names are file stems made unique.
-
-    Logs (ROS 2 bags, ``.mcap``, ``.db3``, ``.bin``, ``.tlog``, ``.ulg``, ``.parquet``) are read through
-    ``channel_map`` (a TOML file or bundled map name, :mod:`diffship.logs`); a log split at gaps gives
-    one run per piece (named ``<stem>_1``, ``<stem>_2``, ...), with a warning naming the gaps.
-    """
+def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel_map: Any = None, **kw) -> list[Run]:
+    """Load CSV files or logs (``channel_map``, :mod:`diffship.logs`) alike; names are file stems made unique."""
+    from .logs import is_log, log_runs  # robot logs, parquet (issue 30); logs never import data: Run is passed
     paths = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
     if not paths:
         raise DataError("load_runs: no files given.")
@@ -452,34 +447,8 @@ def load_runs(paths: str | os.PathLike | Iterable[str | os.PathLike], *, channel
         if stems.count(stem) > 1:
             seen[stem] = seen.get(stem, 0) + 1
             name = f"{stem}_{seen[stem]}"
-        if _is_log(p):
-            runs.extend(_log_runs(p, name, channel_map, kw))
-        else:
-            runs.append(Run.from_csv(p, name, **kw))
+        runs.extend(log_runs(p, name, channel_map, kw, Run) if is_log(p) else [Run.from_csv(p, name, **kw)])
     return runs
-
-
-def _is_log(path: str | os.PathLike) -> bool:
-    p = Path(path)
-    return p.suffix.lower() in (".db3", ".mcap", ".bin", ".tlog", ".ulg", ".parquet") or p.is_dir()
-
-
-def _log_runs(path: str | os.PathLike, name: str, channel_map: Any, kw: Mapping[str, Any]) -> list[Run]:
-    """Runs of a log through its channel map (a parquet table without a map: its columns, as a CSV's)."""
-    import warnings
-
-    from .logs import gap_report, read_log, require_extra
-
-    if channel_map is None and Path(path).suffix.lower() == ".parquet":
-        pq = require_extra("pyarrow.parquet", f"{path} (a parquet table)")
-        return [Run.from_dataframe(pq.read_table(path).to_pandas(), name, **{"source": str(path), **kw})]
-    if kw.get("columns") or kw.get("degrees"):
-        raise DataError(f"{path}: --columns/--degrees do not apply to logs; the channel map says fields and units.")
-    pieces = read_log(path, channel_map, name)
-    note = gap_report(pieces)
-    if note:
-        warnings.warn(note, stacklevel=3)
-    return [Run(n, t, ch, meta, check_units=kw.get("check_units", True)) for n, t, ch, meta in pieces]
 
 
 def example_path(name: str) -> Path:

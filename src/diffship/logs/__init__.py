@@ -3,8 +3,8 @@ parquet; channel maps (TOML), frames (REP-103 ENU/FLU → NED/FRD), clocks, one 
 
 from .channelmap import ChannelMap, ChannelSpec, SourceSpec, bundled_maps, load_map
 from .frames import euler_from_quaternion
-from .load import gap_report, read_log
+from .load import gap_report, log_runs, read_log
 from .readers import LOG_SUFFIXES, is_log, require_extra
 
 __all__ = ["LOG_SUFFIXES", "ChannelMap", "ChannelSpec", "SourceSpec", "bundled_maps", "euler_from_quaternion",
-           "gap_report", "is_log", "load_map", "read_log", "require_extra"]
+           "gap_report", "is_log", "log_runs", "load_map", "read_log", "require_extra"]

@@ -7,6 +7,7 @@ grid, splits at gaps (:mod:`diffship.logs.assemble`) and flips a port-positive r
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ from .assemble import assemble
 from .channelmap import ChannelMap, load_map
 from .readers import read_tables
 
-__all__ = ["gap_report", "read_log"]
+__all__ = ["gap_report", "log_runs", "read_log"]
 
 
 def read_log(path: str | Path, channel_map: str | Path | ChannelMap | None,
@@ -52,3 +53,22 @@ def gap_report(pieces) -> str | None:
     dropped = f"; dropped pieces too short to fit: {len(meta['dropped_pieces'])}" if meta["dropped_pieces"] else ""
     return (f"{meta['source']}: gap(s) longer than the threshold ({gaps}): split into run(s) {names}"
             f"{dropped}; the gaps are not filled")
+
+
+def log_runs(path: str | Path, name: str, channel_map: str | Path | ChannelMap | None, kw: dict[str, Any],
+             run_type: type) -> list:
+    """The runs of one log for :func:`diffship.data.load_runs` (``run_type`` is :class:`diffship.data.Run`,
+    passed in so that this package never imports the data layer). A parquet table without a map is
+    read as a CSV would be (its columns, ``kw`` as for CSV); a log split at gaps warns, naming them."""
+    from .readers import require_extra
+
+    if channel_map is None and Path(path).suffix.lower() == ".parquet":
+        df = require_extra("pyarrow.parquet", f"{path} (a parquet table)").read_table(path).to_pandas()
+        return [run_type.from_dataframe(df, name, **{"source": str(path), **kw})]
+    if kw.get("columns") or kw.get("degrees"):
+        raise DataError(f"{path}: --columns/--degrees do not apply to logs; the channel map gives fields and units.")
+    pieces = read_log(path, channel_map, name)
+    note = gap_report(pieces)
+    if note:
+        warnings.warn(note, stacklevel=3)
+    return [run_type(n, t, ch, meta, check_units=kw.get("check_units", True)) for n, t, ch, meta in pieces]

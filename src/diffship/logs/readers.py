@@ -151,6 +151,7 @@ def _read_mavlink(p: Path, wanted) -> dict[str, Table]:
     mavutil = require_extra("pymavlink.mavutil", f"{p} (an ArduPilot/MAVLink log)")
     types = {topic for (topic, _), _ in wanted.values()}
     rows: dict[str, list] = {t: [] for t in types}
+    conn = None
     try:
         conn = mavutil.mavlink_connection(str(p), dialect="ardupilotmega")
         while True:
@@ -162,6 +163,9 @@ def _read_mavlink(p: Path, wanted) -> dict[str, Table]:
         raise
     except Exception as exc:  # pymavlink raises plain exceptions on corrupt logs
         raise DataError(f"{p}: cannot read as a DataFlash/MAVLink log ({exc}).") from None
+    finally:
+        if conn is not None:
+            conn.close()
     out = {}
     for name, ((topic, clock), fields) in wanted.items():
         where = f"{p}, message {topic}"
