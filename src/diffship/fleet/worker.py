@@ -22,7 +22,13 @@ from .manifest import FleetJob
 
 __all__ = ["fit_group", "fit_one"]
 
-_STATE: dict[str, Any] = {}  # per worker process: warm-up marker
+_STATE: dict[str, Any] = {}  # per worker process: how many fits it has made (1 = the one that compiled)
+
+
+def _cache_hits() -> int:
+    from .. import cache
+
+    return int(cache.hits())
 
 
 def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
@@ -68,7 +74,8 @@ def fit_group(jobs: Sequence[FleetJob], out: str) -> list[dict[str, Any]]:
                    "error": f"{type(exc).__name__}: {exc}".splitlines()[0][:500]
                    + (f" ({Path(last.filename).name}:{last.lineno})" if last else ""),
                    "converged": False}
-        row["worker_pid"] = os.getpid()
+        _STATE["fits"] = _STATE.get("fits", 0) + 1
+        row.update(worker_pid=os.getpid(), worker_fit_index=_STATE["fits"], cache_hits=_cache_hits())
         tmp = out / "rows" / f"{job.key}.json.tmp"
         tmp.write_text(json.dumps(row))
         tmp.replace(out / "rows" / f"{job.key}.json")  # atomic: a row is whole or absent
