@@ -18,7 +18,7 @@ def add_log_options(parser: argparse.ArgumentParser, *, html: bool = True) -> No
     g.add_argument("--map", default=None, metavar="MAP.toml|NAME",
                    help="channel map for logs given as runs (ROS 2 bag folder/.db3/.mcap, ArduPilot .bin/.tlog, PX4 "
                         ".ulg, .parquet): which topic and field is each channel, units, frame (ros: ENU/FLU -> NED/FRD), "
-                        "clocks and the gap threshold; bundled: ros2_usv, ardusub, px4 (needs pip install "
+                        "clocks and the gap threshold; bundled: ros2_usv, ardusub, mavlink_tlog, px4 (needs pip install "
                         "'diffship[logs]')")
     if html:
         g.add_argument("--html", default=None, metavar="FILE",

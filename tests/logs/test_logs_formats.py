@@ -91,3 +91,30 @@ def test_parquet_with_and_without_a_map(tmp_path):
     assert np.allclose(mapped["psi"], PSI - 2 * np.pi) and mapped.channel_names == ("psi", "u")
     with pytest.raises(DataError, match="do not apply to logs"):
         load_runs([tmp_path / "a.parquet"], channel_map=cmap, columns={"u": "v"})
+
+
+def test_mavlink_tlog_with_the_tlog_map(tmp_path):
+    """A .tlog (8-byte big-endian receive time [us] + a MAVLink packet, pymavlink's encoder): the vehicle's
+    boot clock is used, not the ground station's receive time (which lags by a jittery radio latency)."""
+    pytest.importorskip("pymavlink", reason="MAVLink logs need the 'logs' extra: pip install 'diffship[logs]'")
+    import struct
+
+    from pymavlink.dialects.v10 import ardupilotmega as mavlink
+
+    mav = mavlink.MAVLink(None, srcSystem=1)
+    rng = np.random.default_rng(0)
+    out = bytearray()
+    for i, t in enumerate(T):
+        boot_ms = int(round(t * 1000)) + 60_000
+        recv_us = int((1.7e9 + t + 0.2 + rng.uniform(0, 0.05)) * 1e6)  # radio latency 0.2-0.25 s
+        wrapped = float(np.arctan2(np.sin(PSI[i]), np.cos(PSI[i])))  # MAVLink yaw is in (-pi, pi]
+        for msg in (mavlink.MAVLink_attitude_message(boot_ms, 0.01, -0.02, wrapped, 0.0, 0.0, 0.05),
+                    mavlink.MAVLink_local_position_ned_message(boot_ms, 10 * t, -3 * t, 0.0, VN[i], VE[i], 0.0)):
+            out += struct.pack(">Q", recv_us) + msg.pack(mav)
+    (tmp_path / "boat.tlog").write_bytes(bytes(out))
+    (run,) = load_runs([tmp_path / "boat.tlog"], channel_map="mavlink_tlog")
+    assert run.n == T.size and run.dt == pytest.approx(0.1)  # boot clock: exactly 10 Hz despite the jitter
+    assert np.allclose(run["psi"], PSI - 2 * np.pi, atol=1e-6)  # unwrapped through north
+    assert np.allclose(run["u"], U, atol=1e-5) and np.allclose(run["v"], V, atol=1e-5)
+    assert run.metadata["sources"]["att"]["clock"] == "time_boot_ms (vehicle boot time)"
+    assert run.metadata["time_origin"] == pytest.approx(60.0)

@@ -27,7 +27,7 @@ def read_log(path: str | Path, channel_map: str | Path | ChannelMap | None,
     path = Path(path)
     if channel_map is None:
         raise DataError(f"{path}: a log needs a channel map: --map FILE.toml or a bundled map "
-                        "(ros2_usv, ardusub, px4), map=... in load_runs.")
+                        "(ros2_usv, ardusub, mavlink_tlog, px4), channel_map=... in load_runs.")
     cmap = load_map(channel_map)
     wanted = {s: ((src.topic, src.clock), fields) for s, src in cmap.sources.items()
               for fields in [cmap.fields()[s]] if fields}
