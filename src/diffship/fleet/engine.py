@@ -127,6 +127,8 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
         os.environ.setdefault(k, "1")  # spawned workers inherit it: one BLAS thread per worker (XLA_FLAGS are left
         # alone: they enter the persistent compilation cache's key, and a changed flag recompiles everything)
     with dask.config.set({"distributed.scheduler.allowed-failures": retries,
+                          "distributed.scheduler.worker-saturation": 1.0,  # a worker holds only the task it runs:
+                          # a killed worker loses that task alone, the rest wait on the scheduler
                           "distributed.worker.multiprocessing-method": "spawn",
                           "distributed.worker.daemon": False}):
         cluster = None
