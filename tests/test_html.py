@@ -72,6 +72,44 @@ def test_html_is_self_contained_and_every_figure_decodes(tmp_path):
         assert w == 360 and h == 180  # 6 x 3 in at 60 dpi
 
 
+def _embedded_pngs(path) -> list[bytes]:
+    p = _Collect()
+    p.feed(path.read_text())
+    assert p.links == [] and p.pre == 1
+    out = []
+    for img in p.imgs:
+        head, _, b64 = img["src"].partition(",")
+        assert head == "data:image/png;base64"
+        out.append(base64.b64decode(b64, validate=True))
+        assert out[-1][:8] == b"\x89PNG\r\n\x1a\n"
+    return out
+
+
+def _predict_html(tmp_path) -> Path:
+    """``python -m diffship.predict FIT --html``: a Nomoto fit file (K = 0.25 1/s, T = 6 s), one zigzag."""
+    from diffship.fit import FitResult
+    from diffship.fitfile import save_fit
+    from diffship.models import Nomoto1
+    from diffship.predict.__main__ import main
+
+    model = Nomoto1(K=0.25, T1=6.0, delta0=0.0)
+    res = FitResult(method="output_error", model=model, params=model.param_values(), stderr={"K": 0.005, "T1": 0.12},
+                    free=("K", "T1"), converged=True, status="converged", iterations=1, cost=0.0, fit_seconds=0.0,
+                    compile_seconds=0.0, channels=("psi", "r"), covariance=np.diag([0.005**2, 0.12**2]))
+    fit = save_fit(res, tmp_path / "fit.json")
+    html_path = tmp_path / "prediction.html"
+    assert main([str(fit), "--manoeuvre", "zigzag:10/10", "--speed", "1.2", "--length", "4", "--scale", "16", "--samples", "0",
+                 "--html", str(html_path), "--quiet"]) == 0
+    return html_path
+
+
+def test_predict_html_has_the_table_and_the_figure(tmp_path, capsys):
+    path = _predict_html(tmp_path)
+    pngs = _embedded_pngs(path)
+    assert len(pngs) == 1 and len(pngs[0]) > 10_000  # prediction.png
+    assert "10/10 zigzag" in path.read_text() and "first overshoot" in path.read_text()
+
+
 def test_non_png_figure_is_refused(tmp_path):
     bad = tmp_path / "x.png"
     bad.write_bytes(b"GIF89a....")
@@ -85,14 +123,18 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 @pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium here (Debian: apt-get install -y chromium)")
 def test_headless_chromium_shows_every_figure(tmp_path):
-    path = _report(tmp_path)
+    for path, n in ((_report(tmp_path), 2), (_predict_html(tmp_path), 1)):
+        _check_in_chromium(tmp_path, path, n)
+
+
+def _check_in_chromium(tmp_path, path, n):
     probe = tmp_path / "probe.html"  # the same document with a script that reports what the browser loaded
     probe.write_text(path.read_text().replace("</body>", "<script>document.body.setAttribute('data-loaded', "
                      "[...document.images].filter(i => i.complete && i.naturalWidth > 0).length + '/' + "
                      "document.images.length)</script></body>"))
     flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000"]
     dom = subprocess.run([*flags, "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120).stdout
-    assert 'data-loaded="2/2"' in dom
+    assert f'data-loaded="{n}/{n}"' in dom
     shot = tmp_path / "shot.png"
     subprocess.run([*flags, f"--screenshot={shot}", "--window-size=1200,1400", path.as_uri()],
                    capture_output=True, timeout=120)

@@ -152,4 +152,8 @@ def test_fit_through_map_matches_the_csv(tmp_path):
     assert a["converged"] and b["converged"] and a["free"] == b["free"]
     for n in a["free"]:
         assert abs(a["params"][n] - b["params"][n]) < 0.1 * a["stderr"][n], n
-    assert (tmp_path / "fit.html").stat().st_size > 10_000
+    import base64
+    import re
+
+    imgs = re.findall(r'<img alt="[^"]*" src="data:image/png;base64,([^"]+)"', (tmp_path / "fit.html").read_text())
+    assert len(imgs) == 1 and base64.b64decode(imgs[0])[:4] == b"\x89PNG"  # the fit figure, embedded
