@@ -9,7 +9,8 @@ Throughput = fitted vessel-runs / wall time, cluster start-up and first compilat
     PYTHONPATH=src python benchmarks/fleet.py --runs 40 --loop 4 --workers 1 2
 
 Writes ``benchmarks/results/fleet.md``. The shell loop's throughput is measured on ``--loop`` of the
-runs (each process is independent, so its per-fit time does not depend on how many follow).
+runs (each process is independent, so its per-fit time does not depend on how many follow), half before and half
+after the fleet runs, so that a change in the shared machine's load shows (both are reported; the baseline is both).
 """
 
 from __future__ import annotations
@@ -54,17 +55,20 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         manifest = make_fleet(tmp, args.runs, args.duration)
-        t0 = time.perf_counter()
-        per = []
-        for i in range(args.loop):
-            t1 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "diffship.fit", str(tmp / f"v{i}.csv"), "--model", "fossen3",
-                            "--vessel", "usv", "--method", "output-error", "--save", str(tmp / f"loop{i}.json"),
-                            "--quiet"], env=env, capture_output=True)  # exit 1: not converged (counted: a fit)
-            per.append(time.perf_counter() - t1)
-        loop_s = time.perf_counter() - t0
-        rows.append(("shell loop of python -m diffship.fit", 1, args.loop, loop_s, args.loop / loop_s))
-        notes.append(f"shell loop per process [s]: {', '.join(f'{p:.1f}' for p in per)}; after: {load()}")
+        def shell_loop(indices, label):
+            t0, per = time.perf_counter(), []
+            for i in indices:
+                t1 = time.perf_counter()
+                subprocess.run([sys.executable, "-m", "diffship.fit", str(tmp / f"v{i}.csv"), "--model", "fossen3",
+                                "--vessel", "usv", "--method", "output-error", "--save", str(tmp / f"loop{i}.json"),
+                                "--quiet"], env=env, capture_output=True)  # exit 1: not converged (still a fit)
+                per.append(time.perf_counter() - t1)
+            s = time.perf_counter() - t0
+            rows.append((f"shell loop of python -m diffship.fit ({label})", 1, len(indices), s, len(indices) / s))
+            notes.append(f"shell loop {label}, per process [s]: {', '.join(f'{p:.1f}' for p in per)}; after: {load()}")
+
+        half = max(1, args.loop // 2)
+        shell_loop(range(half), "before the fleet runs")
         for w in args.workers:
             out = tmp / f"out{w}"
             t1 = time.perf_counter()
@@ -75,7 +79,12 @@ def main(argv=None) -> int:
                 print(r.stdout, r.stderr, file=sys.stderr)
                 return 1
             rows.append((f"python -m diffship.fleet --workers {w}", w, args.runs, s, args.runs / s))
-            notes.append(f"fleet {w} worker(s): {r.stdout.strip()}; after: {load()}")
+            notes.append(f"fleet {w} worker(s): {r.stdout.strip().split('; table')[0]}; after: {load()}")
+        shell_loop(range(half, max(args.loop, 2 * half)), "after the fleet runs")
+    loop_rows = [r for r in rows if r[0].startswith("shell loop")]
+    both = sum(r[2] for r in loop_rows) / sum(r[3] for r in loop_rows)
+    rows.insert(0, ("shell loop of python -m diffship.fit (both halves: the baseline)", 1,
+                    sum(r[2] for r in loop_rows), sum(r[3] for r in loop_rows), both))
     base = rows[0][4]
     lines = ["# Fleet throughput (issue 30)", "",
              f"`PYTHONPATH=src python benchmarks/fleet.py --runs {args.runs} --loop {args.loop} --duration "

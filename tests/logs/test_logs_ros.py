@@ -116,6 +116,10 @@ def test_map_errors_are_one_line(tmp_path, usv_run):
                    'field = "twist.twist.linear" }\n')
     with pytest.raises(DataError, match="no topic '/odometry'.*'/odom'"):
         load_runs([bag], channel_map=bad)
+    bad.write_text('frame = "ros"\n[sources.o]\ntopic = "/odom"\n[channels]\nv = { source = "o", '
+                   'field = "twist.twist.linear.y" }\n')  # a scalar in ROS axes: the sign slip this refuses
+    with pytest.raises(DataError, match="name the vector"):
+        load_runs([bag], channel_map=bad)
     with pytest.raises(DataError, match="no such file and no bundled map"):
         load_runs([bag], channel_map="nope")
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import DataError
 from .channelmap import ChannelMap, ChannelSpec
-from .frames import ANGLE_FROM_ATTITUDE, euler_from_quaternion, ros_vector_component
+from .frames import ANGLE_FROM_ATTITUDE, ROS_VECTOR_RULES, euler_from_quaternion, ros_vector_component
 from .readers import Table
 
 __all__ = ["GAP_FACTOR", "MIN_SEGMENT", "assemble"]
@@ -81,6 +81,10 @@ def _channel(spec: ChannelSpec, table: Table, frame: str, where: str) -> np.ndar
                             "component (e.g. '.x'), or use frame = \"ros\" for REP-103 vectors.")
     else:
         y = a.astype(np.float64)
+        if frame == "ros" and spec.channel in ROS_VECTOR_RULES:  # a scalar would skip the ENU/FLU conversion
+            raise DataError(f"{where}: with frame = \"ros\" name the vector (e.g. 'twist.twist.linear'), not the "
+                            f"scalar '{spec.field}': diffship picks and signs the component of '{spec.channel}' "
+                            "(REP 103 -> NED/FRD); or use frame = \"ned\" with an explicit scale.")
         if frame == "ros" and spec.channel == "psi":
             y = np.pi / 2 - y * spec.factor  # a ROS yaw angle: counter-clockwise from east
             return y + spec.offset
