@@ -152,7 +152,10 @@ def test_fit_through_map_matches_the_csv(tmp_path):
         csvs.append(str(tmp_path / f"{r.name}.csv"))
         bags.append(str(lw.ros_odom_wrench_bag(tmp_path / f"{r.name}_bag", r, storage=storage)))
     a = _fit_json(csvs, tmp_path, "csv")
-    b = _fit_json([*bags, "--map", "ros2_usv", "--html", str(tmp_path / "fit.html")], tmp_path, "bag")
+    b = _fit_json([*bags, "--map", "ros2_usv", "--html", str(tmp_path / "fit.html"), "--save",
+                   str(tmp_path / "fit.json")], tmp_path, "bag")
+    data = json.loads((tmp_path / "fit.json").read_text())["data"]  # the fit file says where each run came from
+    assert data[1]["log"]["sources"]["wrench"]["rate_hz"] == pytest.approx(50.0) and data[1]["log"]["gaps"] == []
     assert a["converged"] and b["converged"] and a["free"] == b["free"]
     for n in a["free"]:
         assert abs(a["params"][n] - b["params"][n]) < 0.1 * a["stderr"][n], n
