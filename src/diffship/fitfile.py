@@ -139,6 +139,8 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
                   "outputs": list(model.output_names)},
         "method": result.method,
         "status": result.status,
+        "outcome": result.outcome,
+        "usable": bool(result.usable),
         "converged": bool(result.converged),
         "cost": float(result.cost),
         "params": {n: float(v) for n, v in result.params.items()},

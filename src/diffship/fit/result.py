@@ -10,8 +10,52 @@ import numpy as np
 
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
+from .status import RESULTS, by_name, message, name_of, usable
 
-__all__ = ["FitResult"]
+__all__ = ["FitResult", "StartsReport"]
+
+
+@dataclasses.dataclass(frozen=True)
+class StartsReport:
+    """What the starts of a fit did (:mod:`diffship.fit.driver`).
+
+    Attributes:
+        labels: each start's label, in the order tried (``"the model's values"``, ``"the
+            equation-error estimate"``, ``"spread start 1"``, ...).
+        costs: each start's cost after the first solve (``inf`` where it blew up or was skipped).
+        best: index of the start the result continued from.
+        reached: how many starts ended within the tolerance of the best cost (half the residual
+            variance: about one standard error in one parameter direction).
+        tolerance: that tolerance, in cost units.
+        user: index of the user's own start (``--init``), or ``None``.
+    """
+
+    labels: tuple[str, ...]
+    costs: tuple[float, ...]
+    best: int
+    reached: int
+    tolerance: float
+    user: int | None = None
+
+    @property
+    def user_higher(self) -> bool:
+        """Whether the user's own start ended at a higher cost than the best start."""
+        return self.user is not None and self.costs[self.user] > self.costs[self.best] + self.tolerance
+
+    def describe(self) -> str:
+        """One line for the report."""
+        n = len(self.labels)
+        text = (f"starts: {n} tried, {self.reached} of them reached the best cost {self.costs[self.best]:.6g} "
+                f"(within {self.tolerance:.2g}); the result continued from {self.labels[self.best]}")
+        if self.user_higher:
+            text += (f"; WARNING: your start ({self.labels[self.user]}) ended higher, at "
+                     f"{self.costs[self.user]:.6g}")
+        return text
+
+    def as_json(self) -> dict:
+        return {"n": len(self.labels), "labels": list(self.labels), "costs": [float(c) for c in self.costs],
+                "best": self.labels[self.best], "reached_best": self.reached, "tolerance": self.tolerance,
+                "user_start_higher": self.user_higher}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -24,8 +68,8 @@ class FitResult:
         params: all parameter values (fitted and fixed), model SI units.
         stderr: standard errors of the free parameters (same units).
         free: names of the estimated parameters.
-        converged: whether the solver met its tolerances.
-        status: short readable status (``"converged"``, ``"maximum number of steps ..."``).
+        converged: whether the solver met its tolerances (``result == RESULTS.successful``).
+        status: readable text of ``result`` (``"converged"``, ``"not converged: ..."``).
         iterations: solver steps (1 for linear least squares).
         cost: final ``½‖r‖²`` of the normalised residuals.
         fit_seconds: wall time of the solve, compiled function warm.
@@ -39,6 +83,10 @@ class FitResult:
             use the same one.
         messages: notes for people (start chosen, filters used, warnings).
         info: anything method-specific (filter, weights, ...).
+        result: the outcome as a :class:`~diffship.fit.status.RESULTS` value (given, or read from
+            ``converged``/``status`` for results built the older way); ``converged`` and ``status``
+            are made consistent with it.
+        starts: what the starts did (:class:`StartsReport`), where the driver tried several.
     """
 
     method: str
@@ -61,6 +109,25 @@ class FitResult:
     integrator: AbstractIntegrator = Diffrax()
     messages: tuple[str, ...] = ()
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
+    result: RESULTS | None = None
+    starts: StartsReport | None = None
+
+    def __post_init__(self):
+        if self.result is None:
+            result = RESULTS.successful if self.converged else by_name(self.status)
+            object.__setattr__(self, "result", result)
+        object.__setattr__(self, "converged", bool(self.result == RESULTS.successful))
+        object.__setattr__(self, "status", message(self.result))
+
+    @property
+    def outcome(self) -> str:
+        """The name of ``result`` (``"successful"``, ``"max_steps_reached"``, ``"simulation_blew_up"``, ...)."""
+        return name_of(self.result)
+
+    @property
+    def usable(self) -> bool:
+        """Whether the estimate may be used (converged, or stopped at a limit with finite values)."""
+        return usable(self.result)
 
     @property
     def model_name(self) -> str:
