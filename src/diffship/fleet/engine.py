@@ -16,6 +16,9 @@ thread each (``threads_per_worker=1``; BLAS threads set to one), so a compiled
 program is compiled once per worker and reused for every later fit of the same shape. A task
 writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
 skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
+A task lost with a killed worker (``--retries 0``) records its unfinished vessel-runs as failed
+("worker lost"), unless it had not started (a marker file says when it did): then it was only
+queued on that worker, and is submitted once more to the workers left.
 """
 
 from __future__ import annotations
@@ -114,6 +117,8 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
 
     out = Path(out)
     (out / "rows").mkdir(parents=True, exist_ok=True)
+    for f in (out / "started").glob("*.group") if (out / "started").is_dir() else ():
+        f.unlink()  # markers of an earlier run
     jobs = read_manifest(manifest)
     done = _done_keys(out)
     todo = [j for j in jobs if j.key not in done]
@@ -142,11 +147,21 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
                        for i, g in enumerate(groups)}
             if progress:
                 _bar(0, 0, len(todo), t0, stream)
-            for fut in as_completed(futures):
+            pending = as_completed(list(futures))
+            resubmitted: set[str] = set()
+            for fut in pending:
                 group = futures[fut]
                 try:
                     rows = fut.result()
                 except Exception as exc:  # KilledWorker or a lost connection: these vessel-runs only
+                    started = (out / "started" / f"{group[0].key}.group").is_file()
+                    if not started and group[0].key not in resubmitted:  # assigned to the dead worker, never run:
+                        resubmitted.add(group[0].key)  # not its fits; once more, on the workers left
+                        new = client.submit(fit_group, group, str(out), pure=False,
+                                            key=f"fleet-again-{group[0].key}")
+                        futures[new] = group
+                        pending.add(new)
+                        continue
                     finished = _done_keys(out)
                     rows = []
                     for job in group:

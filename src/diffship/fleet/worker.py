@@ -64,6 +64,8 @@ def fit_group(jobs: Sequence[FleetJob], out: str) -> list[dict[str, Any]]:
     """Fit each job of a group; every job's failure is its own row. Returns the rows."""
     out = Path(out)
     (out / "rows").mkdir(parents=True, exist_ok=True)
+    (out / "started").mkdir(exist_ok=True)
+    (out / "started" / f"{jobs[0].key}.group").write_text(str(os.getpid()))  # the driver tells lost from unstarted
     rows = []
     for job in jobs:
         try:
