@@ -36,7 +36,7 @@ def html_document(title: str, sections: Sequence[tuple[str, str | None, Sequence
     """The HTML text: ``sections`` of ``(heading, preformatted text or None, [(caption, PNG bytes)])``."""
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
              f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>",
-             f"<p>diffship report, written {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M UTC}. "
+             f"<p>diffship report, written {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M UTC}. "
              "Units: SI and degrees for display; axes NED/FRD, heading clockwise.</p>"]
     for heading, text, figures in sections:
         parts.append(f"<section><h2>{html.escape(heading)}</h2>")

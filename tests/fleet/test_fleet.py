@@ -12,12 +12,12 @@ import pytest
 pytest.importorskip("distributed", reason="fleet mode needs the 'fleet' extra: pip install 'diffship[fleet]'")
 pytest.importorskip("pyarrow", reason="the fleet's results table is parquet: pip install 'diffship[fleet]'")
 
-import pandas as pd  # noqa: E402
+import pandas as pd
 
-from diffship.errors import DataError  # noqa: E402
-from diffship.fleet import read_manifest  # noqa: E402
-from diffship.fleet.__main__ import main  # noqa: E402
-from diffship.fleet.engine import group_jobs, run_fleet  # noqa: E402
+from diffship.errors import DataError
+from diffship.fleet import read_manifest
+from diffship.fleet.__main__ import main
+from diffship.fleet.engine import group_jobs, run_fleet
 
 
 def _fleet(tmp_path, n, bad=(), duration=30.0):

@@ -5,10 +5,9 @@ and read back by pymavlink and pyulog through diffship's readers."""
 
 from __future__ import annotations
 
+import logwriters as lw
 import numpy as np
 import pytest
-
-import logwriters as lw
 
 from diffship.data import load_runs
 from diffship.errors import DataError

@@ -11,11 +11,11 @@ import pytest
 
 pytest.importorskip("rosbags", reason="ROS 2 bag tests need the 'logs' extra: pip install 'diffship[logs]'")
 
-import logwriters as lw  # noqa: E402  (tests/logs/logwriters.py)
+import logwriters as lw
 
-from diffship.data import load_runs  # noqa: E402
-from diffship.errors import DataError  # noqa: E402
-from diffship.synthetic import usv_runs  # noqa: E402
+from diffship.data import load_runs
+from diffship.errors import DataError
+from diffship.synthetic import usv_runs
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..errors import DataError
 from .manifest import FleetJob, read_manifest
 
 __all__ = ["PAD", "FleetSummary", "group_jobs", "run_fleet"]
@@ -153,7 +152,7 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
                 group = futures[fut]
                 try:
                     rows = fut.result()
-                except Exception as exc:  # KilledWorker or a lost connection: these vessel-runs only
+                except Exception as exc:  # noqa: BLE001 (KilledWorker, a lost connection: these vessel-runs only)
                     started = (out / "started" / f"{group[0].key}.group").is_file()
                     if not started and group[0].key not in resubmitted:  # assigned to the dead worker, never run:
                         resubmitted.add(group[0].key)  # not its fits; once more, on the workers left

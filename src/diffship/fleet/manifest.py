@@ -10,6 +10,7 @@ the manifest's folder), ``model`` (registry name), optional ``map`` (channel map
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -38,7 +39,7 @@ class FleetJob:
 
 def _cell(row, col):
     v = row.get(col)
-    if v is None or (isinstance(v, float) and v != v) or str(v).strip() == "":
+    if v is None or (isinstance(v, float) and math.isnan(v)) or str(v).strip() == "":
         return None
     return str(v).strip()
 

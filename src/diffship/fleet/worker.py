@@ -70,7 +70,7 @@ def fit_group(jobs: Sequence[FleetJob], out: str) -> list[dict[str, Any]]:
     for job in jobs:
         try:
             row = fit_one(job, out)
-        except Exception as exc:  # one vessel's failure never stops the others
+        except Exception as exc:  # noqa: BLE001 (one vessel's failure never stops the others)
             last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
             row = {"key": job.key, "vessel": job.vessel, "run": job.run, "model": job.model, "status": "failed",
                    "error": f"{type(exc).__name__}: {exc}".splitlines()[0][:500]

@@ -7,4 +7,4 @@ from .load import gap_report, log_runs, read_log
 from .readers import LOG_SUFFIXES, is_log, require_extra
 
 __all__ = ["LOG_SUFFIXES", "ChannelMap", "ChannelSpec", "SourceSpec", "bundled_maps", "euler_from_quaternion",
-           "gap_report", "is_log", "log_runs", "load_map", "read_log", "require_extra"]
+           "gap_report", "is_log", "load_map", "log_runs", "read_log", "require_extra"]

@@ -110,7 +110,7 @@ def _read_rosbag(p: Path, wanted) -> dict[str, Table]:
     try:
         reader = highlevel.AnyReader([folder], default_typestore=typesys.get_typestore(typesys.Stores.ROS2_HUMBLE))
         reader.open()
-    except Exception as exc:  # rosbags raises several error types for unreadable bags
+    except Exception as exc:  # noqa: BLE001 (rosbags raises several error types for unreadable bags)
         raise DataError(f"{p}: cannot open as a ROS 2 bag ({exc}).") from None
     try:
         topics = {c.topic: c for c in reader.connections}
@@ -161,7 +161,7 @@ def _read_mavlink(p: Path, wanted) -> dict[str, Table]:
             rows[m.get_type()].append((m._timestamp, m.to_dict()))
     except DataError:
         raise
-    except Exception as exc:  # pymavlink raises plain exceptions on corrupt logs
+    except Exception as exc:  # noqa: BLE001 (pymavlink raises plain exceptions on corrupt logs)
         raise DataError(f"{p}: cannot read as a DataFlash/MAVLink log ({exc}).") from None
     finally:
         if conn is not None:
@@ -195,7 +195,7 @@ def _read_ulog(p: Path, wanted) -> dict[str, Table]:
     names = sorted({topic.split(":")[0] for (topic, _), _ in wanted.values()})
     try:
         ulog = pyulog.ULog(str(p), names)
-    except Exception as exc:  # pyulog raises plain exceptions on corrupt files
+    except Exception as exc:  # noqa: BLE001 (pyulog raises plain exceptions on corrupt files)
         raise DataError(f"{p}: cannot read as a ULog ({exc}).") from None
     out = {}
     for name, ((topic, clock), fields) in wanted.items():
@@ -227,7 +227,7 @@ def _read_parquet(p: Path, wanted) -> dict[str, Table]:
     pq = require_extra("pyarrow.parquet", f"{p} (a parquet table)")
     try:
         df = pq.read_table(p).to_pandas()
-    except Exception as exc:  # pyarrow raises ArrowInvalid and others
+    except Exception as exc:  # noqa: BLE001 (pyarrow raises ArrowInvalid and others)
         raise DataError(f"{p}: cannot read as parquet ({exc}).") from None
     out = {}
     for name, ((topic, clock), fields) in wanted.items():
