@@ -49,11 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "names are kept under their own names")
     p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN", help="columns given in degrees (deg/s)")
     p.add_argument("--channels", nargs="*", default=None, metavar="NAME", help="channels fitted by output error")
-    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
-                   help="initial states in the fit: estimated per run with the parameters (default; a measured "
-                        "heading offset never decays and biases the estimates) or taken from the data; the metrics "
-                        "always start every run, training or validation, from its measured (filtered) initial state, "
-                        "as metrics.evaluate does")
+    p.add_argument("--x0", default="data", choices=("estimate", "data"),
+                   help="initial states in the fit: taken from the data (default: the measured, filtered state every "
+                        "metric starts from, so the fit minimises what it is judged by) or estimated per run with the "
+                        "parameters within each channel's noise (for a noisy first sample: a heading offset never "
+                        "decays and biases the estimates)")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
                    help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
     p.add_argument("--solver", default="diffrax-rk4", choices=INTEGRATOR_NAMES,
