@@ -47,7 +47,7 @@ def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
     vessel = load_vessel(job.vessel_file) if job.vessel_file else None
     model, _ = require_particulars(model, vessel)
     options = OutputErrorOptions(integrator=get_integrator("diffrax-rk4"), weights="noise")
-    res = fit_both(model, runs, spec=model.spec(), methods=("output_error",), estimate_x0="fitted",
+    res = fit_both(model, runs, spec=model.spec(), methods=("output_error",), estimate_x0=(),  # --x0 data
                    options=options)["output_error"]
     fit_path = save_fit(res, out / "fits" / f"{job.key}.json", runs, registry=job.model,
                         extra={"fleet": {"vessel": job.vessel, "run": job.run, "files": list(job.runs)}})
