@@ -431,8 +431,9 @@ class Run:
         return cls.from_dataframe(df, name, **kw)
 
 
-def load_runs(paths: str | os.PathLike | Iterable[str | os.PathLike], **kw: Any) -> list[Run]:
-    """Load several CSV files with the same options; names are file stems made unique."""
+def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel_map: Any = None, **kw) -> list[Run]:
+    """Load CSV files or logs (``channel_map``, :mod:`diffship.logs`) alike; names are file stems made unique."""
+    from .logs import is_log, log_runs  # robot logs, parquet (issue 30); logs never import data: Run is passed
     paths = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
     if not paths:
         raise DataError("load_runs: no files given.")
@@ -446,7 +447,7 @@ def load_runs(paths: str | os.PathLike | Iterable[str | os.PathLike], **kw: Any)
         if stems.count(stem) > 1:
             seen[stem] = seen.get(stem, 0) + 1
             name = f"{stem}_{seen[stem]}"
-        runs.append(Run.from_csv(p, name, **kw))
+        runs.extend(log_runs(p, name, channel_map, kw, Run) if is_log(p) else [Run.from_csv(p, name, **kw)])
     return runs
 
 

@@ -92,7 +92,9 @@ def _provenance(run: Run) -> dict[str, Any]:
             "duration": run.duration, "channels": list(run.channel_names),
             "rudder_sign_in_source": meta.get("rudder_sign_in_source"),
             "resampled_dt": meta.get("resampled_dt"), "degrees_converted": list(meta.get("degrees_converted", ())),
-            "simulated": bool(meta.get("simulated", False))}
+            "simulated": bool(meta.get("simulated", False)),
+            **({"log": {k: meta[k] for k in ("map", "frame", "sources", "gaps", "segment", "time_origin", "holds")
+                        if k in meta}} if "sources" in meta else {})}  # runs read from logs (diffship.logs)
 
 
 def _operating_point(runs: Sequence[Run], first_s: float = 1.0) -> dict[str, float]:

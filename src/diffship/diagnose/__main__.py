@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..errors import DiffshipError
+from ..log_options import add_log_options, log_kwargs
 from ..models.effects import EFFECT_NAMES
 
 EPILOG = (f"Effects: {', '.join(EFFECT_NAMES)} (wind needs wind_speed and wind_dir columns). "
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="DIR", help="write diagnosis.md, diagnosis.json and figures here")
     p.add_argument("--json", default=None, metavar="FILE", help="write the JSON result here")
     p.add_argument("--quiet", action="store_true")
+    add_log_options(p)  # --map (logs), --html (issue 30)
     return p
 
 
@@ -55,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         spec = model.spec()
         spec = spec.fix(fix) if fix else spec
         columns = dict(c.split("=", 1) for c in args.columns if "=" in c)
-        kw = dict(columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+        kw = dict(columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign, **log_kwargs(args))
         train, val = load_runs(args.runs, **kw), load_runs(args.validate, **kw)
         if args.resample:
             train = [r.resample(args.resample) for r in train]
@@ -71,6 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         write_json(d, args.json)
         say(f"wrote {args.json}")
+    if args.html:
+        from ..html import write_html_report
+
+        say(f"wrote {write_html_report(args.html, f'diffship diagnosis: {args.model}', to_markdown(d), lambda f: write_report(d, f))}")
     return 0
 
 

@@ -15,6 +15,7 @@ import argparse
 from collections.abc import Sequence
 
 from ..channels import CHANNEL_NAMES
+from ..log_options import add_log_options
 from ..particulars import MODEL_PARTICULARS, bundled_vessels, missing_message, missing_particulars
 
 __all__ = ["INTEGRATOR_NAMES", "build_parser", "precheck"]
@@ -77,6 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     _add_prior_arguments(p)
     _add_vessel_arguments(p)
+    add_log_options(p)  # --map (logs), --html (issue 30)
     # -- estimators for sea data (issue 13) --
     p.add_argument("--shooting", default="single", metavar="single|multiple[:SEGMENT_S]",
                    help="output error by single shooting (default) or multiple shooting with segments of SEGMENT_S "

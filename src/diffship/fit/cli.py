@@ -31,6 +31,8 @@ from ..vessel import (
     speed_range,
 )
 from ..fitfile import save_fit
+from ..html import write_html_report
+from ..log_options import log_kwargs
 from ..manoeuvres import check_turn_direction
 from ..predict.cross import cross_validate, train_types_json
 from ..predict.cross_report import cross_json, cross_text, plot_cross
@@ -107,7 +109,8 @@ def _columns(args) -> dict[str, str]:
 
 
 def _load(args, paths):
-    runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+    runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
+                     **log_kwargs(args))
     if args.resample:
         runs = [r.resample(args.resample) for r in runs]
     return runs
@@ -232,6 +235,12 @@ def _fit(args, say) -> int:
     if cross is not None and args.out:
         plot_cross(cross, Path(args.out) / "cross_manoeuvre.png")
         say(f"wrote {Path(args.out) / 'cross_manoeuvre.png'}")
+    if args.html:  # issue 30: one self-contained file, the figures --out writes embedded
+        def figures(d):
+            plot_fit(model.name, train, val, ev_train, ev_val, d / "fit.png", failed=failed_methods(ev_train, results))
+            return [d / "fit.png"] + ([plot_cross(cross, d / "cross_manoeuvre.png") or d / "cross_manoeuvre.png"]
+                                      if cross is not None else [])
+        say(f"wrote {write_html_report(args.html, f'diffship fit: {model.name}', report, figures)}")
     if not any(r.converged for r in results.values()):
         print("error: no fit converged (see the statuses above)", file=sys.stderr)
         return 1
@@ -355,13 +364,14 @@ def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
         return []
     if not args.check_sampling:
         rate = 1.0 / load_runs(args.runs[:1], columns=_columns(args) or None, degrees=args.degrees,
-                               rudder_sign=args.rudder_sign, check_units=False)[0].dt
+                               rudder_sign=args.rudder_sign, check_units=False, **log_kwargs(args))[0].dt
         return ["", f"WARNING: the runs were resampled from {rate:.3g} Hz to {1 / args.resample:g} Hz; identified "
                 "parameters can depend on the sampling rate by more than their intervals (the bundled SSPA zigzag: "
                 "Nomoto K/T1 1.33/14.8 at 50 Hz vs 0.835/3.31 at 10 Hz). Add --check-sampling to refit at the "
                 "files' rate and compare."]
     say(f"--resample {args.resample:g}: refitting at the files' own sample rate to check the sensitivity...")
-    raw = load_runs(args.runs, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign)
+    raw = load_runs(args.runs, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
+                    **log_kwargs(args))
     try:
         ref = fit_both(model, raw, spec=spec.with_values(oe.params), methods=("output_error",), init=None,
                        flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..data import load_runs
 from ..errors import DiffshipError
+from ..log_options import add_log_options, log_kwargs
 from ..params import parse_assignments
 from .core import predict
 from .cross import RunType, cross_validate
@@ -48,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
     p.add_argument("--quiet", action="store_true")
+    add_log_options(p)  # --map (logs for --measured), --html (issue 30)
     return p
 
 
@@ -81,6 +83,15 @@ def main(argv: list[str] | None = None) -> int:
             plot_cross(cross, files[-1])
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] wrote {', '.join(str(f) for f in files)}", file=sys.stderr)
+    if args.html:
+        from ..html import write_html_report
+
+        text = prediction_text(pred) + ("\n\n" + cross_text(cross) if cross is not None else "")
+        figs = lambda d: [f for f in write_prediction(pred, d)] + (  # noqa: E731
+            [plot_cross(cross, d / "cross_manoeuvre.png") or d / "cross_manoeuvre.png"] if cross is not None else [])
+        path = write_html_report(args.html, f"diffship prediction: {args.fit}", text, figs)
+        if not args.quiet:
+            print(f"[{time.perf_counter() - t0:6.1f} s] wrote {path}", file=sys.stderr)
     return 0
 
 
@@ -95,8 +106,9 @@ def _cross(args, pred):
     if known is None:
         raise DiffshipError(f"{args.fit}: the fit file does not say which manoeuvre types it was trained on "
                             "(training_manoeuvres); refit with this version of python -m diffship.fit")
-    return cross_validate(fit, [RunType.from_json(d) for d in known], load_runs(args.measured),
+    return cross_validate(fit, [RunType.from_json(d) for d in known], load_runs(args.measured, **log_kwargs(args)),
                           samples=args.samples, length=pred.condition.length)
+
 
 
 if __name__ == "__main__":

@@ -1,0 +1,188 @@
+"""Fleet fits on Dask ``distributed``: grouping, scheduling, progress, rerun, the results table.
+
+Why Dask rather than Ray: the work is a bag of independent, coarse, CPU-bound Python tasks with
+small inputs (file paths) and small outputs (a row); both engines do that. ``distributed`` is
+pure Python on PyPI (one wheel, installs in seconds next to JAX, no separate object store or
+raylet daemons), spawns its worker processes (``spawn``, not ``fork``: a forked JAX runtime is not
+safe), restarts a killed worker through its nanny and reports the lost task as ``KilledWorker``,
+and connects to an existing cluster by address (``dask scheduler`` / ``dask worker`` on any
+machines, or a Dask-Jobqueue / Kubernetes deployment). Ray would add a heavier runtime for
+features this does not use (actors, a shared-memory object store, GPUs).
+
+Scheduling: jobs are grouped by (model, vessel file, channel map, run length rounded up to
+:data:`PAD` samples) — the grouping the batched solver pads by — and each group is cut into
+batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes with one
+thread each (``threads_per_worker=1``; BLAS threads set to one), so a compiled
+program is compiled once per worker and reused for every later fit of the same shape. A task
+writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
+skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
+A task lost with a killed worker (``--retries 0``) records its unfinished vessel-runs as failed
+("worker lost"), unless it had not started (a marker file says when it did): then it was only
+queued on that worker, and is submitted once more to the workers left.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from .manifest import FleetJob, read_manifest
+
+__all__ = ["PAD", "FleetSummary", "group_jobs", "run_fleet"]
+
+PAD = 256  # [samples] run-length bucket of a group
+_DONE = ("ok", "not converged")
+
+
+class FleetSummary(dict):
+    """``{"done", "failed", "skipped", "total", "seconds", "table"}`` of a fleet run."""
+
+
+def _length(job: FleetJob) -> int:
+    """A cheap size of the job's data (bytes of its files) for grouping; the exact length is not needed."""
+    return sum(Path(f).stat().st_size if Path(f).is_file() else 0 for f in job.runs)
+
+
+def group_jobs(jobs: Sequence[FleetJob], batch: int) -> list[list[FleetJob]]:
+    """Groups of at most ``batch`` jobs with the same model, vessel, map and similar data size."""
+    buckets: dict[tuple, list[FleetJob]] = defaultdict(list)
+    for j in jobs:
+        size = _length(j)
+        buckets[(j.model, j.vessel_file, j.channel_map, size.bit_length())].append(j)
+    groups = []
+    for key in sorted(buckets, key=str):
+        b = buckets[key]
+        groups.extend(b[i:i + batch] for i in range(0, len(b), batch))
+    return groups
+
+
+def _done_keys(out: Path) -> set[str]:
+    done = set()
+    for f in (out / "rows").glob("*.json"):
+        try:
+            row = json.loads(f.read_text())
+        except (OSError, ValueError):
+            continue
+        if row.get("status") in _DONE and Path(row.get("fit_file", "")).is_file():
+            done.add(row["key"])
+    return done
+
+
+def _bar(done: int, failed: int, total: int, t0: float, stream) -> None:
+    width = 30
+    k = int(width * (done + failed) / max(total, 1))
+    rate = done / max(time.perf_counter() - t0, 1e-9)
+    stream.write(f"\r[{'#' * k}{'.' * (width - k)}] done {done}  failed {failed}  left {total - done - failed}"
+                 f"  ({rate:.2f} fits/s)")
+    stream.flush()
+
+
+def _write_table(out: Path) -> Path:
+    import pandas as pd
+
+    rows = []
+    for f in sorted((out / "rows").glob("*.json")):
+        try:
+            rows.append(json.loads(f.read_text()))
+        except (OSError, ValueError):
+            continue
+    path = out / "results.parquet"
+    pd.DataFrame(rows).to_parquet(path, index=False)
+    return path
+
+
+def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, address: str | None = None,
+              batch: int = 8, retries: int = 0, progress: bool = True,
+              on_result: Callable[[Any, list[dict]], None] | None = None) -> FleetSummary:
+    """Fit every vessel-run of ``manifest`` into ``out`` (see the module docstring).
+
+    ``workers``: local worker processes (ignored with ``address``, a running scheduler). ``retries``:
+    how many times a task whose worker died is tried again elsewhere (0: its vessel-runs are recorded
+    as failed and left for the rerun). ``on_result(client, rows)`` is called after every finished task.
+    """
+    from ..logs import require_extra
+
+    require_extra("distributed", "python -m diffship.fleet (Dask distributed; pip install 'diffship[fleet]')")
+    import dask
+    from distributed import Client, LocalCluster, as_completed
+
+    from .worker import fit_group
+
+    out = Path(out)
+    (out / "rows").mkdir(parents=True, exist_ok=True)
+    for f in (out / "started").glob("*.group") if (out / "started").is_dir() else ():
+        f.unlink()  # markers of an earlier run
+    jobs = read_manifest(manifest)
+    done = _done_keys(out)
+    todo = [j for j in jobs if j.key not in done]
+    t0 = time.perf_counter()
+    summary = FleetSummary(total=len(jobs), skipped=len(jobs) - len(todo), done=0, failed=0)
+    stream = sys.stderr
+    if not todo:
+        summary.update(seconds=0.0, table=str(_write_table(out)))
+        return summary
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(k, "1")  # spawned workers inherit it: one BLAS thread per worker (XLA_FLAGS are left
+        # alone: they enter the persistent compilation cache's key, and a changed flag recompiles everything)
+    with dask.config.set({"distributed.scheduler.allowed-failures": retries,
+                          "distributed.scheduler.worker-saturation": 1.0,  # a worker holds only the task it runs:
+                          # a killed worker loses that task alone, the rest wait on the scheduler
+                          "distributed.worker.multiprocessing-method": "spawn",
+                          "distributed.worker.daemon": False}):
+        cluster = None
+        if address is None:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+        client = Client(address or cluster)
+        try:
+            groups = group_jobs(todo, batch)
+            futures = {client.submit(fit_group, g, str(out), pure=False, key=f"fleet-{i}-{g[0].key}"): g
+                       for i, g in enumerate(groups)}
+            if progress:
+                _bar(0, 0, len(todo), t0, stream)
+            pending = as_completed(list(futures))
+            resubmitted: set[str] = set()
+            for fut in pending:
+                group = futures[fut]
+                try:
+                    rows = fut.result()
+                except Exception as exc:  # noqa: BLE001 (KilledWorker, a lost connection: these vessel-runs only)
+                    started = (out / "started" / f"{group[0].key}.group").is_file()
+                    if not started and group[0].key not in resubmitted:  # assigned to the dead worker, never run:
+                        resubmitted.add(group[0].key)  # not its fits; once more, on the workers left
+                        new = client.submit(fit_group, group, str(out), pure=False,
+                                            key=f"fleet-again-{group[0].key}")
+                        futures[new] = group
+                        pending.add(new)
+                        continue
+                    finished = _done_keys(out)
+                    rows = []
+                    for job in group:
+                        if job.key in finished:
+                            rows.append({"key": job.key, "status": "ok"})
+                            continue
+                        row = {"key": job.key, "vessel": job.vessel, "run": job.run, "model": job.model,
+                               "status": "failed", "converged": False,
+                               "error": f"worker lost: {type(exc).__name__}: {exc}".splitlines()[0][:500]}
+                        (out / "rows" / f"{job.key}.json").write_text(json.dumps(row))
+                        rows.append(row)
+                summary["done"] += sum(r["status"] in _DONE for r in rows)
+                summary["failed"] += sum(r["status"] not in _DONE for r in rows)
+                if progress:
+                    _bar(summary["done"], summary["failed"], len(todo), t0, stream)
+                if on_result is not None:
+                    on_result(client, rows)
+            if progress:
+                stream.write("\n")
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    summary.update(seconds=time.perf_counter() - t0, table=str(_write_table(out)))
+    return summary
