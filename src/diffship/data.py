@@ -34,7 +34,8 @@ from diffship.errors import DataError
 
 __all__ = [
     "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "CHANNEL_UNITS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run",
-    "example_path", "example_runs", "kvlcc2_runs", "load_runs", "shared_data_dir",
+    "TIME_UNITS", "UnitsError", "check_yaw_direction", "example_path", "example_runs", "kvlcc2_runs", "load_runs",
+    "shared_data_dir",
 ]
 
 CANONICAL_COLUMNS = ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "tau_x", "tau_y", "tau_z")
@@ -103,9 +104,61 @@ def _psi_unwrap(psi: np.ndarray) -> tuple[np.ndarray, bool]:
     return np.unwrap(psi, period=360.0 if in_degrees else 2 * np.pi), in_degrees
 
 
+class UnitsError(DataError):
+    """Unit problems of one run: ``columns`` to declare in degrees, ``time_unit`` the time stamps
+    seem to be in (``"ms"``, ``"us"``) or ``None``; :func:`load_runs` joins those of every file."""
+
+    def __init__(self, message: str, columns: Sequence[str] = (), time_unit: str | None = None) -> None:
+        super().__init__(message)
+        self.columns = tuple(columns)
+        self.time_unit = time_unit
+        self.detail = message
+
+
+#: Time units ``Run.from_dataframe(time_unit=...)`` / ``--time-unit`` converts to seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+
+
+def _time_unit_problem(time: np.ndarray, ch: Mapping[str, np.ndarray]) -> str | None:
+    """``"ms"`` or ``"us"`` when the time stamps look like milliseconds or microseconds: the heading's
+    rate against the measured yaw rate (or the track's speed against the measured surge speed) is
+    10⁻³ or 10⁻⁶ of what seconds give; without those channels, a median step of 5 or more "seconds"
+    (a 200 Hz to 0.2 Hz log in ms) on whole numbers."""
+    dt = float(np.median(np.diff(time)))
+    ratios = []
+    if "psi" in ch and "r" in ch and np.std(ch["r"]) > 1e-3:
+        g = np.gradient(np.unwrap(ch["psi"]), time)
+        r = ch["r"]
+        if np.std(g) > 0 and abs(np.corrcoef(g, r)[0, 1]) > 0.7:
+            ratios.append(abs(float(g @ r / (r @ r))))
+    if "x0" in ch and "y0" in ch and "u" in ch and np.mean(np.abs(ch["u"])) > 1e-2:
+        sog = np.hypot(np.gradient(ch["x0"], time), np.gradient(ch["y0"], time))
+        ratios.append(float(np.median(sog)) / float(np.mean(np.abs(ch["u"]))))
+    for ratio in ratios:
+        if 3e-4 < ratio < 3e-3:
+            return "ms"
+        if 3e-7 < ratio < 3e-6:
+            return "us"
+    if ratios:
+        return None
+    whole = bool(np.all(np.abs(time - np.round(time)) < 1e-9))
+    if dt >= 5000.0 and whole:
+        return "us"
+    if dt >= 5.0 and whole:
+        return "ms"
+    return None
+
+
 def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> None:
-    """Conservative heuristics that catch degrees passed as radians; every problem in one error."""
+    """Conservative heuristics that catch degrees passed as radians and time stamps in ms or µs;
+    every problem of the run in one error (:class:`UnitsError`)."""
     problems: list[tuple[str, str]] = []  # (channel, what)
+    unit = _time_unit_problem(time, ch)
+    if unit is not None:
+        dt = float(np.median(np.diff(time)))
+        problems.append(("time", f"the time stamps look like {'milliseconds' if unit == 'ms' else 'microseconds'} "
+                                 f"(median step {dt:.6g}; heading rate against yaw rate, or track against speed, "
+                                 f"off by {'1000' if unit == 'ms' else '10⁶'})"))
     for c, limit, unit in (("delta", 1.0, "rad"), ("nozzle", 1.0, "rad"),
                            ("r", 3.0, "rad/s"), ("p", 3.0, "rad/s"), ("q", 3.0, "rad/s")):
         if c in ch and np.max(np.abs(ch[c])) > limit:
@@ -132,10 +185,16 @@ def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> 
                     problems.append(("r", f"column 'r' looks like deg/s while 'psi' is in rad "
                                           f"(d psi/dt = {slope:.3g} r, about 1/57.3)"))
     if problems:
-        cols = " ".join(dict.fromkeys(c for c, _ in problems))
-        raise DataError(f"{where}: " + "; ".join(w for _, w in problems)
-                        + f"; pass degrees=[{', '.join(repr(c) for c in dict.fromkeys(c for c, _ in problems))}] "
-                        f"(CLI: --degrees {cols}), or check_units=False if the values really are radians.")
+        degs = list(dict.fromkeys(c for c, _ in problems if c != "time"))
+        fixes = []
+        if degs:
+            fixes.append(f"degrees=[{', '.join(repr(c) for c in degs)}] (CLI: --degrees {' '.join(degs)})")
+        if unit is not None:
+            fixes.append(f"time_unit={unit!r} (CLI: --time-unit {unit})")
+        detail = "; ".join(w for _, w in problems)
+        raise UnitsError(f"{where}: {detail}; pass " + " and ".join(fixes)
+                         + ", or check_units=False if the values really are SI (s, rad).",
+                         degs, unit)
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -312,7 +371,7 @@ class Run:
                        columns: Mapping[str, str] | None = None, degrees: Sequence[str] = (),
                        rudder_sign: str = "starboard", time_column: str = "time",
                        source: str | None = None, metadata: Mapping[str, Any] | None = None,
-                       check_units: bool = True) -> Run:
+                       check_units: bool = True, time_unit: str = "s") -> Run:
         """Build a run from a DataFrame (which is never modified).
 
         Parameters
@@ -331,6 +390,9 @@ class Run:
             File path or description, quoted in messages and kept in the metadata.
         metadata : Mapping, optional
             Extra metadata merged into the run's metadata.
+        time_unit : str
+            Unit of a numeric time column: ``"s"`` (default), ``"ms"`` or ``"us"`` (converted to s).
+            Date-time stamps (text or datetime64) are read as seconds from the first.
         """
         where = _where(name, source or "DataFrame")
         if rudder_sign not in ("starboard", "port"):
@@ -358,8 +420,15 @@ class Run:
         arrays: dict[str, np.ndarray] = {}
         for ch, col in cmap.items():
             s = df[col]
+            if ch == "time" and not pd.api.types.is_datetime64_any_dtype(s) and not pd.api.types.is_numeric_dtype(s):
+                stamps = pd.to_datetime(s, errors="coerce", format="mixed") if s.notna().all() else None
+                if stamps is not None and stamps.notna().all():
+                    s = stamps  # date-time stamps: seconds from the first
             if ch == "time" and pd.api.types.is_datetime64_any_dtype(s):
                 s = (s - s.iloc[0]).dt.total_seconds()
+                if time_unit != "s":
+                    raise DataError(f"{where}: the time column holds date-times (read as seconds from the first); "
+                                    f"time_unit={time_unit!r} does not apply, drop it")
             elif not pd.api.types.is_numeric_dtype(s) or pd.api.types.is_complex_dtype(s):
                 num = pd.to_numeric(s, errors="coerce")
                 bad = num.isna().to_numpy() & s.notna().to_numpy()
@@ -382,10 +451,13 @@ class Run:
         flipped = [c for c in RUDDER_CHANNELS if c in arrays] if rudder_sign == "port" else []
         for c in flipped:
             arrays[c] = -arrays[c]
-        time = arrays.pop("time")
+        if time_unit not in TIME_UNITS:
+            raise DataError(f"{where}: time_unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}.")
+        time = arrays.pop("time") * TIME_UNITS[time_unit]
         meta = {"source": source or "DataFrame", "rudder_sign_in_source": rudder_sign,
                 "rudder_flipped": tuple(flipped), "degrees_converted": tuple(converted),
-                "column_map": dict(cmap), "ignored_columns": tuple(ignored), **(metadata or {})}
+                "column_map": dict(cmap), "ignored_columns": tuple(ignored), "time_unit_in_source": time_unit,
+                **(metadata or {})}
         return cls(name, time, arrays, meta, check_units=check_units)
 
     @classmethod
@@ -440,14 +512,54 @@ def load_runs(paths: str | os.PathLike | Iterable[str | os.PathLike], **kw: Any)
         raise DataError("load_runs: 'name' cannot be shared by several files; names are file stems.")
     stems = [Path(p).stem for p in paths]
     seen: dict[str, int] = {}
-    runs = []
+    runs, units = [], []
     for p, stem in zip(paths, stems):
         name = stem
         if stems.count(stem) > 1:
             seen[stem] = seen.get(stem, 0) + 1
             name = f"{stem}_{seen[stem]}"
-        runs.append(Run.from_csv(p, name, **kw))
+        try:
+            runs.append(Run.from_csv(p, name, **kw))
+        except UnitsError as exc:  # every file's unit problems in one message
+            units.append(exc)
+    if len(units) == 1:
+        raise units[0]
+    if units:
+        degs = list(dict.fromkeys(c for e in units for c in e.columns))
+        tu = next((e.time_unit for e in units if e.time_unit), None)
+        fixes = ([f"--degrees {' '.join(degs)}"] if degs else []) + ([f"--time-unit {tu}"] if tu else [])
+        raise UnitsError(f"{len(units)} files have unit problems: "
+                         + " | ".join(e.detail.split("; pass ")[0] for e in units)
+                         + f"; pass {' and '.join(fixes)} (Python: degrees=..., time_unit=...)", degs, tu)
     return runs
+
+
+def check_yaw_direction(runs: Sequence[Run], rudder_sign: str = "starboard") -> None:
+    r"""Stop when a run's yaw turns against its yaw moment (diffship: heading clockwise from north, NED/FRD,
+    positive yaw moment :math:`\tau_z` turns to starboard).
+
+    For every run with a yaw moment ``tau_z`` and a yaw rate ``r`` (or heading ``psi``): the
+    correlation of :math:`\tau_z` with the yaw rate must not be clearly negative (:math:`\rho < -0.3`
+    with the moment varying); counter-clockwise yaw (the ROS/ENU habit: ψ, r, v, y0 negated) shows as
+    exactly that. The rudder models' check is :func:`diffship.manoeuvres.check_turn_direction`
+    (the CLI runs both)."""
+    bad = []
+    for run in runs:
+        if not run.has("tau_z") or not (run.has("r") or run.has("psi")):
+            continue
+        n = np.asarray(run["tau_z"])
+        r = np.asarray(run["r"]) if run.has("r") else np.gradient(np.unwrap(np.asarray(run["psi"])), run.time)
+        if np.std(n) <= 1e-9 * max(float(np.max(np.abs(n))), 1e-300) or np.std(r) == 0:
+            continue
+        rho = float(np.corrcoef(n, r)[0, 1])
+        if rho < -0.3:
+            bad.append(f"run '{run.name}' ({run.metadata.get('source', '')}): the yaw rate follows the negative of "
+                       f"the yaw moment tau_z (correlation {rho:.2f})")
+    if bad:
+        raise DataError("the yaw turns against the yaw moment: " + "; ".join(bad) + ". diffship's heading is "
+                        "clockwise from north (NED, FRD: positive tau_z and r turn to starboard); counter-clockwise "
+                        "data (ROS ENU/FLU) need psi, r, v, y0 negated (and x0/y0 swapped from ENU) before loading, "
+                        "or tau_z negated if only its sign is off (or --skip-sign-check if the record really does this)")
 
 
 def example_path(name: str) -> Path:

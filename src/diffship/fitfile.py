@@ -44,7 +44,8 @@ from .models import MODELS, AbstractModel
 if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
 
-__all__ = ["SCHEMA", "LoadedFit", "fit_document", "integrator_name", "load_fit", "save_fit"]
+__all__ = ["SCHEMA", "LoadedFit", "fit_document", "fit_warnings", "integrator_name", "load_fit", "measured_helm_rate", "rudder_moves",
+           "save_fit"]
 
 SCHEMA = "diffship.fit/1"
 
@@ -102,7 +103,63 @@ def _operating_point(runs: Sequence[Run], first_s: float = 1.0) -> dict[str, flo
         sel = run.time <= run.t0 + first_s
         for c in run.channel_names:
             acc.setdefault(c, []).append(float(np.mean(run[c][sel])))
-    return {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
+    out = {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
+    if "u" not in out and all(r.has("x0", "y0") for r in runs) and runs:
+        speeds = []  # no surge speed measured: the speed over ground of the track's first seconds (first_s ≥ 3 s)
+        for run in runs:
+            sel = run.time <= run.t0 + max(first_s, 3.0)
+            x, y, t = np.asarray(run["x0"])[sel], np.asarray(run["y0"])[sel], np.asarray(run.time)[sel]
+            if len(t) >= 3 and t[-1] > t[0]:
+                speeds.append(float(np.hypot(x[-1] - x[0], y[-1] - y[0]) / (t[-1] - t[0])))
+        if len(speeds) == len(runs):
+            out["u"] = float(np.mean(speeds))
+    return out
+
+
+def rudder_moves(run: Run, min_deg: float = 2.0) -> list[tuple[float, float, float]]:
+    r"""The rudder's moves in a run: ``(t_start, change [°], rate [°/s])`` each.
+
+    A move is a stretch of samples where the rudder angle changes faster than
+    :math:`\max(0.5°/s,\ 0.1\,P_{99}|\dot\delta|)` (gaps of one sample bridged) by at least
+    ``min_deg`` and a quarter of the run's rudder range; its rate is :math:`0.8\,|\Delta\delta|`
+    over the time between the 10 % and 90 % crossings (linear interpolation), which does not depend
+    on the sample rate the way the largest sample-to-sample difference does."""
+    if not run.has("delta") or run.n < 3:
+        return []
+    t = np.asarray(run.time, dtype=np.float64)
+    d = np.degrees(np.asarray(run["delta"], dtype=np.float64))
+    rate = np.abs(np.diff(d)) / np.diff(t)
+    if not np.any(rate > 0):
+        return []
+    moving = rate > max(0.5, 0.1 * float(np.percentile(rate, 99)))
+    idx = np.flatnonzero(moving)
+    out = []
+    if not idx.size:
+        return out
+    groups = np.split(idx, np.flatnonzero(np.diff(idx) > 2) + 1)
+    span = float(np.ptp(d))
+    for g in groups:
+        a, b = int(g[0]), int(g[-1]) + 1
+        change = d[b] - d[a]
+        if abs(change) < max(min_deg, 0.25 * span):
+            continue
+        seg_t, seg_d = t[a:b + 1], (d[a:b + 1] - d[a]) / change  # 0 → 1 along the move
+        mono = np.maximum.accumulate(seg_d)
+        t10, t90 = np.interp(0.1, mono, seg_t), np.interp(0.9, mono, seg_t)
+        dur = float(t90 - t10) if t90 > t10 else float(seg_t[-1] - seg_t[0])
+        if dur > 0:
+            out.append((float(t[a]), float(change), 0.8 * abs(change) / dur if t90 > t10 else abs(change) / dur))
+    return out
+
+
+def measured_helm_rate(runs: Sequence[Run]) -> dict[str, Any] | None:
+    """The steering-gear rate the training runs show: the median rate of their rudder moves
+    (:func:`rudder_moves`), ``{"deg_s", "moves", "source"}``; ``None`` without rudder moves."""
+    rates = [m[2] for r in runs for m in rudder_moves(r)]
+    if not rates:
+        return None
+    return {"deg_s": float(np.median(rates)), "moves": len(rates),
+            "source": f"median rate of {len(rates)} rudder moves in the training runs (10–90 % of each move)"}
 
 
 def _ranges(runs: Sequence[Run]) -> dict[str, list[float]]:
@@ -153,6 +210,7 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
         "integrator": {**integrator_name(result.integrator), "description": result.integrator.describe()},
         "initial_states": x0,
         "operating_point": _operating_point(runs) if runs else {},
+        "helm_rate": measured_helm_rate(runs) if "delta" in model.input_names else None,
         "data_ranges": _ranges(runs),
         "ship": {"length_m": length, "model_scale": scales[0] if len(scales) == 1 else None},
         "data": [_provenance(r) for r in runs],
@@ -233,6 +291,30 @@ class LoadedFit:
             se = self.stderr.get(n, math.nan)
             lines.append(f"  {n:>10s} = {self.params[n]: .6g} ± {se:.3g} {self.units.get(n, '')}".rstrip())
         return "\n".join(lines)
+
+
+def fit_warnings(fit: LoadedFit) -> list[str]:
+    """What a user of a fit file must be told before using it: a fit labelled FAILED (not usable), not
+    converged, with unidentified parameters or training runs it does not follow (the verdict
+    ``python -m diffship.fit`` recorded, :mod:`diffship.usability`)."""
+    doc = fit.document
+    v = doc.get("verdict") or {}
+    out = []
+    if doc.get("usable") is False or v.get("usable") is False:
+        why = "; ".join(v.get("reasons", ())) or doc.get("status", "")
+        out.append(f"WARNING: this fit is labelled FAILED ({why}): do not use these values; predictions from it "
+                   "are not supported")
+    elif not fit.converged:
+        out.append(f"warning: the fit did NOT converge ({fit.status}): treat these predictions with care")
+    for w in v.get("unidentified", ()):
+        out.append(f"warning: parameter not identified by the data: {w}")
+    runs = v.get("runs", ())
+    if runs:
+        out.append("warning: runs the fit does not follow: " + "; ".join(
+            f"{r['kind']} run {r['run']} ({r['channel']}" + (f" from t = {r['from_s']:.0f} s" if r.get('from_s') is not None
+                                                              and math.isfinite(r['from_s']) else "") + ")"
+            for r in runs))
+    return out
 
 
 def read_document(path: str | Path) -> dict[str, Any]:

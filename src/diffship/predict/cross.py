@@ -222,9 +222,55 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
                    f"rudder levels {', '.join(f'{lv:+.3g}' for lv in levels)}° fit no standard manoeuvre")
 
 
-def train_types_json(runs: Sequence[Run]) -> list[dict]:
-    """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``)."""
-    return [{"run": r.name, **classify_run(r).as_json()} for r in runs]
+def train_types_json(runs: Sequence[Run], length: float | None = None) -> list[dict]:
+    """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``), with its
+    measured metrics (``measured``: :func:`run_metrics`) and, for a zigzag, the measured delay between
+    the heading reaching the switch angle and the rudder's reversal (``switch_delay_s``,
+    :func:`switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
+    beside what was measured."""
+    out = []
+    for r in runs:
+        rt = classify_run(r)
+        d = {"run": r.name, **rt.as_json()}
+        if rt.kind != "other":
+            try:
+                d["measured"] = {k: float(v) for k, v in run_metrics(r, rt, length).items()}
+            except (DataError, ModelError):
+                pass
+        if rt.kind == "zigzag":
+            d["switch_delay_s"] = switch_delay(r, rt)
+        out.append(d)
+    return out
+
+
+def switch_delay(run: Run, rt: RunType) -> float:
+    """Median delay [s] between the heading change (from the first execute) reaching ±switch angle and the
+    start of the rudder's reversal in a zigzag (0 where none is found): how late the helmsman or
+    autopilot of the record answered, which the predicted zigzag then reproduces."""
+    i0, side = first_execute(run)
+    t = np.asarray(run.time, dtype=np.float64)
+    h = np.degrees(np.unwrap(np.asarray(run["psi"], dtype=np.float64)) - float(np.unwrap(np.asarray(run["psi"]))[i0]))
+    d = np.degrees(np.asarray(run["delta"], dtype=np.float64))
+    sw = float(rt.switch_deg or 0.0)
+    if not run.has("psi") or sw <= 0:
+        return 0.0
+    delays, sign, k = [], side, i0
+    for _ in range(8):
+        # the heading reaches sign·sw after k; the rudder, at sign·|δ|, starts to reverse afterwards
+        cross = np.nonzero(sign * h[k:] >= sw)[0]
+        if not cross.size:
+            break
+        kc = k + int(cross[0])
+        rev = np.nonzero(sign * d[kc:] < sign * d[kc] - max(0.5, 0.05 * abs(float(d[kc]))))[0]
+        if not rev.size:
+            break
+        kr = kc + int(rev[0])
+        # back to the start of the ramp: the last sample before kr still at the plateau level (within 0.25°)
+        plateau = np.nonzero(np.abs(d[kc:kr + 1] - d[kc]) <= 0.25)[0]
+        ks = kc + int(plateau[-1]) if plateau.size else kr
+        delays.append(max(0.0, float(t[ks] - t[kc])))
+        sign, k = -sign, kr
+    return float(np.median(delays)) if delays else 0.0
 
 
 # ----------------------------------------------------------------------------------------
@@ -345,7 +391,8 @@ def _fit_parts(fit):
 
 
 def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Sequence[Run], *, samples: int = 100,
-                   seed: int = 0, flt: Filter | None = None, length: float | None = None) -> CrossValidation:
+                   seed: int = 0, flt: Filter | None = None, length: float | None = None,
+                   trained_types: bool = False) -> CrossValidation:
     """Judge ``fit`` on the held-out runs whose manoeuvre type is not among the training runs' types.
 
     Args:
@@ -354,6 +401,8 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
         heldout: measured runs to predict (open loop with their measured inputs).
         samples: parameter draws for the 95 % intervals (0: none; needs a finite covariance).
         length: ship length [m] for the turning metrics (default the model's ``L``).
+        trained_types: also judge held-out runs of the trained types (a held-out zigzag of a
+            zigzag-trained fit: its overshoots measured and predicted), labelled as such.
     """
     model, names, cov, integ = _fit_parts(fit)
     if "delta" not in model.input_names:
@@ -372,7 +421,7 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
     checks, skipped = [], []
     for run in heldout:
         rt = classify_run(run)
-        if rt.kind in trained:
+        if rt.kind in trained and not trained_types:
             skipped.append((run.name, f"{rt.label}: a trained manoeuvre type (an ordinary validation run)"))
             continue
         if rt.kind == "other":

@@ -18,14 +18,16 @@ def _f(v) -> str:
 
 def cross_text(cv: CrossValidation) -> str:
     """The cross-manoeuvre section of a report: training types, one table per held-out run, verdict."""
-    lines = ["Cross-manoeuvre validation (trained on: "
+    lines = ["Manoeuvre validation on held-out runs (trained on: "
              + ", ".join(f"{t.label}" for t in cv.train_types) + ")",
-             ("  held-out runs of other manoeuvre types simulated open loop with their measured inputs; "
-              f"intervals: {cv.interval_method}"),
+             ("  held-out standard manoeuvres simulated open loop with their measured inputs from their measured "
+              f"initial state; IMO metrics measured vs predicted; intervals: {cv.interval_method}"),
              ("  flagged (MISS): measured value outside the 95 % interval and error beyond 5 % (lengths, rates), "
               "10 % (times) or 1.5° (overshoots)")]
     for c in cv.checks:
+        trained = c.type.kind in {t.kind for t in cv.train_types}
         lines += ["", f"  {c.run}: {c.type.label} ({c.type.reason})"
+                  + ("; a trained manoeuvre type" if trained else "; a manoeuvre type NOT in the training runs")
                   + (f"; {c.draws_failed} of {c.draws_used + c.draws_failed} draws failed" if c.draws_failed else "")]
         if c.note:
             lines.append(f"  {c.note}")
@@ -40,11 +42,11 @@ def cross_text(cv: CrossValidation) -> str:
     for run, why in cv.skipped:
         lines.append(f"  not judged here: {run}: {why}")
     if not cv.checks:
-        lines.append("  no held-out run of a manoeuvre type outside the training set: nothing to judge")
+        lines.append("  no held-out run is a standard manoeuvre: nothing to judge")
     else:
         bad = [f"{c.run} ({', '.join(m.name for m in c.metrics if m.flagged) or 'blew up'})" for c in cv.checks
                if c.flagged]
-        lines += ["", "  verdict: " + ("the model PREDICTS the held-out manoeuvre types within their intervals or "
+        lines += ["", "  verdict: " + ("the model PREDICTS the held-out manoeuvres within their intervals or "
                                        "tolerances" if cv.passed else "FAILS cross-manoeuvre validation: "
                                        + "; ".join(bad) + ". The training manoeuvres do not determine these; add "
                                        "them to the training set or constrain the model (priors, bounds)")]
