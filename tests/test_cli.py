@@ -263,3 +263,110 @@ def test_resampling_sensitivity_is_reported(capsys):
     assert k10 == pytest.approx(0.835, rel=0.05) and k50 == pytest.approx(1.31, rel=0.05), rows["K"]
     z = float(rows["K"].rsplit("(", 1)[1].split()[0])
     assert ("WARNING" in line) == (z > 2.0), (line, z)
+
+
+# -- issue 26: one set of options, failures travel, checks before compute ------------------------------
+def test_repeated_list_options_accumulate_in_every_cli(capsys):
+    """``--fix A=1 --fix B=2`` keeps both (argparse ``extend``) in fit, diagnose and predict; a malformed
+    item stops with exit status 2 and names the item (before JAX)."""
+    from diffship.diagnose.__main__ import build_parser as diagnose_parser
+    from diffship.fit.args import build_parser as fit_parser
+    from diffship.predict.__main__ import build_parser as predict_parser
+
+    a = fit_parser().parse_args(["r.csv", "--fix", "K=1", "--fix", "T1=2", "--validate", "a.csv", "--validate",
+                                 "b.csv", "--degrees", "psi", "--degrees", "r", "--channels", "psi", "--channels", "r",
+                                 "--init", "K=0.5", "--init", "T1=3", "--free", "x", "--free", "y",
+                                 "--prior", "K=1±0.1", "--prior", "T1=2±1", "--columns", "psi=hdg", "--columns", "r=rot"])
+    assert a.fix == ["K=1", "T1=2"] and a.validate == ["a.csv", "b.csv"] and a.degrees == ["psi", "r"]
+    assert a.channels == ["psi", "r"] and a.init == ["K=0.5", "T1=3"] and a.free == ["x", "y"]
+    assert len(a.prior) == 2 and a.columns == ["psi=hdg", "r=rot"] and a.starts is None
+    d = diagnose_parser().parse_args(["r.csv", "--validate", "v.csv", "--model", "mmg", "--vessel", "kvlcc2_model",
+                                      "--fix", "A=1", "--fix", "B=2", "--validate", "w.csv", "--no-prior",
+                                      "--solver", "rk4", "--filter", "none", "--free", "Xu", "--init", "C=3"])
+    assert d.fix == ["A=1", "B=2"] and d.validate == ["v.csv", "w.csv"] and d.vessel == "kvlcc2_model"
+    assert d.no_prior and d.solver == "rk4" and d.filter == "none" and d.channels is None
+    p = predict_parser().parse_args(["fit.json", "--input", "n=1", "--input", "thrust=2", "--measured", "a.csv",
+                                     "--measured", "b.csv", "--manoeuvre", "turning:35", "--manoeuvre", "zigzag:10/10",
+                                     "--rudder-sign", "port"])
+    assert p.input == ["n=1", "thrust=2"] and p.measured == ["a.csv", "b.csv"] and p.rudder_sign == "port"
+    assert p.manoeuvre == ["turning:35", "zigzag:10/10"]
+    for parser, argv, word in ((fit_parser(), ["r.csv", "--fix", "K"], "'K': expected NAME=VALUE"),
+                               (fit_parser(), ["r.csv", "--init", "K=abc"], "'abc' is not a number"),
+                               (fit_parser(), ["r.csv", "--columns", "psi"], "expected NAME=COLUMN"),
+                               (fit_parser(), ["r.csv", "--channels", "heading"], "'heading' is not a channel"),
+                               (diagnose_parser(), ["r.csv", "--validate", "v.csv", "--model", "nomoto1", "--fix", "K"],
+                                "expected NAME=VALUE"),
+                               (predict_parser(), ["f.json", "--input", "n"], "expected NAME=VALUE")):
+        with pytest.raises(SystemExit) as e:
+            parser.parse_args(argv)
+        assert e.value.code == 2
+        assert word in capsys.readouterr().err, argv
+
+
+@pytest.fixture(scope="module")
+def sspa_without_r(tmp_path_factory):
+    from diffship.data import example_runs
+
+    d = tmp_path_factory.mktemp("nor")
+    df = example_runs("sspa_zigzag")[0].resample(0.1).to_dataframe().drop(columns=["r"])
+    p = d / "zigzag_no_r.csv"
+    df.to_csv(p, index=False)
+    return str(p)
+
+
+def test_no_usable_fit_exits_1_with_the_reason_last(sspa_without_r, tmp_path, capsys):
+    """A run without ``r``, fitted with K (wrong sign) and T1 both fixed by two ``--fix``: the simulation is
+    worse than the mean on every run, so no method is usable: exit status 1, the last line says so and why,
+    and the fit file says ``usable: false``."""
+    code = fit_main([sspa_without_r, "--model", "nomoto1", "--fix", "K=-0.5", "--fix", "T1=5", "--method",
+                     "output-error", "--out", str(tmp_path), "--quiet"])
+    cap = capsys.readouterr()
+    assert code == 1, cap.err
+    last = cap.err.strip().splitlines()[-1]
+    assert last.startswith("error: no usable fit was found") and "worse than the measured mean" in last, last
+    assert "output error: FAILED" in cap.out
+    doc = json.loads((tmp_path / "fit.json").read_text())
+    assert doc["usable"] is False and doc["verdict"]["label"] == "FAILED"
+    assert doc["fixed"]["K"] == -0.5 and doc["fixed"]["T1"] == 5.0
+    rep = json.loads((tmp_path / "report.json").read_text())["methods"]["output_error"]
+    assert rep["usable"] is False and rep["fixed"]["K"]["source"] == "--fix" and rep["fixed"]["T1"]["source"] == "--fix"
+
+
+def test_counter_clockwise_yaw_and_millisecond_time_stop_with_one_line(tmp_path, capsys):
+    """ROS-habit yaw (ψ, r, v, y0 negated) on a force-input model, and time stamps in ms: each stops
+    before any compute with one line naming the problem and the fix."""
+    from diffship.synthetic import usv_runs
+
+    run = usv_runs(1, 60.0, 0.1, noise="realistic", seed=3)[0]
+    df = run.to_dataframe()
+    ccw = df.copy()
+    for c in ("psi", "r", "v", "y0"):
+        ccw[c] = -ccw[c]
+    ms = df.copy()
+    ms["time"] = ms["time"] * 1000.0
+    for name, frame, words in (("ccw", ccw, "yaw turns against the yaw moment"),
+                               ("ms", ms, "look like milliseconds")):
+        path = _write(tmp_path, f"{name}.csv", frame)
+        code = fit_main([path, "--model", "fossen3", "--vessel", "usv", "--quiet"])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and err.count("\n") == 0 and words in err, err
+    assert "--time-unit ms" in err
+    path = _write(tmp_path, "ms_fixed.csv", ms)
+    from diffship.data import load_runs
+
+    assert load_runs([path], time_unit="ms")[0].dt == pytest.approx(0.1)
+
+
+def test_degree_columns_of_every_file_in_one_message(tmp_path):
+    """Degrees in several files and columns: one error naming every file and one --degrees for all."""
+    from diffship.data import UnitsError, load_runs
+
+    df = _good_df(200)
+    a, b = df.copy(), df.copy()
+    a["delta"] = np.degrees(a["delta"]) * 10
+    b["r"] = np.degrees(b["r"]) * 40
+    pa, pb = _write(tmp_path, "a.csv", a), _write(tmp_path, "b.csv", b)
+    with pytest.raises(UnitsError) as e:
+        load_runs([pa, pb])
+    msg = str(e.value)
+    assert "2 files" in msg and "a.csv" in msg and "b.csv" in msg and "--degrees delta r" in msg, msg

@@ -124,7 +124,7 @@ def helm_rate(text: str) -> float:
 
 def _list(p, *flags, type, metavar, help, default=None):
     """A repeatable list option: items accumulate over repetitions; at least one item each time."""
-    p.add_argument(*flags, nargs="+", action="extend", type=type, metavar=metavar,
+    p.add_argument(*flags, nargs="*", action="extend", type=type, metavar=metavar,
                    default=[] if default is None else default, help=help + " (repeatable; items accumulate)")
 
 

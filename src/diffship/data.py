@@ -153,12 +153,12 @@ def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> 
     """Conservative heuristics that catch degrees passed as radians and time stamps in ms or µs;
     every problem of the run in one error (:class:`UnitsError`)."""
     problems: list[tuple[str, str]] = []  # (channel, what)
-    unit = _time_unit_problem(time, ch)
-    if unit is not None:
+    tunit = _time_unit_problem(time, ch)
+    if tunit is not None:
         dt = float(np.median(np.diff(time)))
-        problems.append(("time", f"the time stamps look like {'milliseconds' if unit == 'ms' else 'microseconds'} "
+        problems.append(("time", f"the time stamps look like {'milliseconds' if tunit == 'ms' else 'microseconds'} "
                                  f"(median step {dt:.6g}; heading rate against yaw rate, or track against speed, "
-                                 f"off by {'1000' if unit == 'ms' else '10⁶'})"))
+                                 f"off by {'1000' if tunit == 'ms' else '10⁶'})"))
     for c, limit, unit in (("delta", 1.0, "rad"), ("nozzle", 1.0, "rad"),
                            ("r", 3.0, "rad/s"), ("p", 3.0, "rad/s"), ("q", 3.0, "rad/s")):
         if c in ch and np.max(np.abs(ch[c])) > limit:
@@ -189,12 +189,12 @@ def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> 
         fixes = []
         if degs:
             fixes.append(f"degrees=[{', '.join(repr(c) for c in degs)}] (CLI: --degrees {' '.join(degs)})")
-        if unit is not None:
-            fixes.append(f"time_unit={unit!r} (CLI: --time-unit {unit})")
+        if tunit is not None:
+            fixes.append(f"time_unit={tunit!r} (CLI: --time-unit {tunit})")
         detail = "; ".join(w for _, w in problems)
         raise UnitsError(f"{where}: {detail}; pass " + " and ".join(fixes)
                          + ", or check_units=False if the values really are SI (s, rad).",
-                         degs, unit)
+                         degs, tunit)
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)

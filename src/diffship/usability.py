@@ -82,8 +82,13 @@ class Verdict:
     weak: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
-        head = f"{self.method.replace('_', ' ')}: {self.label}" + ("" if self.usable else " — do not use these values")
-        out = [head] + [f"  - {r}" for r in self.reasons] + [f"  - {p.text()}" for p in self.runs]
+        name = self.method.replace('_', ' ')
+        if not self.usable:
+            why = self.reasons[0] if self.reasons else "no usable estimate"
+            head, rest = f"{name}: FAILED — {why}; do not use these values", self.reasons[1:]
+        else:
+            head, rest = f"{name}: {self.label}", self.reasons
+        out = [head] + [f"  - {r}" for r in rest] + [f"  - {p.text()}" for p in self.runs]
         out += [f"  - not identified: {w}" for w in self.weak]
         return out
 
