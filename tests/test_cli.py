@@ -370,3 +370,38 @@ def test_degree_columns_of_every_file_in_one_message(tmp_path):
         load_runs([pa, pb])
     msg = str(e.value)
     assert "2 files" in msg and "a.csv" in msg and "b.csv" in msg and "--degrees delta r" in msg, msg
+
+
+def test_diagnose_vessel_and_particulars_rule(tmp_path, capsys):
+    """``diagnose`` takes ``--vessel`` and follows the fit's particulars rule: without a vessel (or --fix for
+    them) it stops naming the particulars; with ``--vessel usv`` the particulars are set and it goes on to the
+    data checks (here a validation run lacking ``r``, named)."""
+    from diffship.diagnose.__main__ import main as diagnose_main
+    from diffship.synthetic import usv_runs
+
+    runs = usv_runs(2, 30.0, 0.1, noise="realistic", seed=5)
+    a = _write(tmp_path, "a.csv", runs[0].to_dataframe())
+    b = _write(tmp_path, "b.csv", runs[1].to_dataframe().drop(columns=["r"]))
+    assert diagnose_main([a, "--validate", b, "--model", "fossen3", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "needs the vessel's particulars" in err and "--vessel usv" in err
+    assert diagnose_main([a, "--validate", b, "--model", "fossen3", "--vessel", "usv", "--channels", "psi", "r",
+                          "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "particulars" not in err and "lacks r" in err, err
+
+
+@pytest.mark.slow
+def test_diagnose_with_vessel_runs_end_to_end(tmp_path, capsys):
+    """``python -m diffship.diagnose TRAIN --validate VAL --model fossen3 --vessel usv``: a whole diagnosis
+    (base fit without position channels, one effect screened); about a minute on a loaded 2-core machine."""
+    from diffship.diagnose.__main__ import main as diagnose_main
+    from diffship.synthetic import usv_runs
+
+    runs = usv_runs(3, 40.0, 0.1, noise="realistic", seed=5)
+    paths = [_write(tmp_path, f"{r.name}.csv", r.to_dataframe()) for r in runs]
+    js = tmp_path / "d.json"
+    assert diagnose_main(paths[:2] + ["--validate", paths[2], "--model", "fossen3", "--vessel", "usv", "--effects",
+                                      "heading_bias", "--json", str(js), "--quiet"]) == 0
+    doc = json.loads(js.read_text())
+    assert "x0" not in doc["noise_floor"] and "psi" in doc["noise_floor"]
