@@ -150,6 +150,9 @@ def add_data_options(p: argparse.ArgumentParser, *, validate: bool = True, valid
     if resample:
         g.add_argument("--resample", type=positive_float, default=None, metavar="DT",
                        help="resample runs to a uniform step [s]")
+        g.add_argument("--horizon", type=positive_float, default=None, metavar="S",
+                       help="fit only the first S seconds of each training run (long zigzags: the later part drifts "
+                            "with unmodelled effects); the metrics still simulate every run over its whole length")
 
 
 def add_vessel_option(p: argparse.ArgumentParser) -> None:
@@ -198,6 +201,8 @@ def add_numerics_options(p: argparse.ArgumentParser, *, filter_help: str | None 
                    help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
                         "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
                         "(diffrax Tsit5, adaptive within each sample)")
+    g.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
+                   help="Levenberg–Marquardt steps per output-error pass (default 200)")
     g.add_argument("--starts", type=positive_int, default=None, metavar="N",
                    help="output error from N starts (the model's values, the equation-error estimate, spread "
                         "starts); the lowest cost is kept and the report says how many reached it")

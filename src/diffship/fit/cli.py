@@ -202,14 +202,19 @@ def _fit(args, say) -> int:
         check_yaw_direction(train + list(val))
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
-    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
+    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args),
+                                 **({"max_steps": args.max_steps} if args.max_steps else {}))
+    fit_runs = train
+    if args.horizon:  # fit the first seconds only; metrics, verdicts and the fit file's data use whole runs
+        fit_runs = [r.slice(None, r.time[0] + args.horizon) for r in train]
+        say(f"--horizon {args.horizon:g}: fitting the first {args.horizon:g} s of each training run")
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
-    results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
+    results = fit_both(model, fit_runs, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
                        init=init or None, flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (),
                        channels=args.channels, options=options, progress=say, ee_filter=ee_filter,
                        **_starts(args)) if methods else {}
-    results.update(_sea_estimators(args, model, train, spec, init, flt, options, shooting if multiple else None,
+    results.update(_sea_estimators(args, model, fit_runs, spec, init, flt, options, shooting if multiple else None,
                                    results, say))
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = evaluate_all(results, train, val, flt)

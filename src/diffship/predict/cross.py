@@ -22,8 +22,9 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
    * **other**: anything else (a rudder that never moves by 0.5°, random steps, ...);
 
 2. for every held-out run of a type **not** in the training set, simulates it with the fitted
-   model **open loop with the run's measured inputs** from its measured initial state (the one
-   initial-state rule of :func:`diffship.metrics.evaluate`) and computes the same IMO metrics on
+   model **open loop with the run's measured inputs** from its initial state estimated on the run's
+   first seconds (the one initial-state rule of :func:`diffship.metrics.evaluate`,
+   :func:`diffship.metrics.start_state`) and computes the same IMO metrics on
    the measured and the predicted run (:mod:`diffship.manoeuvres.imo`): advance, transfer,
    tactical and steady turning diameter and steady yaw rate of a turning circle; overshoots,
    initial turning time and time to check yaw of a zigzag; yaw rate before release and residual
@@ -52,7 +53,8 @@ from ..data import Run
 from ..errors import DataError, ModelError
 from ..manoeuvres import first_execute, pullout_metrics, rudder_release, turning_metrics, zigzag_metrics
 from ..preprocess import Filter
-from ..simulate import initial_state, model_inputs
+from ..metrics import start_state
+from ..simulate import model_inputs
 from .sampling import draw_parameters, simulate_draws
 
 __all__ = [
@@ -441,7 +443,7 @@ def _as_run(model, run: Run, ys: np.ndarray, name: str) -> Run:
 
 def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, length) -> RunCheck:
     us = model_inputs(model, run)
-    x0 = initial_state(model, run, flt)
+    x0 = start_state(model, run, flt, integrator=integ)  # the metrics' initial-state rule
     theta0 = np.asarray([[float(getattr(model, n)) for n in names]])
     ys0, ok0 = simulate_draws(model, names, theta0, run.time, us, x0, integ)
     measured = run_metrics(run, rt, length)
