@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .channels import CHANNEL_NAMES
+from .figures import pyplot
 from .data import CHANNEL_UNITS, Run
 from .metrics import Evaluation
 
@@ -187,10 +188,7 @@ def plot_fit(
     Curves of ``failed`` methods (:func:`failed_methods`) are drawn thin, labelled FAILED and
     left out of the axis limits, which follow the measurements and the other curves.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     n_val = min(len(val_runs), max(max_runs - len(train_runs), (max_runs + 1) // 2))  # held-out runs always shown
     n_train = min(len(train_runs), max_runs - n_val)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .cross import CrossValidation
+from ..figures import pyplot
 
 __all__ = ["cross_json", "cross_text", "plot_cross"]
 
@@ -80,10 +81,7 @@ def cross_json(cv: CrossValidation) -> dict:
 def plot_cross(cv: CrossValidation, path: str | Path | None = None):
     """Predicted vs measured per metric (error bars: 95 % interval), one panel per held-out run, plus
     measured and predicted tracks (or headings) of each run."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     n = max(1, len(cv.checks))
     fig, axes = plt.subplots(n, 2, figsize=(11, 3.6 * n), squeeze=False)
