@@ -21,8 +21,9 @@ def cross_text(cv: CrossValidation) -> str:
     """The cross-manoeuvre section of a report: training types, one table per held-out run, verdict."""
     lines = ["Manoeuvre validation on held-out runs (trained on: "
              + ", ".join(f"{t.label}" for t in cv.train_types) + ")",
-             ("  held-out standard manoeuvres simulated open loop with their measured inputs from their measured "
-              f"initial state; IMO metrics measured vs predicted; intervals: {cv.interval_method}"),
+             ("  held-out standard manoeuvres from their estimated initial state: zigzags flown closed loop by the "
+              "autopilot (measured side, execute time, helm rate and switch delay), other types open loop with "
+              f"their measured inputs; IMO metrics measured vs predicted; intervals: {cv.interval_method}"),
              ("  flagged (MISS): measured value outside the 95 % interval and error beyond 5 % (lengths, rates), "
               "10 % (times) or 1.5° (overshoots)")]
     for c in cv.checks:
