@@ -172,6 +172,10 @@ def add_parameter_options(p: argparse.ArgumentParser, *, init: bool = True, chan
                          "the runs have, positions x0, y0 left out)") + " (repeatable; items accumulate)")
     _list(g, "--fix", type=assignment, metavar="NAME=VALUE", help="hold parameters fixed")
     _list(g, "--free", type=parameter_name, metavar="NAME", help="estimate parameters fixed by default")
+    g.add_argument("--free-hydrodynamic", action="store_true",
+                   help="estimate every parameter that is not a vessel particular (mmg: the 33 hull, rudder, "
+                        "interaction and wake coefficients of diffship.studies.kvlcc2), each held by its reference "
+                        "prior where the model has one")
     if init:
         _list(g, "--init", type=assignment, metavar="NAME=VALUE", help="start values for output error")
 

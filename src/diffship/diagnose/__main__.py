@@ -124,6 +124,8 @@ def _diagnose(args, say):
 
     effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
     model = get_model(args.model)
+    if args.free_hydrodynamic:  # every parameter that is not a vessel particular
+        args.free = list(dict.fromkeys([*args.free, *(n for n in model.param_names if n not in model.PARTICULARS)]))
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
     vessel = load_vessel(args.vessel) if args.vessel else None

@@ -179,6 +179,8 @@ def _filters(args):
 
 def _fit(args, say) -> int:
     model = get_model(args.model)
+    if args.free_hydrodynamic:  # every parameter that is not a vessel particular
+        args.free = list(dict.fromkeys([*args.free, *(n for n in model.param_names if n not in model.PARTICULARS)]))
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
     model, vessel, sources = _with_vessel(args, model, fix, say)
