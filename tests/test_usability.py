@@ -34,7 +34,7 @@ def test_one_training_run_not_followed_is_named_and_the_fit_stays_usable():
     ev_t, ev_v = evaluate(truth, train), evaluate(truth, val)
     probs = run_problems(ev_t, train, ["psi"])
     assert [p.run for p in probs] == [runs[1].name] and probs[0].channel == "psi"
-    assert 28.0 < probs[0].from_s < 40.0, probs[0]  # the drift starts at 30 s
+    assert 24.0 < probs[0].from_s < 36.0, probs[0]  # the drift starts at 30 s (noise: a few seconds early)
     v = verdict(res, ev_t, train, ev_v, val)
     assert v.usable and v.label == "usable" and "1 of 2 training runs not followed" in v.reasons[0]
     assert "from t = " in v.lines()[-1]

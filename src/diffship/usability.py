@@ -32,16 +32,18 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .data import Run
-from .fit.status import message
 from .metrics import Evaluation
 
 __all__ = ["WEAK_RATIO", "RunProblem", "Verdict", "run_problems", "unidentified", "verdict"]
 
 #: A free parameter whose standard error exceeds this multiple of its magnitude is not identified.
 WEAK_RATIO = 10.0
-#: A degree of freedom "hardly varies" when the spread of its measured speed is below this share of
-#: the speed scale (surge: of the mean speed; sway/yaw: of the surge speed over the length, or 1).
+#: Surge or sway "hardly varies" when the spread of its measured speed is below this share of the
+#: mean surge speed.
 QUIET_SHARE = 0.02
+
+#: A yaw or roll rate whose spread is below this [rad/s] (0.2°/s) hardly varies.
+QUIET_RATE = float(np.radians(0.2))
 
 #: Which channel excites the parameters whose names start with each letter (MMG/VMM/Fossen names).
 _DOF = {"X": ("u", "surge speed"), "Y": ("v", "sway speed"), "N": ("r", "yaw rate"), "K": ("p", "roll rate")}
@@ -98,13 +100,13 @@ class Verdict:
 
 
 def _onset(t: np.ndarray, e: np.ndarray, level: float) -> float:
-    """The first time from which at least half of the later samples have ``|e| > level``
+    """The first time from which at least 80 % of the later samples have ``|e| > level``
     (``nan`` when that is the first sample or never)."""
     big = np.abs(e) > level
     if not big.any():
         return math.nan
     later = np.cumsum(big[::-1])[::-1] / np.arange(len(big), 0, -1)  # share of big samples from k on
-    k = int(np.argmax((later >= 0.5) & big))
+    k = int(np.argmax((later >= 0.8) & big))
     return float(t[k]) if k > 0 else math.nan
 
 
@@ -157,10 +159,11 @@ def unidentified(params: Mapping[str, float], stderr: Mapping[str, float], free:
         dof = _DOF.get(n[:1])
         sp = _spread(runs, dof[0]) if dof else None
         if dof and sp is not None:
-            ref = sp[1] if dof[0] == "u" else (u[1] if u else 1.0)
-            if sp[0] < QUIET_SHARE * max(ref, 1e-12):
-                what = dof[1][0].upper() + dof[1][1:]
-                text += (f": {what.lower()} hardly varies in the runs (spread {sp[0]:.3g} against {ref:.3g}): "
+            # surge and sway against the mean surge speed [m/s]; rates against QUIET_RATE [rad/s]
+            ref = (sp[1] if dof[0] == "u" else (u[1] if u else 0.0)) * QUIET_SHARE if dof[0] in ("u", "v") else QUIET_RATE
+            if sp[0] < ref:
+                unit = "m/s" if dof[0] in ("u", "v") else "rad/s"
+                text += (f": {dof[1]} hardly varies in the runs (spread {sp[0]:.3g} {unit}, below {ref:.3g}): "
                          f"excite it or fix {n} (--fix {n}=VALUE)")
         if ":" not in text:
             text += f": the data do not determine it; fix it (--fix {n}=VALUE), give a prior, or add runs that excite it"
@@ -174,7 +177,7 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
     m = result.method
     angles = tuple(getattr(result.model, "angle_outputs", ("psi",)))
     if not result.usable:
-        return Verdict(m, "FAILED", False, (message(result.result),))
+        return Verdict(m, "FAILED", False, (result.status,))
     chans = [c for c in (result.channels or ()) if train_ev is not None and c in train_ev.channels]
     if train_ev is not None and not chans:
         chans = [c for c in train_ev.channels if c not in ("x0", "y0")]
@@ -205,7 +208,7 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
                        f"{followed}" + (" and the held-out runs are" if val_followed else " are") + " followed")
     if not result.converged:
         label = "not converged"
-        reasons.append(message(result.result))
+        reasons.append(result.status)
     weak = unidentified(result.params, result.stderr, result.free, train)
     if weak and label == "usable":
         label = "unidentifiable"

@@ -107,10 +107,9 @@ def _load(args, paths):
 
 def _diagnose(args, say):
     """``(diagnosis, base fit)``, or ``(None, reason)`` when the base fit is not usable."""
-    from ..data import check_yaw_direction
+    from ..checks import check_channels, check_rudder_sign, check_yaw_direction
     from ..errors import DataError
     from ..fit import OutputErrorOptions, fit_output_error
-    from ..fit.cli import check_channels, check_rudder_sign
     from ..fit.priors import load_priors, parse_priors
     from ..fit.problem import default_channels
     from ..fitfile import fit_warnings, load_fit

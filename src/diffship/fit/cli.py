@@ -13,7 +13,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..data import check_yaw_direction, example_runs, load_runs
+from ..checks import check_channels, check_rudder_sign, check_yaw_direction  # noqa: F401 (also this module's names)
+from ..data import example_runs, load_runs
 from ..errors import DiffshipError
 from ..integrators import get_integrator
 from ..metrics import evaluate
@@ -31,7 +32,6 @@ from ..vessel import (
     speed_range,
 )
 from ..fitfile import save_fit
-from ..manoeuvres import check_turn_direction
 from ..predict.cross import cross_validate, train_types_json
 from ..predict.cross_report import cross_json, cross_text, plot_cross
 from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_json
@@ -323,45 +323,6 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
 # ----------------------------------------------------------------------------------------
 # checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
 # ----------------------------------------------------------------------------------------
-def check_channels(model, runs, channels=None) -> None:
-    """Name every channel a model needs that a run lacks, before anything is compiled.
-
-    Needed: every model input (``model.input_names``), the surge speed ``u`` where it is a
-    state (a manoeuvring model cannot start without its speed), and the ``--channels`` asked for.
-    """
-    optional = getattr(model, "INPUT_DEFAULTS", {}) or {}  # inputs a run may omit (e.g. free decay: zero force)
-    need = ([n for n in model.input_names if n not in optional] + (["u"] if "u" in model.state_names else [])
-            + list(channels or ()))
-    problems = []
-    for run in runs:
-        missing = [c for c in dict.fromkeys(need) if not run.has(c)]
-        if missing:
-            problems.append(f"{run.metadata.get('source', run.name)} (run '{run.name}') lacks {', '.join(missing)}")
-    if problems:
-        raise DiffshipError(
-            f"model {model.name} needs channels {', '.join(dict.fromkeys(need))}: " + "; ".join(problems)
-            + f". Map file columns with --columns NAME=COLUMN, or choose a model these runs can drive "
-            f"(inputs here: {', '.join(c for c in runs[0].channel_names if c in ('delta', 'n', 'rpm', 'tau_x'))})")
-
-
-def check_rudder_sign(runs, declared: str) -> None:
-    """Stop when a run's heading clearly turns against its rudder (``--rudder-sign`` likely wrong)."""
-    bad = []
-    for run in runs:
-        if not run.has("delta", "psi"):
-            continue
-        verdict = check_turn_direction(run)
-        if verdict is not None and not verdict["agrees"]:
-            bad.append(f"run '{run.name}' ({run.metadata.get('source', '')}): {verdict['text']}")
-    if bad:
-        other = "port" if declared == "starboard" else "starboard"
-        raise DiffshipError(
-            "the heading turns against the rudder: " + "; ".join(bad) + f". The files were read with "
-            f"--rudder-sign {declared}; if positive delta turns these ships the other way, pass --rudder-sign {other}; "
-            "if the heading is counter-clockwise (ROS ENU/FLU: psi, r, v, y0 negated), convert it to clockwise from "
-            "north (NED) before loading (or --skip-sign-check if the record really does this)")
-
-
 def evaluate_all(results, train, val, flt):
     """Metrics with one initial-state rule for training and validation runs: the measured (filtered)
     state at the first sample, as :func:`diffship.metrics.evaluate` does by default."""

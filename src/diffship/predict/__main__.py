@@ -125,7 +125,7 @@ def _cross(args, pred):
     if known is None:
         raise DiffshipError(f"{args.fit}: the fit file does not say which manoeuvre types it was trained on "
                             "(training_manoeuvres); refit with this version of python -m diffship.fit")
-    from ..fit.cli import check_rudder_sign
+    from ..checks import check_rudder_sign
 
     runs = load_runs(args.measured, columns=dict(c.split("=", 1) for c in args.columns) or None,
                      degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit)

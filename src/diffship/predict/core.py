@@ -8,7 +8,7 @@ list of manoeuvres (:func:`parse_manoeuvre`: ``turning:35``, ``zigzag:10/10``, `
    the other one from :func:`diffship.trim.trim` (straight-course equilibrium at zero rudder);
    neither given: the training runs' speed (the fit file's ``operating_point``) and trim;
 2. sets the **helm rate**: given; else the rate the training runs' rudder moved at (the fit file's
-   ``helm_rate``, :func:`diffship.fitfile.measured_helm_rate`), so a prediction of the trained
+   ``helm_rate``, :func:`diffship.steering.measured_helm_rate`), so a prediction of the trained
    manoeuvre reproduces it; else :func:`diffship.scaling.helm_rate` (IMO's 2.32°/s × √λ)
    and the autopilot delay, and flies each manoeuvre closed loop
    (:mod:`diffship.manoeuvres.drive`) with the fit's integrator;

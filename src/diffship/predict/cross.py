@@ -58,7 +58,7 @@ from ..manoeuvres import first_execute, pullout_metrics, rudder_release, turning
 from ..preprocess import Filter
 from ..metrics import start_state
 from ..simulate import model_inputs
-from ..fitfile import rudder_moves
+from ..steering import rudder_moves, switch_delay
 from .sampling import draw_parameters, fly_draws, manoeuvre_law, simulate_draws
 
 __all__ = [
@@ -232,7 +232,7 @@ def train_types_json(runs: Sequence[Run], length: float | None = None) -> list[d
     """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``), with its
     measured metrics (``measured``: :func:`run_metrics`) and, for a zigzag, the measured delay between
     the heading reaching the switch angle and the rudder's reversal (``switch_delay_s``,
-    :func:`switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
+    :func:`diffship.steering.switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
     beside what was measured."""
     out = []
     for r in runs:
@@ -244,55 +244,9 @@ def train_types_json(runs: Sequence[Run], length: float | None = None) -> list[d
             except (DataError, ModelError):
                 pass
         if rt.kind == "zigzag":
-            d["switch_delay_s"] = switch_delay(r, rt)
+            d["switch_delay_s"] = switch_delay(r, rt.switch_deg)
         out.append(d)
     return out
-
-
-def _crossing(t: np.ndarray, y: np.ndarray, level: float, k: int) -> float:
-    """Time at which ``y`` (increasing through ``level`` at sample ``k``) crosses it, linearly interpolated."""
-    if k == 0 or y[k] == y[k - 1]:
-        return float(t[k])
-    return float(t[k - 1] + (level - y[k - 1]) * (t[k] - t[k - 1]) / (y[k] - y[k - 1]))
-
-
-def switch_delay(run: Run, rt: RunType) -> float:
-    """Median delay [s] between the heading change (from the first execute) reaching ±switch angle and the
-    rudder order of the reversal, in a zigzag (0 where none is found): how late the helmsman or autopilot
-    of the record answered, which the predicted zigzag then reproduces. Both times are interpolated
-    between samples (the delays, 0.2–0.3 s in the HSVA tests, are shorter than a resampled step); the
-    order time is the reversal's ramp (its 10 % and 50 % crossings) extrapolated back to the plateau,
-    as :func:`diffship.manoeuvres.first_execute` does for the first order."""
-    sw = float(rt.switch_deg or 0.0)
-    if not run.has("psi") or sw <= 0:
-        return 0.0
-    i0, side = first_execute(run)
-    t = np.asarray(run.time, dtype=np.float64)
-    psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
-    h = np.degrees(psi - psi[i0])
-    d = np.degrees(np.asarray(run["delta"], dtype=np.float64))
-    delays, sign, k = [], side, i0
-    for _ in range(8):
-        cross = np.nonzero(sign * h[k:] >= sw)[0]
-        if not cross.size:
-            break
-        kc = k + int(cross[0])
-        tc = _crossing(t, sign * h, sw, kc)
-        a = float(d[kc])  # the plateau the rudder leaves
-        amp = 2.0 * abs(a)
-        if amp < 1.0:
-            break
-        drop = sign * (a - d)  # grows from 0 to ≈ 2|δ| over the reversal
-        j10 = np.nonzero(drop[kc:] >= 0.1 * amp)[0]
-        j50 = np.nonzero(drop[kc:] >= 0.5 * amp)[0]
-        if not (j10.size and j50.size):
-            break
-        k10, k50 = kc + int(j10[0]), kc + int(j50[0])
-        t10, t50 = _crossing(t, drop, 0.1 * amp, k10), _crossing(t, drop, 0.5 * amp, k50)
-        t_order = t10 - 0.25 * (t50 - t10)
-        delays.append(max(0.0, t_order - tc))
-        sign, k = -sign, k50
-    return float(np.median(delays)) if delays else 0.0
 
 
 # ----------------------------------------------------------------------------------------
@@ -464,7 +418,7 @@ def _as_run(model, run: Run, ys: np.ndarray, name: str) -> Run:
 def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndarray) -> list[Run | None]:
     """A zigzag flown again closed loop by the model (one run per row of ``thetas``): the run's own start
     (``x0``), first side and execute time, angles, constant inputs (their means), helm rate
-    (:func:`diffship.fitfile.rudder_moves`) and switch delay (:func:`switch_delay`) — as a prediction is
+    (:func:`diffship.steering.rudder_moves`) and switch delay (:func:`diffship.steering.switch_delay`) — as a prediction is
     flown, so the overshoots compare with the measured ones (open loop, the measured rudder reverses when
     the *measured* heading reached the switch angle, and only the first overshoot would compare)."""
     i0, side = first_execute(run)
@@ -474,7 +428,7 @@ def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndar
     inputs = {n: float(np.mean(run[n])) for n in model.input_names if n != "delta" and run.has(n)}
     law = manoeuvre_law(model, "zigzag", rudder_deg=float(rt.rudder_deg), side=float(side),
                         t_execute=float(run.time[i0] - run.time[0]), initial=initial,
-                        switch_deg=float(rt.switch_deg), delay_s=switch_delay(run, rt))
+                        switch_deg=float(rt.switch_deg), delay_s=switch_delay(run, rt.switch_deg))
     return fly_draws(model, names, thetas, law, initial=initial, inputs=inputs, duration=run.duration, dt=run.dt,
                      rudder_rate_deg_s=rate, integrator=integ, metadata={"manoeuvre": "zigzag"})
 
