@@ -199,6 +199,9 @@ def plot_fit(
     plot_chans = [c for c in chans if c not in ("x0", "y0")]
     track = "x0" in chans and "y0" in chans
     ncol = len(plot_chans) + (1 if track else 0) + 1
+    names = [r.name for r, _, _ in rows]
+    prefix = _common_prefix(names)
+    short = {n: (n[len(prefix):] or n) for n in names}  # HSVA_CPMC_KVLCC2_Z_10_10_P -> Z_10_10_P
     ratios = [1.0] * len(plot_chans) + ([1.3] if track else []) + [1.0]
     fig, axes = plt.subplots(len(rows), ncol, figsize=(3.6 * sum(ratios), 2.9 * len(rows)), squeeze=False,
                              gridspec_kw={"width_ratios": ratios})
@@ -221,7 +224,7 @@ def plot_fit(
                 if not bad:
                     kept.append(ys)
             _limits(ax, kept)
-            ax.set_title(f"{run.name[:24]} ({kind}): {c}", fontsize=8)
+            ax.set_title(f"{short[run.name]} ({kind}): {c}", fontsize=8)
             ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
             ax.legend(fontsize=6, loc="best")
             ax.grid(alpha=0.3)
@@ -239,7 +242,7 @@ def plot_fit(
                            [np.asarray(run["x0"])] + [s["x0"] for s in ok])
             ax.set_xlabel("y0 (east/starboard) [m]", fontsize=8)
             ax.set_ylabel("x0 (north/ahead) [m]", fontsize=8)
-            ax.set_title(f"{run.name[:24]}: track", fontsize=8)
+            ax.set_title(f"{short[run.name]}: track", fontsize=8)
             ax.grid(alpha=0.3)
             j += 1
         ax = axes[i, j]
@@ -248,15 +251,29 @@ def plot_fit(
             y = np.asarray(run[n]) * k
             scale = np.max(np.abs(y)) or 1.0
             ax.plot(t, y / scale, lw=1.0, label=f"{n} / {scale:.3g} {unit}")
-        ax.set_title(f"{run.name[:24]}: inputs (normalised)", fontsize=8)
+        ax.set_title(f"{short[run.name]}: inputs (normalised)", fontsize=8)
         ax.legend(fontsize=6)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)", fontsize=11)
-    fig.tight_layout()
+    fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)"
+                 + (f"; runs {prefix}…" if prefix else ""), fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
     if path is not None:
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return fig
+
+
+def _common_prefix(names: Sequence[str]) -> str:
+    """The common prefix of several run names, cut after its last separator (``_``, ``-``, space); ``""``
+    for one name or none."""
+    if len(names) < 2:
+        return ""
+    p = names[0]
+    for n in names[1:]:
+        while not n.startswith(p):
+            p = p[:-1]
+    cut = max(p.rfind(c) for c in "_- ")
+    return p[:cut + 1] if cut >= 0 else ""
 
 
 def _square_limits(ax, xs, ys, pad=0.08) -> None:
