@@ -139,13 +139,18 @@ def text_report(
 def _per_run(train: Mapping[str, Evaluation], validation: Mapping[str, Evaluation]) -> list[str]:
     """Per-run RMSE and fit % of every method (the same numbers as the JSON's ``per_run``)."""
     lines = []
+    names = [n for evs in (train, validation) for ev in list((evs or {}).values())[:1] for n in ev.per_run]
+    prefix = _common_prefix(names)
+    if prefix:
+        lines += ["", f"per-run tables: run names without their common prefix {prefix}"]
     for title, evs in (("training", train), ("validation", validation)):
         for m, ev in (evs or {}).items():
             chans = [c for c in ev.channels]
             lines += ["", f"{title} runs, {_LABEL.get(m, m)}: RMSE and fit [%] per run",
                       f"  {'run':<18}" + "".join(f"{c + ' [' + CHANNEL_UNITS.get(c, ('', 1))[0] + ']':>16}" for c in chans)]
             for name, pr in ev.per_run.items():
-                row = f"  {name[:18]:<18}"
+                short = name[len(prefix):] or name
+                row = f"  {short[:18]:<18}"
                 for c in chans:
                     unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
                     if c in pr["rmse"]:
