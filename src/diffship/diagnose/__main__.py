@@ -141,6 +141,10 @@ def _diagnose(args, say):
     if init:
         spec = spec.with_values(init)
     train, val = _load(args, args.runs), _load(args, args.validate)
+    if args.horizon:  # the first seconds of each training run (held-out runs whole)
+        train = [r.slice(None, r.time[0] + args.horizon) for r in train]
+    if args.starts is not None:
+        raise DataError("--starts: multi-start base fits need the fit driver of issue 25, not in this build yet")
     check_channels(model, train + val, args.channels)
     if not args.skip_sign_check:
         check_rudder_sign(train + val, args.rudder_sign)
@@ -153,7 +157,7 @@ def _diagnose(args, say):
     if args.prior_file:
         priors = load_priors(args.prior_file).merged(priors)
     options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans)
-    opts = OutputErrorOptions(max_steps=options.fit_steps, estimate_x0=model.states_for_channels(chans),
+    opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
                               integrator=get_integrator(args.solver), flt=Filter.parse(args.filter),
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
                               prior_rel_sd=args.prior_sd)
