@@ -64,6 +64,22 @@ def _imports(path: Path) -> list[tuple[str, tuple[str, ...]]]:
 MODULES = {_module_name(p): p for p in PKG.rglob("*.py")}
 
 
+def _lazy_names(path: Path) -> dict[str, str]:
+    """A package face's lazily loaded names (PEP 562 ``_LAZY = {name: submodule}``) → absolute submodule."""
+    if path.name != "__init__.py":
+        return {}
+    for node in ast.parse(path.read_text()).body:
+        if (isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "_LAZY" for t in node.targets)
+                and isinstance(node.value, ast.Dict)):
+            pkg = _module_name(path)
+            return {k.value: f"{pkg}.{v.value}" for k, v in zip(node.value.keys, node.value.values)
+                    if isinstance(k, ast.Constant) and isinstance(v, ast.Constant)}
+    return {}
+
+
+LAZY = {_module_name(p): _lazy_names(p) for p in PKG.rglob("__init__.py")}
+
+
 def _graph() -> dict[str, set[str]]:
     g: dict[str, set[str]] = {m: set() for m in MODULES}
     for mod, path in MODULES.items():
@@ -78,8 +94,14 @@ def _graph() -> dict[str, set[str]]:
                     g[mod].add(parent)
             for n in names:  # ``from pkg import submodule``
                 sub = f"{target}.{n}"
-                if sub in MODULES and sub != mod:
+                if n in LAZY.get(target, {}) and target != mod:
+                    # a name the package face loads lazily: the import runs the face's __getattr__, even
+                    # from inside the package (the face, then the submodule behind the name)
+                    g[mod].add(target)
+                elif sub in MODULES and sub != mod:
                     g[mod].add(sub)
+    for pkg, names in LAZY.items():  # a lazy face imports its submodules when a name is first used
+        g[pkg].update(m for m in names.values() if m in MODULES)
     return g
 
 
@@ -132,6 +154,14 @@ def test_no_import_cycle_between_packages():
             g.setdefault(w, set())
     cycle = _cycle(g)
     assert cycle is None, " -> ".join(cycle)
+
+
+def test_lazy_faces_count_as_imports():
+    """A lazily re-exported name is an import of its submodule by the face; ``from pkg import name`` of
+    such a name is an import of the face (a cycle through it is a cycle)."""
+    g = _graph()
+    assert "diffship.fitfile" in g["diffship"]
+    assert "diffship.fit.driver" in g["diffship.fit"]
 
 
 def test_the_cycle_detector_finds_a_cycle():

@@ -29,7 +29,10 @@ __all__ = ["apply", "install"]
 
 def apply() -> None:
     """Apply diffship's JAX settings now (imports JAX)."""
-    from . import cache, precision  # noqa: F401 — importing them applies the settings
+    # the submodules themselves, not names of the package: ``from . import cache`` would go through
+    # diffship's lazy face (``diffship.__getattr__``) and back into the package that imports this module
+    from .cache import cache_dir  # noqa: F401 — importing the modules applies the settings
+    from .precision import __all__ as _  # noqa: F401
 
 
 class _ThenApply(importlib.abc.Loader):

@@ -14,16 +14,13 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
-import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
-from .compiled import compiled
 from .data import Run
 from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
 from .preprocess import Filter
-from .simulate import Solution, initial_state, model_inputs, simulate
+from .simulate import initial_state, simulate_run
 
 __all__ = ["START_WINDOW_S", "Evaluation", "evaluate", "nrmse_fit", "rmse", "simulate_run", "start_state"]
 
@@ -64,24 +61,6 @@ class Evaluation:
     simulated: dict[str, dict[str, np.ndarray]]
     ok: bool
     horizon: str = "whole-run simulation from the initial state"
-
-
-class _Simulator(eqx.Module):
-    """Compile-cache owner for one-run simulations with a given integrator."""
-
-    integrator: AbstractIntegrator = eqx.field(static=True)
-
-    def run(self, model, ts, us, x0):
-        # plain arrays out (not a Solution): the form diffship.compiled exports between processes
-        sol = simulate(model, ts, us, x0, self.integrator)
-        return sol.ts, sol.xs, sol.ys, sol.valid
-
-
-def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
-    """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
-    args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
-    fn, _ = compiled(_Simulator(integrator), "run", args)
-    return Solution(*fn(*args))
 
 
 #: Length of the window the initial state of a scored simulation is estimated on [s] (at least

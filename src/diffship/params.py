@@ -170,6 +170,12 @@ class ParamSpec:
             spec = spec._replace(n, free=False)
         return spec
 
+    def with_bounds(self, name: str, lower: float | None = None, upper: float | None = None) -> ParamSpec:
+        """The spec with new open bounds for ``name`` (``None`` keeps a bound)."""
+        p = self[name]
+        return self._replace(name, lower=p.lower if lower is None else float(lower),
+                             upper=p.upper if upper is None else float(upper))
+
     def free(self, names: Iterable[str]) -> ParamSpec:
         spec = self
         for n in names:

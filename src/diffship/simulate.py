@@ -30,9 +30,10 @@ from .data import Run
 from .errors import DataError
 from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
+from .compiled import compiled
 from .preprocess import Filter, smooth_and_derivative
 
-__all__ = ["Solution", "simulate", "integrate", "model_inputs", "initial_state", "MAX_ABS"]
+__all__ = ["Solution", "simulate", "simulate_run", "integrate", "model_inputs", "initial_state", "MAX_ABS"]
 
 #: A state component beyond this magnitude counts as a blow-up.
 MAX_ABS = 1e8
@@ -133,3 +134,21 @@ def initial_state(model: AbstractModel, run: Run, flt: Filter = Filter()) -> np.
             y0[c] = float(ys[0])
             y0[c + "_dot"] = float(yd[0])
     return model.initial_state(y0)
+
+
+class _Simulator(eqx.Module):
+    """Compile-cache owner for one-run simulations with a given integrator."""
+
+    integrator: AbstractIntegrator = eqx.field(static=True)
+
+    def run(self, model, ts, us, x0):
+        # plain arrays out (not a Solution): the form diffship.compiled exports between processes
+        sol = simulate(model, ts, us, x0, self.integrator)
+        return sol.ts, sol.xs, sol.ys, sol.valid
+
+
+def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
+    """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
+    args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
+    fn, _ = compiled(_Simulator(integrator), "run", args)
+    return Solution(*fn(*args))

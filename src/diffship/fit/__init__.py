@@ -1,4 +1,6 @@
-"""Fits: output error (simulation error; single or multiple shooting), the prediction-error method
+"""Fits: one driver, :func:`fit` (``fit(model, runs, estimator) -> FitResult``), over four estimators of one
+shape — :class:`OutputError`, :class:`MultipleShooting`, :class:`PredictionError`, :class:`EquationError`
+(:mod:`diffship.fit.estimator`); status as :class:`RESULTS` values. Below: output error (simulation error; single or multiple shooting), the prediction-error method
 (extended Kalman filter innovations) and the equation-error baseline (optionally on EKF + RTS
 smoothed runs), same result type.
 
@@ -7,12 +9,15 @@ JAX-free first checks: :mod:`diffship.fit.args`). The names below load their mod
 so that the command line can answer a user's mistake before JAX is imported.
 """
 
-__all__ = ["FitResult", "OutputErrorOptions", "fit_equation_error", "fit_output_error", "fit_both",
+__all__ = ["fit", "RESULTS", "OutputError", "EquationError", "MultipleShooting", "PredictionError", "StartsReport",
+           "FitResult", "OutputErrorOptions", "fit_equation_error", "fit_output_error", "fit_both",
            "fit_multiple_shooting", "ShootingOptions", "fit_prediction_error", "PredictionErrorOptions",
            "KalmanSmoother"]
 
 # lazily loaded names (PEP 562): name -> submodule that defines it
-_LAZY = {"fit_both": "both", "fit_equation_error": "equation_error", "OutputErrorOptions": "output_error",
+_LAZY = {"fit": "driver", "RESULTS": "status", "OutputError": "output_error", "EquationError": "equation_error",
+         "MultipleShooting": "shooting", "PredictionError": "prediction_error", "StartsReport": "result",
+         "fit_both": "both", "fit_equation_error": "equation_error", "OutputErrorOptions": "output_error",
          "fit_output_error": "output_error", "PredictionErrorOptions": "prediction_error",
          "fit_prediction_error": "prediction_error", "FitResult": "result", "ShootingOptions": "shooting",
          "fit_multiple_shooting": "shooting", "KalmanSmoother": "smoother"}

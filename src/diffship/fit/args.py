@@ -44,11 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "Kalman filter innovations: for data with unmeasured disturbances) or both (EE then OE); decay1/decay2 curve fits: python -m diffship.decay")
     add_data_options(p)
     add_parameter_options(p)
-    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
-                   help="initial states in the fit: estimated per run with the parameters (default; a measured "
-                        "heading offset never decays and biases the estimates) or taken from the data; the metrics "
-                        "start every run, training or validation, from its state estimated on its first seconds "
-                        "(metrics.evaluate)")
+    p.add_argument("--x0", default="data", choices=("estimate", "data"),
+                   help="initial states in the fit: taken from the data (default: the measured, filtered state, so the "
+                        "fit minimises what it is judged by) or estimated per run with the parameters within each "
+                        "channel's noise (for a noisy first sample: a heading offset never decays and biases the "
+                        "estimates); the metrics start every run from its state estimated on its first 3 s "
+                        "(diffship.metrics.start_state)")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
                    help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
     add_numerics_options(p, filter_help=(

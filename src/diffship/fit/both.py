@@ -26,32 +26,35 @@ def fit_both(
     methods: Sequence[str] = ("equation_error", "output_error"),
     init: Mapping[str, float] | None = None,
     flt: Filter = Filter(),
-    estimate_x0: Sequence[str] | str = "fitted",
+    estimate_x0: Sequence[str] | str = (),
     channels: Sequence[str] | None = None,
     options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
     ee_filter=None,
+    n_starts: int | None = None,
 ) -> dict[str, FitResult]:
-    """Run the requested methods on the same data; output error starts from equation error.
+    """Run the requested methods on the same data; equation error's estimate is one of output error's starts.
 
-    Output error's candidate starts are, in order: the user's ``init`` values (or the model's
-    reference values) and the equation-error estimate where one is available; the start with
-    the lowest finite simulation cost is used (the first finite one where ``init`` is given).
+    Output error runs through the one driver (:func:`diffship.fit.fit`): its starts are the user's
+    ``init`` values (or the model's values), the equation-error estimate, the reference values and
+    spread starts up to ``n_starts``, tried together; the lowest cost wins, and the result says how
+    many starts reached it and whether the user's own start ended higher.
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
-    ``estimate_x0="fitted"`` estimates the initial values of the fitted channels' states
-    (``()`` takes them from the data); ``options`` holds the other output-error settings.
+    ``estimate_x0=()`` (default) takes every run's initial state from the data — the measured (filtered)
+    state every metric starts from, so the fit minimises what it is judged by; ``"fitted"`` estimates the
+    initial values of the fitted channels' states within their noise (``OutputError.x0_prior``), for data
+    whose first sample is noisy (a heading offset never decays and biases the estimates); ``options`` holds the other output-error settings.
     """
     say = progress or (lambda s: None)
     spec = spec or model.spec()
-    if init:
-        spec = spec.with_values(init)
     out: dict[str, FitResult] = {}
     starts: dict[str, dict[str, float]] = {}
     if "equation_error" in methods:
         try:
             say("equation error: differentiating and solving the least-squares problem...")
-            ee = fit_equation_error(model, runs, spec=spec, flt=flt if ee_filter is None else ee_filter)
+            ee = fit_equation_error(model, runs, spec=spec.with_values(init) if init else spec,
+                                    flt=flt if ee_filter is None else ee_filter)
             out["equation_error"] = ee
             say(f"equation error: {ee.status} in {ee.fit_seconds + ee.compile_seconds:.2f} s")
             starts["the equation-error estimate"] = {n: ee.params[n] for n in ee.free}
@@ -65,7 +68,9 @@ def fit_both(
             est = model.states_for_channels(chans)
         else:
             est = tuple(estimate_x0)
-        opts = dataclasses.replace(options, estimate_x0=est, flt=flt, choose="first" if init else "best")
-        out["output_error"] = fit_output_error(model, runs, spec=spec, starts=starts, channels=channels,
-                                               options=opts, progress=progress)
+        # equation error ran above: its estimate is a named start already (or it failed: no second try)
+        opts = dataclasses.replace(options, estimate_x0=est, flt=flt,
+                                   ee_start=options.ee_start and "equation_error" not in methods)
+        out["output_error"] = fit_output_error(model, runs, spec=spec, init=init, starts=starts, channels=channels,
+                                               options=opts, progress=progress, n_starts=n_starts)
     return out

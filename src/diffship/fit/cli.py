@@ -258,9 +258,11 @@ def _starts(args) -> dict:
         return {}
     import inspect
 
-    if "starts" not in inspect.signature(fit_both).parameters:
-        raise DiffshipError("--starts: multi-start fits need the fit driver of issue 25, not in this build yet")
-    return {"starts": args.starts}
+    params = inspect.signature(fit_both).parameters
+    for name in ("n_starts", "starts"):
+        if name in params:
+            return {name: args.starts}
+    raise DiffshipError("--starts: multi-start fits need the fit driver of issue 25, not in this build yet")
 
 
 # -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --

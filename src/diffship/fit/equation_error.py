@@ -18,12 +18,12 @@ way for every model:
 2. drop 2 % of each run at both ends (filter edge effects), stack the runs, and evaluate the
    model's per-sample residual :math:`e(z, \dot z, \ddot z, u)` (e.g. inverse dynamics in force
    space for Fossen 3-DOF, :math:`e = M\dot\nu + C(\nu)\nu + D(\nu)\nu - \tau`, see each model);
-3. minimise :math:`\sum_k \sum_j (e_j(t_k)/w_j)^2` over the free parameters by Gauss–Newton
-   (one step is the exact linear least-squares solution for the affine cases), with ``w_j`` the
+3. minimise :math:`\sum_k \sum_j (e_j(t_k)/w_j)^2` (plus prior rows where priors are given) over
+   the free parameters by the one Levenberg–Marquardt (:mod:`diffship.fit._lm`), with ``w_j`` the
    residual RMS of equation ``j`` from a first unweighted pass (feasible generalised least
    squares). Where the model has a linear regression form (``regressors``, e.g. Nomoto's
    :math:`\dot r = a r + b\delta + c`), its least-squares solution mapped back to the
-   parameters (``from_regression``) is the start. Standard errors: the equation residuals of
+   parameters (``from_regression``) is a named start of the driver (:func:`diffship.fit.fit`). Standard errors: the equation residuals of
    filtered, differentiated data are coloured by construction, so where they are not white the
    covariance is the per-run HAC sandwich (:mod:`diffship.fit.covariance`, ``kind="auto"``)
    rather than the classical ``σ̂²(JᵀJ)⁻¹``; they still ignore the errors in the regressors.
@@ -33,8 +33,10 @@ is given (a ``Filter("butter")`` without one is read as ``cutoff="auto"``:
 :func:`diffship.preprocess.auto_cutoff`, where the spectrum meets its noise floor); the chosen
 values are stated in the messages and in ``info["cutoff_hz"]``.
 
-Parameters are estimated unconstrained in model units (bounds are not imposed, as in the
-seeds); a result outside a bound is reported in the messages. A model without an
+Parameters live in the scaled space of the spec like every estimator's, so physical bounds hold (a
+sign-constrained coefficient cannot change sign; an unbounded one is estimated as in the seeds). The
+driver checks that the estimate simulates the training runs: one that blows up is reported
+``simulation_blew_up`` (the best-known failure of equation error). A model without an
 equation-error form (e.g. MMG) is refused with a :class:`~diffship.errors.ModelError`.
 """
 
@@ -44,23 +46,30 @@ import dataclasses
 import math
 import time
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 from jaxtyping import Array, Float
 
 from ..data import Run
-from ..errors import FitError, ModelError
+from ..errors import DiffshipError, FitError, ModelError
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter, auto_cutoff, smooth_and_derivative
 from ..simulate import initial_state, model_inputs
-from .covariance import covariance, relabelled as relabel_covariance
+from . import status as st
+from ._lm import MaterialisedLM, rms_norm
+from .driver import fit
+from .estimator import AbstractEstimator, Problem, Solved
+from .identifiability import per_scale_columns
+from .priors import Priors, prior_arrays
 from .result import FitResult
 
-__all__ = ["fit_equation_error", "EquationSamples", "equation_data", "equation_samples", "equation_residuals",
+__all__ = ["EquationError", "equation_error_start", "fit_equation_error", "EquationSamples", "equation_data", "equation_samples", "equation_residuals",
            "TRIM", "cutoffs"]
 
 #: Fraction of each run dropped at both ends before the fit (filter edge effects).
@@ -188,6 +197,183 @@ def _regression_start(model: AbstractModel, samples: EquationSamples) -> dict[st
     return model.from_regression(coefficients)
 
 
+def _ee_residuals(z, w, prior_mean, prior_w, model, samples, spec):
+    """Weighted equation residuals at the scaled unknowns ``z`` (then the prior rows)."""
+    theta = spec.full_values(z, model.theta()[: len(spec.params)])
+    m = model.with_params(jnp.concatenate([theta, model.theta()[len(spec.params):]]))
+    e = (equation_residuals(m, samples) / w).reshape(-1)
+    if prior_w.shape[0]:
+        e = jnp.concatenate([e, prior_w * (spec.from_z(z) - prior_mean)])
+    return e
+
+
+_ee_residuals_jit = eqx.filter_jit(_ee_residuals)
+
+
+@eqx.filter_jit
+def _ee_solve(z0, w, prior_mean, prior_w, model, samples, spec, max_steps):
+    """The one Levenberg–Marquardt (:class:`~diffship.fit._lm.MaterialisedLM`) on the equation residuals."""
+    solver = MaterialisedLM(rtol=1e-10, atol=1e-12, norm=rms_norm, ftol=1e-13, gntol=float("inf"))
+    sol = optx.least_squares(lambda z, a: _ee_residuals(z, *a, model, samples, spec), solver, z0,
+                             args=(w, prior_mean, prior_w), max_steps=max_steps, throw=False)
+    return sol.value, sol.result, sol.stats["num_steps"], _ee_residuals(sol.value, w, prior_mean, prior_w, model,
+                                                                        samples, spec)
+
+
+@eqx.filter_jit
+def _ee_jacobian(z, w, prior_mean, prior_w, model, samples, spec):
+    return jax.jacfwd(_ee_residuals)(z, w, prior_mean, prior_w, model, samples, spec)
+
+
+@dataclasses.dataclass(frozen=True)
+class EquationError(AbstractEstimator):
+    """Equation error (module docstring): the settings of the estimator.
+
+    Attributes:
+        flt: how the data are smoothed and differentiated (a :class:`~diffship.preprocess.Filter`,
+            or a :class:`~diffship.fit.smoother.KalmanSmoother` for ``--filter kalman``).
+        max_steps: Levenberg–Marquardt steps per pass (two passes: unweighted, then FGLS).
+        priors: explicit priors (as for output error: one row per prior, MAP estimate).
+        reference_priors: the model's reference set as priors; ``False`` by default — the baseline
+            is today's practice, plain least squares on the equations.
+        prior_rel_sd: relative standard deviation of the reference priors.
+        choose: ``"best"`` (the driver's multi-start) or ``"first"`` (the first finite start alone).
+
+    The parameters live in the scaled space of the spec like every estimator's (so bounds hold:
+    a sign-constrained coefficient cannot change sign); the linear-regression solution
+    (``regressors``) is a named start.
+    """
+
+    method = "equation_error"
+    simulates = False
+
+    flt: Any = Filter()
+    max_steps: int = 50
+    priors: Priors | None = None
+    reference_priors: bool = False
+    prior_rel_sd: float = 0.5
+    choose: str = "best"
+
+    def describe(self) -> str:
+        return "equation error"
+
+    def prepare(self, model, runs, spec, channels, priors, say) -> Problem:
+        t0 = time.perf_counter()
+        _check_form(model)
+        eq_names = tuple(model.EQUATIONS)
+        flt, smoother, smoother_text = self.flt, None, None
+        if getattr(flt, "kind", None) == "kalman":
+            # EKF + RTS smoother over the model at its starting values (diffship.fit.smoother.KalmanSmoother):
+            # the regression then differentiates the smoothed states with central differences
+            smoother_text = flt.describe(runs[0].dt)
+            runs, smoother = flt.apply(model, runs)
+            flt = Filter("none")
+        x0_flt, flt = flt, differentiation_filter(flt)
+        samples = EquationSamples(*(jnp.asarray(a) for a in equation_samples(model, runs, flt)))
+        flt_text = smoother_text if smoother is not None else flt.describe(runs[0].dt)
+        messages = [f"derivatives: {flt_text}", f"equations: {', '.join(eq_names)}"]
+        if smoother is not None:
+            messages.append(_smoother_note(smoother))
+        cut = cutoffs(model, runs, flt)
+        if cut:
+            messages.append("Butterworth cut-offs [Hz]: " + "; ".join(
+                f"{run}: " + ", ".join(f"{c} {v:.2f}" for c, v in per.items()) for run, per in cut.items()))
+        p_mean, p_w = prior_arrays(priors, spec)
+        if not np.any(p_w):
+            p_mean = p_w = np.zeros(0)
+        regression = _regression_start(model, samples)
+        return Problem(
+            model=model, spec=spec, runs=tuple(runs), channels=eq_names, n_nuisance=0, nuisance_names=(),
+            priors=priors, compile_seconds=0.0,
+            state=dict(samples=samples, spec_s=spec.structural(), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
+                       pw=jnp.asarray(p_w), messages=messages, x0_flt=x0_flt, cut=cut, flt_text=flt_text,
+                       smoother=smoother, n_rows=int(samples.z.shape[0]) * len(eq_names), prep_s=time.perf_counter() - t0,
+                       extra_starts={"the linear-regression estimate": regression} if regression else {}))
+
+    def _args(self, problem, w):
+        s = problem.state
+        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"], s["spec_s"])
+
+    def start_cost(self, problem, z) -> float:
+        r = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, np.ones(problem.state["n_eq"]))))
+        c = 0.5 * float(r @ r)
+        return c if math.isfinite(c) else math.inf
+
+    def first_solves(self, problem, zs, say):
+        if self.choose == "first":
+            zs = zs[:1]
+        out = []
+        t0 = time.perf_counter()
+        for z in zs:
+            zf, result, k, r = _ee_solve(jnp.asarray(z), *self._args(problem, np.ones(problem.state["n_eq"])),
+                                         self.max_steps)
+            r = np.asarray(r)
+            c = 0.5 * float(r @ r)
+            out.append((np.asarray(zf), c if math.isfinite(c) else math.inf, int(k)))
+        problem.state["first_s"] = time.perf_counter() - t0
+        return out
+
+    def residuals(self, problem, z) -> np.ndarray:
+        s = problem.state
+        r = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, s.get("w", np.ones(s["n_eq"])))))
+        return r[: s["samples"].z.shape[0] * s["n_eq"]]
+
+    def finish(self, problem, z, steps, say) -> Solved:
+        s = problem.state
+        model, spec = problem.model, problem.spec
+        n_eq, n_p = s["n_eq"], problem.n_params
+        t0 = time.perf_counter()
+        r0 = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, np.ones(n_eq))))
+        # feasible GLS: each equation weighted by its residual RMS from the unweighted pass
+        e = r0[: s["samples"].z.shape[0] * n_eq].reshape(-1, n_eq)
+        w = np.sqrt(np.mean(e * e, axis=0)) + 1e-300
+        s["w"] = w
+        zf, result, k, r = _ee_solve(jnp.asarray(z), *self._args(problem, w), self.max_steps)
+        zf, r = np.asarray(zf), np.asarray(r)
+        if not np.all(np.isfinite(zf)):
+            raise FitError(f"equation error for {model.name} produced non-finite parameters on runs "
+                           f"{', '.join(r_.name for r_ in problem.runs)}; check the inputs and the filter")
+        J = np.asarray(_ee_jacobian(jnp.asarray(zf), *self._args(problem, w))) * per_scale_columns(spec, zf, n_p)
+        n_data = s["samples"].z.shape[0] * n_eq
+        r_d, J_d, r_p, J_p = r[:n_data], J[:n_data], r[n_data:], J[n_data:]
+        # residuals of filtered data are coloured: the per-run HAC sandwich where they are not white
+        lengths = _trimmed_lengths(problem.runs)
+        mask = np.arange(max(lengths))[None, :] < np.asarray(lengths)[:, None]
+        Jp = np.zeros(mask.shape + (n_eq, J.shape[1]))
+        rp = np.zeros(mask.shape + (n_eq,))
+        Jp[mask] = J_d.reshape(-1, n_eq, J.shape[1])
+        rp[mask] = r_d.reshape(-1, n_eq)
+        conv = st.as_diffship(result) == st.RESULTS.successful
+        theta = np.asarray(spec.full_values(jnp.asarray(zf), model.theta()))
+        fitted = model.with_params(theta)
+        x0s = tuple(initial_state(fitted, run, s["x0_flt"]) for run in problem.runs)
+        eq_names = problem.channels
+        fit_s = s.get("first_s", 0.0) + s["prep_s"] + time.perf_counter() - t0
+        return Solved(
+            z=zf, r_data=rp.reshape(-1), J_data=Jp.reshape(-1, J.shape[1]), J_extra=J_p, r_extra=r_p,
+            result=st.RESULTS.successful if conv else st.RESULTS.did_not_settle, steps=steps + int(k), seconds=fit_s,
+            compile_seconds=0.0, cost=0.5 * float(r_d @ r_d), channel_scales={n: float(x) for n, x in zip(eq_names, w)},
+            noise_std={n: float(x) for n, x in zip(eq_names, np.sqrt(np.mean((r_d.reshape(-1, n_eq) * w) ** 2, axis=0)))},
+            initial_states=x0s, run_names=tuple(r_.name for r_ in problem.runs), dof=r_d.size - J.shape[1], kind="auto",
+            mask=mask, n_channels=n_eq, prior_cost=0.5 * float(r_p @ r_p), messages=tuple(s["messages"]),
+            info={"filter": s["flt_text"], "equations": eq_names, "cutoff_hz": s["cut"],
+                  **({"smoother": {k_: v for k_, v in s["smoother"].items() if k_ != "method"}} if s["smoother"] else {})})
+
+
+def equation_error_start(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec) -> tuple[dict | None, str]:
+    """The equation-error estimate as a start for another estimator, or ``None`` with the reason
+    (no equation-error form, a channel missing, an estimate that is not usable)."""
+    if not model.EQUATIONS or not model.EQUATION_CHANNELS:
+        return None, ""
+    try:
+        ee = fit(model, runs, EquationError(), spec=spec, n_starts=1, throw=False)
+    except DiffshipError as exc:  # e.g. a channel the equations need is not measured
+        return None, f"no equation-error start: {exc}"
+    if not ee.usable:
+        return None, f"no equation-error start: {ee.status}"
+    return {n: ee.params[n] for n in ee.free}, ""
+
+
 def fit_equation_error(
     model: AbstractModel,
     runs: Sequence[Run],
@@ -195,142 +381,20 @@ def fit_equation_error(
     spec: ParamSpec | None = None,
     flt: Filter = Filter(),
     max_steps: int = 50,
+    priors: Priors | None = None,
+    n_starts: int | None = 1,
+    throw: bool = True,
 ) -> FitResult:
-    """Fit ``model`` to ``runs`` by equation error (see the module docstring).
+    """Fit ``model`` to ``runs`` by equation error: :func:`diffship.fit.fit` with :class:`EquationError`.
 
     ``flt`` may also be a :class:`~diffship.fit.smoother.KalmanSmoother` (``--filter kalman``): the
     runs are smoothed by an EKF + RTS smoother over ``model`` at its starting values first (noise
     levels estimated; ``info["smoother"]`` and the messages report them), then differentiated with
-    central differences."""
-    t_start = time.perf_counter()
+    central differences. One start by default: the better of the model's values and the linear
+    regression (the baseline as practised); ``n_starts`` adds spread starts."""
     _check_form(model)
-    spec = spec or model.spec()
-    model = model.with_params(spec.values())
-    free = spec.free_names
-    if not free:
-        raise FitError("no free parameters: free at least one (remove it from --fix)")
-    eq_names = tuple(model.EQUATIONS)
-    smoother = None
-    if getattr(flt, "kind", None) == "kalman":
-        # EKF + RTS smoother over the model at its starting values (diffship.fit.smoother.KalmanSmoother):
-        # the regression then differentiates the smoothed states with central differences
-        smoother_text = flt.describe(runs[0].dt)
-        runs, smoother = flt.apply(model, runs)
-        flt = Filter("none")
-    x0_flt, flt = flt, differentiation_filter(flt)
-    samples = equation_samples(model, runs, flt)
-    idx = spec.free_index()
-    names = model.param_names
-    base = model.theta()
-
-    def residuals(theta_free, w):
-        m = model.with_params(base.at[idx].set(theta_free))
-        return (equation_residuals(m, samples) / w).reshape(-1)
-
-    res_jit = jax.jit(residuals)
-    jac_jit = jax.jit(jax.jacfwd(residuals))
-    theta = np.asarray(base)[idx]
-    start = _regression_start(model, samples)
-    if start is not None:
-        theta = np.array([start.get(n, float(base[i])) for n, i in zip(free, idx)])
-    n_eq = len(eq_names)
-    w = np.ones(n_eq)
-    flt_text = smoother_text if smoother is not None else flt.describe(runs[0].dt)
-    messages = [f"derivatives: {flt_text}", f"equations: {', '.join(eq_names)}"]
-    if smoother is not None:
-        messages.append(_smoother_note(smoother))
-    cut = cutoffs(model, runs, flt)
-    if cut:
-        messages.append("Butterworth cut-offs [Hz]: " + "; ".join(
-            f"{run}: " + ", ".join(f"{c} {v:.2f}" for c, v in per.items()) for run, per in cut.items()))
-    iterations = 0
-    converged = False
-    compile_s = 0.0
-    for weighting_pass in range(2):
-        wj = jnp.asarray(w)
-        t_c = time.perf_counter()
-        r = np.asarray(res_jit(jnp.asarray(theta), wj))
-        if iterations == 0:
-            jac_jit(jnp.asarray(theta), wj).block_until_ready()
-            compile_s = time.perf_counter() - t_c
-        cost = 0.5 * float(r @ r)
-        converged = False
-        for _ in range(max_steps):
-            J = np.asarray(jac_jit(jnp.asarray(theta), wj))
-            iterations += 1
-            step, *_ = np.linalg.lstsq(J, -r, rcond=None)
-            scale = 1.0
-            while scale > 1e-6:  # backtrack until the cost does not increase
-                cand = theta + scale * step
-                rc = np.asarray(res_jit(jnp.asarray(cand), wj))
-                cc = 0.5 * float(rc @ rc)
-                if math.isfinite(cc) and cc <= cost:
-                    break
-                scale *= 0.5
-            else:
-                break
-            small = np.all(np.abs(scale * step) <= 1e-10 + 1e-8 * np.abs(theta))
-            theta, r, cost = cand, rc, cc
-            if small or np.all(np.abs(scale * step) <= 1e-7 * (np.abs(theta) + 1e-12)):
-                converged = True
-                break
-        if weighting_pass == 0:
-            e = r.reshape(-1, n_eq) * w
-            w = np.sqrt(np.mean(e * e, axis=0)) + 1e-300
-    if not np.all(np.isfinite(theta)):
-        raise FitError(f"equation error for {model.name} produced non-finite parameters on runs "
-                       f"{', '.join(r_.name for r_ in runs)}; check the inputs and the filter")
-    J = np.asarray(jac_jit(jnp.asarray(theta), jnp.asarray(w)))
-    # residuals of filtered data are coloured: the per-run HAC sandwich where they are not white
-    lengths = _trimmed_lengths(runs)
-    mask = np.arange(max(lengths))[None, :] < np.asarray(lengths)[:, None]
-    Jp = np.zeros(mask.shape + (n_eq, J.shape[1]))
-    rp = np.zeros(mask.shape + (n_eq,))
-    Jp[mask] = J.reshape(-1, n_eq, J.shape[1])
-    rp[mask] = r.reshape(-1, n_eq)
-    cov_all = covariance(Jp.reshape(-1, J.shape[1]), rp.reshape(-1), dof=r.size - J.shape[1], kind="auto", mask=mask,
-                         n_channels=n_eq, runs=tuple(r_.name for r_ in runs), channels=eq_names)
-    messages.append(cov_all.describe())
-    cov = cov_all.matrix
-    if not cov_all.full_rank:
-        messages.append("not identifiable from these equations (rank deficient; standard errors infinite): "
-                        + ", ".join(free[i] for i in cov_all.unidentifiable))
-    vals = {n: float(v) for n, v in zip(names, np.asarray(base))}
-    vals.update({n: float(theta[i]) for i, n in enumerate(free)})
-    relabelled = model.canonical(vals)
-    if relabelled != vals:
-        cov = relabel_covariance(cov, vals, relabelled, free)
-        vals = relabelled
-    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(free)}
-    for n in free:
-        p = spec[n]
-        if not (p.lower < vals[n] < p.upper):
-            messages.append(f"{n} = {vals[n]:.4g} lies outside its physical bounds ({p.lower:g}, {p.upper:g})")
-    fitted = model.with_params(vals)
-    x0s = tuple(initial_state(fitted, run, x0_flt) for run in runs)
-    fit_s = time.perf_counter() - t_start - compile_s
-    return FitResult(
-        method="equation_error",
-        model=fitted,
-        params=vals,
-        stderr=stderr,
-        free=free,
-        converged=bool(converged),
-        status="converged" if converged else "Gauss–Newton did not settle",
-        iterations=iterations,
-        cost=0.5 * float(r @ r),
-        fit_seconds=fit_s,
-        compile_seconds=compile_s,
-        channels=eq_names,
-        channel_scales={n: float(x) for n, x in zip(eq_names, w)},
-        noise_std={n: float(x) for n, x in zip(eq_names, np.sqrt(np.mean((r.reshape(-1, n_eq) * w) ** 2, axis=0)))},
-        initial_states=x0s,
-        run_names=tuple(r_.name for r_ in runs),
-        covariance=cov,
-        messages=tuple(messages),
-        info={"filter": flt_text, "equations": eq_names, "cutoff_hz": cut, **cov_all.info(),
-              **({"smoother": {k: v for k, v in smoother.items() if k != "method"}} if smoother else {})},
-    )
+    return fit(model, runs, EquationError(flt=flt, max_steps=max_steps, priors=priors), spec=spec,
+               n_starts=n_starts, throw=throw)
 
 
 def _smoother_note(info: dict) -> str:

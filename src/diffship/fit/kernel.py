@@ -82,6 +82,9 @@ class KernelData(eqx.Module):
             ``(n_phi, n_extra)`` and ``(n_phi,)``.
         prior_mean, prior_w: prior means and inverse standard deviations of the free
             parameters ``(n_theta,)``, or empty ``(0,)`` for a fit without priors (no prior rows).
+        x0_prior_w: inverse standard deviations (in ``x0_scale`` units) of the initial-state offsets
+            ``d`` ``(R·n_d,)``, or empty: rows :math:`w_k d_k` after the parameters' prior rows, so an
+            estimated initial state moves from the measured one only as far as its noise allows.
     """
 
     model: AbstractModel
@@ -99,11 +102,12 @@ class KernelData(eqx.Module):
     hi: Float[Array, " n_phi"]
     prior_mean: Float[Array, " n_prior"]
     prior_w: Float[Array, " n_prior"]
+    x0_prior_w: Float[Array, " n_x0_prior"]
 
     @property
     def n_prior(self) -> int:
-        """Number of prior rows at the end of the residual vector (0 or ``n_theta``)."""
-        return int(self.prior_w.shape[0])
+        """Number of prior rows at the end of the residual vector (parameters' then initial states')."""
+        return int(self.prior_w.shape[0]) + int(self.x0_prior_w.shape[0])
 
     def replace(self, **changes) -> KernelData:
         """A copy with some fields replaced."""
@@ -185,8 +189,12 @@ class Kernel(eqx.Module):
         """``e`` followed by the prior rows (none when ``data.n_prior == 0``)."""
         if not data.n_prior:
             return e
-        theta = self.spec.from_z(z[: self.n_theta])
-        return jnp.concatenate([e, data.prior_w * (theta - data.prior_mean)])
+        rows = [e]
+        if data.prior_w.shape[0]:
+            rows.append(data.prior_w * (self.spec.from_z(z[: self.n_theta]) - data.prior_mean))
+        if data.x0_prior_w.shape[0]:
+            rows.append(data.x0_prior_w * z[self.n_theta + self.n_extra:])
+        return jnp.concatenate(rows)
 
     @staticmethod
     def split(r, data: KernelData):
@@ -275,7 +283,7 @@ def _with_result(fn):
 
 
 def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None,
-                phi_scale=None, lo=None, hi=None, prior_mean=None, prior_w=None) -> KernelData:
+                phi_scale=None, lo=None, hi=None, prior_mean=None, prior_w=None, x0_prior_w=None) -> KernelData:
     """Build :class:`KernelData` from NumPy arrays (empty extra coordinates and no priors by
     default; priors with all weights zero are dropped, so they cost nothing)."""
     if prior_w is not None and not np.any(np.asarray(prior_w)):
@@ -288,5 +296,5 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
         S=f(np.zeros((0, 0)) if S is None else S), phi0=f(empty if phi0 is None else phi0),
         phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
         hi=f(empty if hi is None else hi), prior_mean=f(empty if prior_mean is None else prior_mean),
-        prior_w=f(empty if prior_w is None else prior_w),
+        prior_w=f(empty if prior_w is None else prior_w), x0_prior_w=f(empty if x0_prior_w is None else x0_prior_w),
     )

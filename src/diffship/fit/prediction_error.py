@@ -82,7 +82,6 @@ import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
 from ..data import Run
@@ -91,16 +90,18 @@ from ..integrators import AbstractIntegrator
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import MAX_ABS
-from ._lm import result_message
-from .covariance import covariance, relabelled
+from . import status as st
+from .driver import fit
+from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import per_scale_columns
 from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
-from .output_error import OutputErrorOptions, channel_spread, fit_priors, x0_scales
-from .priors import prior_arrays, prior_table
+from .output_error import OutputErrorOptions
+from .priors import prior_arrays
 from .problem import make_batch
 from .result import FitResult
+from .weights import channel_spread, x0_scales
 
-__all__ = ["PredictionErrorOptions", "PEKernel", "PEData", "FilterPass", "ekf", "fit_prediction_error",
+__all__ = ["PredictionError", "PredictionErrorOptions", "PEKernel", "PEData", "FilterPass", "ekf", "fit_prediction_error",
            "KINEMATIC_STATES"]
 
 #: Process-noise floor relative to its start (:math:`q_f`; module docstring).
@@ -365,6 +366,138 @@ def pe_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, chann
     return kernel, data, batch, pstates
 
 
+@dataclasses.dataclass(frozen=True)
+class PredictionError(AbstractEstimator):
+    """The prediction-error method (module docstring): the settings of the estimator.
+
+    Attributes:
+        oe: what output error would use and this estimator shares — the integrator, the filter for
+            the initial states, the LM limits and the priors (``estimate_x0``, ``weights``,
+            ``channel_scales``, ``gntol``, ``warmup`` and ``effective_samples`` do not apply: the
+            filter estimates the states, innovations are whitened by their own covariance, and the
+            plain step/cost stopping tests are used — see :meth:`first_solves`).
+        noise: the noise model (:class:`PredictionErrorOptions`).
+    """
+
+    method = "prediction_error"
+
+    oe: OutputErrorOptions = OutputErrorOptions()
+    noise: PredictionErrorOptions = PredictionErrorOptions()
+
+    @property
+    def priors(self):
+        return self.oe.priors
+
+    @property
+    def reference_priors(self):
+        return self.oe.reference_priors
+
+    @property
+    def prior_rel_sd(self):
+        return self.oe.prior_rel_sd
+
+    @property
+    def choose(self):
+        return self.oe.choose
+
+    def describe(self) -> str:
+        return "prediction error"
+
+    def prepare(self, model, runs, spec, channels, priors, say) -> Problem:
+        o, po = self.oe, self.noise
+        kernel, data, batch, pstates = pe_problem(model, runs, spec, channels, o, po)
+        p_mean, p_w = prior_arrays(priors, spec)
+        if np.any(p_w):
+            data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
+        n_p, n_noise = len(spec.free_names), kernel.n_noise
+        # The plain step/cost stopping tests, without the Gauss–Newton-step check of output error (gntol):
+        # the noise unknowns have flat, non-quadratic directions where the data carry no disturbance (the
+        # time constant; a process-noise level on its floor) and the Gauss–Newton step along them is
+        # spurious. Measured on the calm-water Nomoto test (tests/fit/test_prediction_error.py): at the
+        # optimum the step predicts a 0.36-standard-error move of K, T1, δ0, while 178 further LM steps
+        # moved them by less than 1e-4 standard errors; the check would hold every such fit to max_steps.
+        lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf"))
+        say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
+            f"levels, {len(runs)} runs, {o.integrator.describe()})...")
+        z_shape = np.ones(n_p + n_noise)
+        (res_fn, jac_fn), compile_s = kernel.compiled_many([("residuals", z_shape, data, {}),
+                                                             ("jacobian", z_shape, data, {})])
+        names = tuple([*(f"process noise on {s_}" for s_ in pstates),
+                       *(f"measurement noise on {ch}" for ch in batch.channels), "disturbance time constant"][:n_noise])
+        return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_noise,
+                       nuisance_names=names, priors=priors, compile_seconds=compile_s,
+                       state=dict(kernel=kernel, data=data, batch=batch, pstates=pstates, res_fn=res_fn, jac_fn=jac_fn,
+                                  lm=lm, n_eps=int(np.prod(data.ys.shape)), nuisance0=np.ones(n_noise),
+                                  integrator=o.integrator, n_rows=batch.n_residuals))
+
+    def start_cost(self, problem, z) -> float:
+        st_ = problem.state
+        r = np.asarray(st_["res_fn"](jnp.asarray(z), st_["data"]))
+        c = 0.5 * float(np.sum(r * r))
+        return c if math.isfinite(c) and not np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY) else math.inf
+
+    def first_solves(self, problem, zs, say):
+        if self.oe.choose == "first":
+            zs = zs[:1]
+        st_ = problem.state
+        t0 = time.perf_counter()
+        outs = st_["kernel"].solve_many(np.stack([np.asarray(z) for z in zs]), st_["data"], **st_["lm"])
+        st_["pe_s"] = time.perf_counter() - t0
+        st_["results"] = [o_[1] for o_ in outs]
+        res = []
+        for z, _, k, r in outs:
+            r = np.asarray(r)
+            c = 0.5 * float(r @ r)
+            bad = not math.isfinite(c) or np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY)
+            res.append((np.asarray(z), math.inf if bad else c, int(k)))
+        st_["zs"] = [o_[0] for o_ in res]
+        return res
+
+    def residuals(self, problem, z) -> np.ndarray:
+        st_ = problem.state
+        return np.asarray(st_["res_fn"](jnp.asarray(z), st_["data"]))[: st_["n_eps"]]
+
+    def finish(self, problem, z, steps, say) -> Solved:
+        st_, po = problem.state, self.noise
+        kernel, data, batch, pstates = st_["kernel"], st_["data"], st_["batch"], st_["pstates"]
+        i = next(k for k, zz in enumerate(st_["zs"]) if np.array_equal(zz, z))
+        z = np.array(z)
+        if kernel.coloured and po.estimate_noise:
+            z[-1] = float(np.clip(z[-1], -10.0, 10.0))
+        spec = problem.spec
+        r = np.asarray(st_["res_fn"](jnp.asarray(z), data))
+        J_all = np.asarray(st_["jac_fn"](jnp.asarray(z), data)) * per_scale_columns(spec, z, len(z))
+        n_eps = st_["n_eps"]
+        J_eps, J_prior = J_all[:n_eps], kernel.split(J_all, data)[1]
+        r_eps, r_prior = r[:n_eps], kernel.split(r, data)[1]
+        q, rv, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
+        process_sd = {s_: float(v) for s_, v in zip(pstates, q)}
+        meas_sd = {ch: float(math.sqrt(v)) for ch, v in zip(batch.channels, rv)}
+        eps = r_eps.reshape(data.ys.shape)
+        mask = batch.mask
+        white = {ch: float(np.sqrt(np.mean(eps[..., j][mask] ** 2))) for j, ch in enumerate(batch.channels)}
+        fp = kernel.filter(jnp.asarray(z), data)
+        result = st.as_diffship(st_["results"][i])
+        if not bool(np.all(np.asarray(fp.valid)[mask])):
+            result = st.RESULTS.filter_diverged
+        messages = [f"extended Kalman filter: process noise on {', '.join(pstates)}; noise levels "
+                    + ("estimated" if po.estimate_noise else "given"),
+                    "estimated noise: measurement sd " + ", ".join(f"{k} {v:.3g}" for k, v in meas_sd.items())
+                    + ("; disturbance (Ornstein–Uhlenbeck, added to the rates of " + ", ".join(pstates)
+                       + f", time constant {float(tau):.3g} s) sd " if kernel.coloured else "; process sd per √s ")
+                    + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items())]
+        return Solved(
+            z=z, r_data=r_eps, J_data=J_eps, J_extra=J_prior, r_extra=r_prior, result=result, steps=steps,
+            seconds=st_["pe_s"], compile_seconds=0.0, cost=0.5 * float(np.sum(r_eps ** 2)),
+            channel_scales={ch: float(s_) for ch, s_ in zip(batch.channels, np.asarray(data.scales))},
+            noise_std=meas_sd, initial_states=tuple(batch.x0), run_names=batch.names, variance=1.0,
+            dof=int(mask.sum()) * len(batch.channels) - len(z), kind="white",
+            prior_cost=0.5 * float(np.sum(r_prior ** 2)), messages=tuple(messages),
+            info={"measurement_sd": meas_sd, "process_sd": process_sd, "process_states": pstates,
+                  "disturbance": po.disturbance, "disturbance_tau": float(tau), "estimate_noise": po.estimate_noise,
+                  "innovation_rms": white, "integrator": self.oe.integrator.describe()})
+
+
 def fit_prediction_error(
     model: AbstractModel,
     runs: Sequence[Run],
@@ -375,126 +508,12 @@ def fit_prediction_error(
     options: OutputErrorOptions = OutputErrorOptions(),
     noise: PredictionErrorOptions = PredictionErrorOptions(),
     progress: Callable[[str], None] | None = None,
+    n_starts: int | None = 1,
+    throw: bool = True,
 ) -> FitResult:
-    """Fit ``model`` to ``runs`` by the prediction-error method (module docstring).
-
-    ``options`` supplies what output error would use (integrator, filter for the initial
-    states, LM limits, priors); ``noise`` the noise model. Returns a
-    :class:`~diffship.fit.FitResult` (``method="prediction_error"``) whose ``info`` holds the
-    estimated noise levels (``measurement_sd`` per channel, ``process_sd`` per state per √s).
-    """
-    o, po = options, noise
-    say = progress or (lambda s: None)
-    spec = spec or model.spec()
-    model = model.with_params(spec.values())
-    n_p = len(spec.free_names)
-    if n_p == 0:
-        raise FitError("no free parameters: free at least one (remove it from --fix)")
-    kernel, data, batch, pstates = pe_problem(model, runs, spec, channels, o, po)
-    priors, prior_note = fit_priors(model, spec, o)
-    p_mean, p_w = prior_arrays(priors, spec)
-    if np.any(p_w):
-        data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
-    n_noise = kernel.n_noise
-    messages = [prior_note, f"extended Kalman filter: process noise on {', '.join(pstates)}; noise levels "
-                + ("estimated" if po.estimate_noise else "given")]
-    n_c = len(batch.channels)
-    n_eps = int(np.prod(data.ys.shape))
-
-    named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
-    candidates = [("the model's values (with --init)", spec.values())] + [
-        (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named]
-    res_fn, compile_s = kernel.compiled("residuals", np.ones(n_p + n_noise), data)
-    best = None
-    for label, vals in candidates:
-        vals, notes = spec.nudged(vals)
-        messages.extend(f"start '{label}': {n}" for n in notes)
-        try:
-            z = np.concatenate([spec.to_z(vals), np.ones(n_noise)])
-        except Exception as exc:  # start outside bounds
-            messages.append(f"start '{label}' skipped: {exc}")
-            continue
-        r = np.asarray(res_fn(jnp.asarray(z), data))
-        cost = 0.5 * float(np.sum(r * r))
-        if math.isfinite(cost) and not np.any(np.abs(r[:n_eps]) >= PENALTY) and (best is None or cost < best[2]):
-            best = (label, z, cost)
-    if best is None:
-        raise FitError(f"model {model.name}: the Kalman filter diverges from every start ({len(candidates)} tried) on "
-                       f"runs {', '.join(batch.names)}; give a better start with --init NAME=VALUE")
-    label, z, _ = best
-    messages.append(f"started from {label}")
-
-    # The plain step/cost stopping tests, without the Gauss–Newton-step check of output error (gntol):
-    # the noise unknowns have flat, non-quadratic directions where the data carry no disturbance (the
-    # time constant; a process-noise level on its floor) and the Gauss–Newton step along them is
-    # spurious. Measured on the calm-water Nomoto test (tests/fit/test_prediction_error.py): at the
-    # optimum the step predicts a 0.36-standard-error move of K, T1, δ0, while 178 further LM steps
-    # moved them by less than 1e-4 standard errors; the check would hold every such fit to max_steps.
-    lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf"))
-    say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
-        f"levels, {len(runs)} runs, {o.integrator.describe()})...")
-    solve_fn, c = kernel.compiled("solve", z, data, **lm)
-    compile_s += c
-    t0 = time.perf_counter()
-    z, result, steps, _ = solve_fn(jnp.asarray(z), data)
-    jax.block_until_ready(z)
-    fit_s = time.perf_counter() - t0
-    z = np.array(z)
-    if kernel.coloured and po.estimate_noise:
-        z[-1] = float(np.clip(z[-1], -10.0, 10.0))
-    jac_fn, c = kernel.compiled("jacobian", z, data)
-    compile_s += c
-    compile_s += c
-    r = np.asarray(kernel.call("residuals", z, data))
-    col = per_scale_columns(spec, z, len(z))
-    J_all = np.asarray(jac_fn(jnp.asarray(z), data)) * col
-    J_eps, J_prior = J_all[:n_eps], kernel.split(J_all, data)[1]
-    r_eps = r[:n_eps]
-    cov_all = covariance(np.vstack([J_eps, J_prior]) if data.n_prior else J_eps, r_eps, variance=1.0, involvement=0.05)
-    if not cov_all.full_rank:
-        names = [*spec.free_names, *(f"process noise on {s}" for s in pstates),
-                 *(f"measurement noise on {ch}" for ch in batch.channels), "disturbance time constant"][: len(z)]
-        messages.append("not identifiable from these runs (Jacobian rank deficient; standard errors infinite): "
-                        + ", ".join(names[i] for i in cov_all.unidentifiable))
-    scale = np.asarray([spec[n].scale for n in spec.free_names])
-    cov = cov_all.matrix[:n_p, :n_p] * np.outer(scale, scale)
-    theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
-    values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
-    swapped = model.canonical(values)
-    if swapped != values:
-        cov = relabelled(cov, values, swapped, spec.free_names)
-        values = swapped
-    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
-    q, rv, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
-    process_sd = {s: float(v) for s, v in zip(pstates, q)}
-    meas_sd = {ch: float(math.sqrt(v)) for ch, v in zip(batch.channels, rv)}
-    eps = r_eps.reshape(data.ys.shape)
-    mask = batch.mask
-    white = {ch: float(np.sqrt(np.mean(eps[..., j][mask] ** 2))) for j, ch in enumerate(batch.channels)}
-    fp = kernel.filter(jnp.asarray(z), data)
-    valid = bool(np.all(np.asarray(fp.valid)[mask]))
-    converged = bool(result == optx.RESULTS.successful)
-    status = "converged" if converged else result_message(result)
-    if not valid:
-        converged, status = False, "the Kalman filter diverges at the final parameters"
-    messages.append("estimated noise: measurement sd " + ", ".join(f"{k} {v:.3g}" for k, v in meas_sd.items())
-                    + ("; disturbance (Ornstein–Uhlenbeck, added to the rates of " + ", ".join(pstates)
-                       + f", time constant {float(tau):.3g} s) sd " if kernel.coloured else "; process sd per √s ")
-                    + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items()))
-    prior_rows = kernel.split(r, data)[1]
-    say(f"prediction error: {status} after {int(steps)} steps in {fit_s:.2f} s (compile {compile_s:.2f} s)")
-    return FitResult(
-        method="prediction_error", model=model.with_params(values), params=values, stderr=stderr,
-        free=spec.free_names, converged=converged, status=status, iterations=int(steps),
-        cost=0.5 * float(np.sum(kernel.split(r, data)[0] ** 2)), fit_seconds=fit_s, compile_seconds=compile_s,
-        channels=batch.channels,
-        channel_scales={ch: float(s) for ch, s in zip(batch.channels, np.asarray(data.scales))},
-        noise_std=meas_sd, initial_states=tuple(batch.x0), run_names=batch.names, covariance=cov,
-        integrator=o.integrator, messages=tuple(messages),
-        info={"measurement_sd": meas_sd, "process_sd": process_sd, "process_states": pstates,
-              "disturbance": po.disturbance, "disturbance_tau": float(tau),
-              "estimate_noise": po.estimate_noise, "innovation_rms": white, "integrator": o.integrator.describe(),
-              "n_residuals": int(mask.sum()) * n_c, "jacobian_rank": cov_all.rank, "n_unknowns": len(z),
-              "priors": prior_table(priors, values, stderr, spec.free_names), "prior_source": priors.source,
-              "prior_note": prior_note, "prior_cost": 0.5 * float(np.sum(prior_rows ** 2))},
-    )
+    """Fit ``model`` to ``runs`` by the prediction-error method: :func:`diffship.fit.fit` with
+    :class:`PredictionError` (``options`` what output error would use, ``noise`` the noise model).
+    Returns a :class:`~diffship.fit.FitResult` (``method="prediction_error"``) whose ``info`` holds
+    the estimated noise levels (``measurement_sd`` per channel, ``process_sd`` per state per √s)."""
+    return fit(model, runs, PredictionError(oe=options, noise=noise), spec=spec, starts=starts, n_starts=n_starts,
+               channels=channels, progress=progress, throw=throw)

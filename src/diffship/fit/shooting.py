@@ -65,16 +65,18 @@ from ..errors import FitError
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import initial_state, simulate
-from ._lm import result_message
-from .covariance import covariance
+from . import status as st
+from .driver import fit
+from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import per_scale_columns
 from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
-from .output_error import OutputErrorOptions, channel_rms, channel_spread, fit_output_error, fit_priors, x0_scales
+from .output_error import OutputErrorOptions
 from .priors import prior_arrays
 from .problem import make_batch
 from .result import FitResult
+from .weights import channel_rms, channel_spread, x0_scales
 
-__all__ = ["ShootingOptions", "ShootingKernel", "ShootingData", "fit_multiple_shooting", "parse_shooting"]
+__all__ = ["MultipleShooting", "ShootingOptions", "ShootingKernel", "ShootingData", "fit_multiple_shooting", "parse_shooting"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -321,6 +323,178 @@ def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec,
     return kernel, data, batch, info
 
 
+@dataclasses.dataclass(frozen=True)
+class MultipleShooting(AbstractEstimator):
+    """Output error by multiple shooting (module docstring): the settings of the estimator.
+
+    Attributes:
+        oe: the output-error settings it shares (integrator, filter, weights, LM tolerances,
+            estimated initial states of each run's first segment, priors) and the polish's.
+        shooting: segments, penalties, polish and stage limits (:class:`ShootingOptions`).
+    """
+
+    method = "multiple_shooting"
+
+    oe: OutputErrorOptions = OutputErrorOptions()
+    shooting: ShootingOptions = ShootingOptions()
+
+    @property
+    def priors(self):
+        return self.oe.priors
+
+    @property
+    def reference_priors(self):
+        return self.oe.reference_priors
+
+    @property
+    def prior_rel_sd(self):
+        return self.oe.prior_rel_sd
+
+    @property
+    def choose(self):
+        return self.oe.choose
+
+    def describe(self) -> str:
+        return "multiple shooting"
+
+    def prepare(self, model, runs, spec, channels, priors, say) -> Problem:
+        o, sh = self.oe, self.shooting
+        unknown = [s_ for s_ in o.estimate_x0 if s_ not in model.state_names]
+        if unknown:
+            raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
+                           f"({', '.join(model.state_names)})")
+        kernel, data, batch, info = shooting_problem(model, runs, spec, channels, o, sh.segment_s)
+        if o.channel_scales:
+            data = data.replace(scales=jnp.asarray([o.channel_scales[c] for c in batch.channels], dtype=jnp.float64))
+        p_mean, p_w = prior_arrays(priors, spec)
+        if np.any(p_w):
+            data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
+        n_p, n_s = len(spec.free_names), info["n_segment_unknowns"]
+        # Before a polish the stages only bring the parameters into the single-shooting basin: they stop
+        # at the plain step/cost tests with a looser cost-stall test (``stage_ftol``). The Gauss–Newton-
+        # step check (``gntol``) and the single-shooting tolerances are kept for the polish, and for every
+        # stage when there is no polish (measured on one 300-s KVLCC2 zigzag, 31 segments: with them,
+        # every stage ran its 100 steps, 0.9 s each on the shared 2-core machine).
+        lm = dict(max_steps=sh.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf") if sh.polish else float(o.gntol))
+        if sh.polish:
+            lm["ftol"] = float(sh.stage_ftol)
+        say(f"multiple shooting: compiling ({n_p} parameters + {n_s} segment states, {info['segments_per_run']} "
+            f"segments per run, {o.integrator.describe()})...")
+        (res_fn, solve_fn), compile_s = kernel.compiled_many([("residuals", np.zeros(n_p + n_s), data, {}),
+                                                               ("solve", np.zeros(n_p + n_s), data, lm)])
+        messages = [f"multiple shooting: {info['segments_per_run']} segments of {info['segment_samples']} "
+                    f"samples ({info['segment_s']:.3g} s) per run, {n_s} segment-state unknowns"]
+        return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_s,
+                       nuisance_names=tuple(f"segment state {i + 1}" for i in range(n_s)), priors=priors,
+                       compile_seconds=compile_s,
+                       state=dict(kernel=kernel, data=data, batch=batch, info=info, res_fn=res_fn, solve_fn=solve_fn,
+                                  n_data=int(np.prod(data.ys.shape)), messages=messages, integrator=o.integrator,
+                                  n_rows=batch.n_residuals, channels=channels))
+
+    def start_cost(self, problem, z) -> float:
+        st_ = problem.state
+        r = np.asarray(st_["res_fn"](jnp.asarray(z), st_["data"]))
+        c = 0.5 * float(np.sum(r * r))
+        return c if math.isfinite(c) and not np.any(np.abs(r[:st_["n_data"]]) >= PENALTY) else math.inf
+
+    def _stages(self, problem, z, say):
+        """The increasing continuity penalty, one LM solve each (one compiled program)."""
+        st_, sh, o = problem.state, self.shooting, self.oe
+        data, batch, n_data = st_["data"], st_["batch"], st_["n_data"]
+        # the channels are re-weighted by their residual RMS (now of a continuous trajectory) and the
+        # last stage solved again (not before a polish: single shooting re-weights itself)
+        schedule = list(sh.penalties)
+        if o.weights == "noise" and not o.channel_scales and not sh.polish:
+            schedule.append(None)
+        spread = channel_spread(batch)
+        seg_mask = np.asarray(data.mask)
+        n_def = np.asarray(data.defect_mask).size * len(problem.model.state_names)
+        stages, r = [], None
+        for mu in schedule:
+            if mu is None:
+                sig = channel_rms(r[:n_data], seg_mask, np.asarray(data.scales))
+                data = data.replace(scales=jnp.asarray(np.maximum(sig, 1e-6 * spread)))
+                mu = sh.penalties[-1]
+            data = data.replace(weight=jnp.asarray(mu))
+            z, result, steps, r = st_["solve_fn"](jnp.asarray(z), data)
+            r = np.asarray(r)
+            defect = np.abs(r[n_data:n_data + n_def]) / mu
+            stages.append({"penalty": mu, "steps": int(steps), "result": st.message(result), "code": result,
+                           "max_defect": float(defect.max(initial=0.0)), "cost": 0.5 * float(r[:n_data] @ r[:n_data]),
+                           "weights": "noise" if len(stages) == len(sh.penalties) else "initial"})
+            say(f"multiple shooting: penalty {mu:g} ({stages[-1]['weights']} weights): {stages[-1]['result']} after "
+                f"{int(steps)} steps, largest continuity defect {stages[-1]['max_defect']:.2g} state scales")
+        return np.asarray(z), r, data, stages
+
+    def first_solves(self, problem, zs, say):
+        if self.oe.choose == "first":
+            zs = zs[:1]
+        out = []
+        t0 = time.perf_counter()
+        for z in zs:
+            z, r, data, stages = self._stages(problem, z, say)
+            c = 0.5 * float(r @ r)
+            bad = not math.isfinite(c) or np.any(np.abs(r[:problem.state["n_data"]]) >= PENALTY)
+            out.append((z, math.inf if bad else c, sum(s_["steps"] for s_ in stages)))
+            problem.state.setdefault("runs_of_stages", []).append((z, r, data, stages))
+        problem.state["ms_s"] = time.perf_counter() - t0
+        return out
+
+    def residuals(self, problem, z) -> np.ndarray:
+        st_ = problem.state
+        if "polish" in st_:
+            oe, p2 = st_["polish"]
+            return oe.residuals(p2, z)
+        d = st_.get("final_data", st_["data"])
+        return np.asarray(st_["res_fn"](jnp.asarray(z), d))[: st_["n_data"]]
+
+    def finish(self, problem, z, steps, say) -> Solved:
+        st_, sh = problem.state, self.shooting
+        z, r, data, stages = next(t for t in st_["runs_of_stages"] if np.array_equal(t[0], z))
+        st_["final_data"] = data
+        spec, model = problem.spec, problem.model
+        n_p = problem.n_params
+        theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
+        values = {n: float(theta[i]) for i, n in enumerate(model.param_names)}
+        ms_info = {"segment_s": st_["info"]["segment_s"], "segments_per_run": st_["info"]["segments_per_run"],
+                   "segment_unknowns": problem.n_nuisance, "stages": [{k: v for k, v in s_.items() if k != "code"}
+                                                                      for s_ in stages],
+                   "seconds": st_["ms_s"], "steps": steps, "polish": sh.polish,
+                   "params": {n: model.canonical(values)[n] for n in spec.free_names}}
+        pens = ", ".join(f"{p:g}" for p in sh.penalties)
+        messages = list(st_["messages"]) + [f"multiple shooting: {steps} steps over penalties {pens}; "
+                                            f"largest final continuity defect {stages[-1]['max_defect']:.2g} state scales"]
+        if sh.polish:
+            # the single-shooting fit from the multiple-shooting estimate: the result *is* its optimum
+            say("multiple shooting: polishing by single shooting from the multiple-shooting estimate...")
+            oe = dataclasses.replace(self.oe, warmup=0.0, choose="first")
+            p2 = oe.prepare(model, problem.runs, spec, st_["channels"], problem.priors, say)
+            out = oe.first_solves(p2, [p2.z_start(values)], say)
+            s2 = oe.finish(p2, out[0][0], out[0][2], say)
+            st_["polish"] = (oe, p2)
+            return dataclasses.replace(
+                s2, steps=s2.steps + steps, seconds=s2.seconds + st_["ms_s"], compile_seconds=s2.compile_seconds
+                + p2.compile_seconds, messages=tuple(messages) + s2.messages, info={**s2.info, "shooting": ms_info})
+        kernel, batch, n_data = st_["kernel"], st_["batch"], st_["n_data"]
+        t0 = time.perf_counter()
+        jac_fn, c = kernel.compiled("jacobian", z, data)
+        J = np.asarray(jac_fn(jnp.asarray(z), data)) * per_scale_columns(spec, z, len(z))
+        r_d, J_d, J_rest, r_rest = r[:n_data], J[:n_data], J[n_data:], r[n_data:]
+        n_res = int(np.asarray(data.mask).sum()) * len(batch.channels)
+        result = st.as_diffship(stages[-1]["code"])
+        scales = np.asarray(data.scales)
+        noise = channel_rms(r_d, np.asarray(data.mask), scales)
+        x0 = np.asarray(kernel.initial_states(jnp.asarray(z), data)).reshape(len(batch.names), kernel.n_seg, -1)[:, 0]
+        return Solved(
+            z=z, r_data=r_d, J_data=J_d, J_extra=J_rest, r_extra=r_rest, result=result, steps=steps,
+            seconds=st_["ms_s"] + time.perf_counter() - t0, compile_seconds=c, cost=0.5 * float(r_d @ r_d),
+            channel_scales={ch: float(s_) for ch, s_ in zip(batch.channels, scales)},
+            noise_std={ch: float(s_) for ch, s_ in zip(batch.channels, noise)}, initial_states=tuple(x0),
+            run_names=batch.names, dof=max(n_res - n_p, 1), kind="white", messages=tuple(messages),
+            info={"shooting": ms_info, "estimate_x0": self.oe.estimate_x0, "weights": self.oe.weights,
+                  "integrator": self.oe.integrator.describe()})
+
+
 def fit_multiple_shooting(
     model: AbstractModel,
     runs: Sequence[Run],
@@ -331,151 +505,12 @@ def fit_multiple_shooting(
     options: OutputErrorOptions = OutputErrorOptions(),
     shooting: ShootingOptions = ShootingOptions(),
     progress: Callable[[str], None] | None = None,
+    n_starts: int | None = 1,
+    throw: bool = True,
 ) -> FitResult:
-    """Output error by multiple shooting (module docstring); same arguments as
-    :func:`~diffship.fit.fit_output_error` plus ``shooting``. Returns a
+    """Output error by multiple shooting: :func:`diffship.fit.fit` with :class:`MultipleShooting`.
+    One start by default (the lowest initial multiple-shooting cost of the model's values and
+    ``starts``): multiple shooting is itself the remedy for a poor start. Returns a
     :class:`~diffship.fit.FitResult` with ``info["shooting"]`` describing the stage."""
-    o = options
-    say = progress or (lambda s: None)
-    spec = spec or model.spec()
-    model = model.with_params(spec.values())
-    n_p = len(spec.free_names)
-    if n_p == 0:
-        raise FitError("no free parameters: free at least one (remove it from --fix)")
-    unknown = [s for s in o.estimate_x0 if s not in model.state_names]
-    if unknown:
-        raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
-                       f"({', '.join(model.state_names)})")
-    kernel, data, batch, info = shooting_problem(model, runs, spec, channels, o, shooting.segment_s)
-    if o.channel_scales:
-        data = data.replace(scales=jnp.asarray([o.channel_scales[c] for c in batch.channels], dtype=jnp.float64))
-    priors, prior_note = fit_priors(model, spec, o)
-    p_mean, p_w = prior_arrays(priors, spec)
-    if np.any(p_w):
-        data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
-    messages = [prior_note, f"multiple shooting: {info['segments_per_run']} segments of {info['segment_samples']} "
-                f"samples ({info['segment_s']:.3g} s) per run, {info['n_segment_unknowns']} segment-state unknowns"]
-    n_s = info["n_segment_unknowns"]
-    n_data = int(np.prod(data.ys.shape))
-
-    # -- start: the lowest finite multiple-shooting cost among the candidates ----------------
-    named = starts.items() if isinstance(starts, Mapping) else ((f"start {i + 1}", s) for i, s in enumerate(starts))
-    candidates = [("the model's values (with --init)", spec.values())] + [
-        (label, {**spec.values(), **{k: v for k, v in s.items() if k in spec.free_names}}) for label, s in named]
-    res_fn, compile_s = kernel.compiled("residuals", np.zeros(n_p + n_s), data)
-    best = None
-    for label, vals in candidates:
-        vals, notes = spec.nudged(vals)
-        messages.extend(f"start '{label}': {n}" for n in notes)
-        try:
-            z = np.concatenate([spec.to_z(vals), np.zeros(n_s)])
-        except Exception as exc:  # start outside bounds
-            messages.append(f"start '{label}' skipped: {exc}")
-            continue
-        r = np.asarray(res_fn(jnp.asarray(z), data))
-        cost = 0.5 * float(np.sum(r * r))
-        if math.isfinite(cost) and not np.any(np.abs(r[:n_data]) >= PENALTY) and (best is None or cost < best[2]):
-            best = (label, z, cost)
-    if best is None:
-        raise FitError(f"model {model.name} diverges within a segment from every start ({len(candidates)} tried) on "
-                       f"runs {', '.join(batch.names)}; use shorter segments (--shooting multiple:SECONDS) or a "
-                       "better start (--init NAME=VALUE)")
-    label, z, _ = best
-    messages.append(f"multiple shooting started from {label}")
-
-    # -- increasing continuity penalty, one LM solve each (one compiled program) ---------------
-    # Before a polish the stages only bring the parameters into the single-shooting basin: they stop
-    # at the plain step/cost tests with a looser cost-stall test (``stage_ftol``). The Gauss–Newton-
-    # step check (``gntol``) and the single-shooting tolerances are kept for the polish, and for every
-    # stage when there is no polish (measured on one 300-s KVLCC2 zigzag, 31 segments: with them,
-    # every stage ran its 100 steps, 0.9 s each on the shared 2-core machine).
-    lm = dict(max_steps=shooting.max_steps, rtol=o.rtol, atol=o.atol,
-              gntol=float("inf") if shooting.polish else float(o.gntol))
-    if shooting.polish:
-        lm["ftol"] = float(shooting.stage_ftol)
-    say(f"multiple shooting: compiling ({n_p} parameters + {n_s} segment states, {info['segments_per_run']} "
-        f"segments per run, {o.integrator.describe()})...")
-    solve_fn, c = kernel.compiled("solve", z, data, **lm)
-    compile_s += c
-    t0 = time.perf_counter()
-    stages = []
-    # the continuity penalty grows stage by stage; then, as single shooting does, the channels are
-    # re-weighted by their residual RMS (now of a continuous trajectory) and the last stage solved again
-    # (not before a polish: single shooting re-weights itself, and the re-weighted stage at the largest
-    # penalty is the slowest to converge — measured on the KVLCC2 zigzags: 100 steps without converging)
-    schedule = list(shooting.penalties)
-    if o.weights == "noise" and not o.channel_scales and not shooting.polish:
-        schedule.append(None)
-    spread = channel_spread(batch)
-    seg_mask = np.asarray(data.mask)
-    n_def = np.asarray(data.defect_mask).size * len(model.state_names)
-    for mu in schedule:
-        if mu is None:
-            sig = channel_rms(r[:n_data], seg_mask, np.asarray(data.scales))
-            data = data.replace(scales=jnp.asarray(np.maximum(sig, 1e-6 * spread)))
-            mu = shooting.penalties[-1]
-        data = data.replace(weight=jnp.asarray(mu))
-        z, result, steps, r = solve_fn(jnp.asarray(z), data)
-        r = np.asarray(r)
-        defect = np.abs(r[n_data:n_data + n_def]) / mu
-        stages.append({"penalty": mu, "steps": int(steps), "result": result_message(result),
-                       "max_defect": float(defect.max(initial=0.0)), "cost": 0.5 * float(r[:n_data] @ r[:n_data]),
-                       "weights": "noise" if len(stages) == len(shooting.penalties) else "initial"})
-        say(f"multiple shooting: penalty {mu:g} ({stages[-1]['weights']} weights): {stages[-1]['result']} after "
-            f"{int(steps)} steps, largest continuity defect {stages[-1]['max_defect']:.2g} state scales")
-    jax.block_until_ready(z)
-    ms_s = time.perf_counter() - t0
-    z = np.asarray(z)
-    theta = np.asarray(spec.full_values(jnp.asarray(z[:n_p]), model.theta()))
-    values = model.canonical({n: float(theta[i]) for i, n in enumerate(model.param_names)})
-    ms_steps = sum(s["steps"] for s in stages)
-    ms_info = {"segment_s": info["segment_s"], "segments_per_run": info["segments_per_run"],
-               "segment_unknowns": n_s, "stages": stages, "seconds": ms_s, "steps": ms_steps,
-               "params": {n: values[n] for n in spec.free_names}, "polish": shooting.polish}
-    pens = ", ".join(f"{p:g}" for p in shooting.penalties)
-    messages.append(f"multiple shooting: {ms_steps} steps over penalties {pens}; "
-                    f"largest final continuity defect {stages[-1]['max_defect']:.2g} state scales")
-    if shooting.polish:
-        say("multiple shooting: polishing by single shooting from the multiple-shooting estimate...")
-        res = fit_output_error(model, runs, spec=spec.with_values({n: values[n] for n in spec.free_names}),
-                               channels=channels, options=dataclasses.replace(o, warmup=0.0, choose="first"),
-                               progress=progress)
-        return dataclasses.replace(
-            res, iterations=res.iterations + ms_steps, fit_seconds=res.fit_seconds + ms_s,
-            compile_seconds=res.compile_seconds + compile_s, messages=tuple(messages) + res.messages,
-            info={**res.info, "shooting": ms_info})
-    return _unpolished(kernel, data, batch, spec, model, values, z, n_data, ms_info, messages, stages, ms_s, compile_s,
-                       label, o)
-
-
-def _unpolished(kernel, data, batch, spec, model, values, z, n_data, ms_info, messages, stages, ms_s, compile_s,
-                label, o) -> FitResult:
-    """A :class:`FitResult` of the multiple-shooting stage alone (covariance from its Jacobian)."""
-    n_p = len(spec.free_names)
-    r = np.asarray(kernel.call("residuals", z, data))
-    J = np.asarray(kernel.call("jacobian", z, data))
-    J = J * per_scale_columns(spec, z, len(z))
-    r_d, J_d = r[:n_data], J[:n_data]
-    J_rest = J[n_data:]
-    n_res = int(np.asarray(data.mask).sum()) * len(batch.channels)
-    s2 = float(r_d @ r_d) / max(n_res - n_p, 1)
-    # defect and prior rows are constraints/prior information (unit variance); data rows are scaled by σ̂
-    cov_all = covariance(np.vstack([J_d / math.sqrt(s2), J_rest]), r, variance=1.0, involvement=0.05)
-    scale = np.asarray([spec[n].scale for n in spec.free_names])
-    cov = cov_all.matrix[:n_p, :n_p] * np.outer(scale, scale)
-    stderr = {n: float(math.sqrt(cov[i, i])) if cov[i, i] >= 0 else math.nan for i, n in enumerate(spec.free_names)}
-    conv = all(s["result"] == "converged" for s in stages[-1:])
-    status = "converged" if conv else stages[-1]["result"]
-    scales = np.asarray(data.scales)
-    noise = channel_rms(r_d, np.asarray(data.mask), scales)
-    x0 = np.asarray(kernel.initial_states(jnp.asarray(z), data)).reshape(len(batch.names), kernel.n_seg, -1)[:, 0]
-    return FitResult(
-        method="output_error", model=model.with_params(values), params=values, stderr=stderr, free=spec.free_names,
-        converged=bool(conv), status=status, iterations=ms_info["steps"], cost=0.5 * float(r_d @ r_d),
-        fit_seconds=ms_s, compile_seconds=compile_s, channels=batch.channels,
-        channel_scales={c: float(s) for c, s in zip(batch.channels, scales)},
-        noise_std={c: float(s) for c, s in zip(batch.channels, noise)}, initial_states=tuple(x0),
-        run_names=batch.names, covariance=cov, integrator=o.integrator, messages=tuple(messages),
-        info={"shooting": ms_info, "residual_variance": s2, "n_residuals": n_res, "start": label,
-              "estimate_x0": o.estimate_x0, "weights": o.weights, "integrator": o.integrator.describe()},
-    )
+    return fit(model, runs, MultipleShooting(oe=options, shooting=shooting), spec=spec, starts=starts,
+               n_starts=n_starts, channels=channels, progress=progress, throw=throw)

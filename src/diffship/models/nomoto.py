@@ -89,8 +89,11 @@ class Nomoto2(AbstractModel):
     i.e. the transfer function :math:`r/\delta = K(1 + T_3 s)/((1 + T_1 s)(1 + T_2 s))`.
     It is realised without differentiating the rudder signal: with an internal state
     :math:`\xi` obeying :math:`T_1T_2\ddot\xi + (T_1+T_2)\dot\xi + \xi = K(\delta+\delta_0)`,
-    the yaw rate is :math:`r = \xi + T_3\dot\xi`. States ``(psi, xi, xi_dot)``; outputs
-    ``(psi, r)``. ``T3`` is free by default (the full second-order model); ``--fix T3=0`` gives
+    the yaw rate is :math:`r = \xi + T_3\dot\xi`. States ``(psi, r, xi_dot)`` — the yaw rate itself
+    is a state (:math:`\xi = r - T_3\dot\xi`, :math:`\dot r = \dot\xi + T_3\ddot\xi`), so the
+    measured initial heading and yaw rate are the initial state whatever the parameters (an initial
+    state in :math:`\xi` would change with ``T3`` and a fit would be judged from another start than it
+    was fitted from); outputs ``(psi, r)``. ``T3`` is free by default (the full second-order model); ``--fix T3=0`` gives
     the simpler form of seed 001 written in time constants (its ``K δ = r + T₁'ṙ + T₂'r̈`` has
     ``T₁' = T1 + T2`` and ``T₂' = T1·T2``). On the SSPA zigzag the T3 = 0 form collapses to first
     order (T2 → 0); the lead term is what the data support. The model is symmetric in ``T1``
@@ -98,9 +101,12 @@ class Nomoto2(AbstractModel):
     """
 
     name: ClassVar[str] = "nomoto2"
-    state_names: ClassVar[tuple[str, ...]] = ("psi", "xi", "xi_dot")
+    state_names: ClassVar[tuple[str, ...]] = ("psi", "r", "xi_dot")
     output_names: ClassVar[tuple[str, ...]] = ("psi", "r")
-    STATE_CHANNEL: ClassVar[dict[str, str]] = {"xi": "r", "xi_dot": "r"}
+    STATE_CHANNEL: ClassVar[dict[str, str]] = {"r": "r", "xi_dot": "r"}
+    #: ξ̇(0) is the yaw acceleration ṙ(0) where T3 = 0 or the rudder is still: an estimated ξ̇(0) moves from
+    #: the measured ṙ(0) only within the noise of a numerical derivative of r (``OutputError.x0_prior``)
+    STATE_RATE_OF: ClassVar[dict[str, str]] = {"xi_dot": "r"}
     EQUATIONS: ClassVar[tuple[str, ...]] = ("r_ddot",)
     EQUATION_CHANNELS: ClassVar[tuple[str, ...]] = ("r",)
     EQUATION_ORDER: ClassVar[int] = 2
@@ -118,21 +124,20 @@ class Nomoto2(AbstractModel):
         return ("delta",)
 
     def vector_field(self, t, x, u):
-        xi, xid = x[1], x[2]
-        r = xi + self.T3 * xid
+        r, xid = x[1], x[2]
+        xi = r - self.T3 * xid
         xidd = (self.K * (u[0] + self.delta0) - xi - (self.T1 + self.T2) * xid) / (self.T1 * self.T2)
-        return jnp.stack([r, xid, xidd])
-
-    def observe(self, x, u):
-        return jnp.stack([x[0], x[1] + self.T3 * x[2]])
+        return jnp.stack([r, xid + self.T3 * xidd, xidd])
 
     def initial_state(self, y0: Mapping[str, float]) -> np.ndarray:
-        xid = float(y0.get("r_dot", 0.0))
-        return np.array([float(y0.get("psi", 0.0)), float(y0.get("r", 0.0)) - float(self.T3) * xid, xid])
+        r"""Measured ψ and r; :math:`\dot\xi_0` = the measured ṙ (exact where T3 = 0 or δ̇ = 0), the same
+        values at any parameters."""
+        return np.array([float(y0.get("psi", 0.0)), float(y0.get("r", 0.0)), float(y0.get("r_dot", 0.0))])
 
     def states_for_channels(self, channels) -> tuple[str, ...]:
         out = ("psi",) if "psi" in channels else ()
-        return out + (("xi", "xi_dot") if "r" in channels else ())
+        return out + (("r", "xi_dot") if "r" in channels else ())
+        return (("psi",) if "psi" in channels else ()) + (("r",) if "r" in channels else ())
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
         """Order the interchangeable time constants so that ``T1 ≥ T2``."""

@@ -58,7 +58,8 @@ from ..manoeuvres import first_execute, pullout_metrics, rudder_release, turning
 from ..preprocess import Filter
 from ..metrics import start_state
 from ..simulate import model_inputs
-from ..steering import rudder_moves, switch_delay
+from ..steering import rudder_moves
+from .autopilot import switch_delay
 from .sampling import draw_parameters, fly_draws, manoeuvre_law, simulate_draws
 
 __all__ = [
@@ -232,7 +233,7 @@ def train_types_json(runs: Sequence[Run], length: float | None = None) -> list[d
     """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``), with its
     measured metrics (``measured``: :func:`run_metrics`) and, for a zigzag, the measured delay between
     the heading reaching the switch angle and the rudder's reversal (``switch_delay_s``,
-    :func:`diffship.steering.switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
+    :func:`diffship.predict.autopilot.switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
     beside what was measured."""
     out = []
     for r in runs:
@@ -418,7 +419,7 @@ def _as_run(model, run: Run, ys: np.ndarray, name: str) -> Run:
 def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndarray) -> list[Run | None]:
     """A zigzag flown again closed loop by the model (one run per row of ``thetas``): the run's own start
     (``x0``), first side and execute time, angles, constant inputs (their means), helm rate
-    (:func:`diffship.steering.rudder_moves`) and switch delay (:func:`diffship.steering.switch_delay`) — as a prediction is
+    (:func:`diffship.steering.rudder_moves`) and switch delay (:func:`diffship.predict.autopilot.switch_delay`) — as a prediction is
     flown, so the overshoots compare with the measured ones (open loop, the measured rudder reverses when
     the *measured* heading reached the switch angle, and only the first overshoot would compare)."""
     i0, side = first_execute(run)
