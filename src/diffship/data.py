@@ -32,9 +32,12 @@ import pandas as pd
 
 from diffship.errors import DataError
 
+from .units import TIME_UNITS, UnitsError, psi_unwrap
+from .units import check_units as check_column_units
+
 __all__ = [
     "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "CHANNEL_UNITS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run",
-    "example_path", "example_runs", "kvlcc2_runs", "load_runs", "shared_data_dir",
+    "TIME_UNITS", "UnitsError", "example_path", "example_runs", "kvlcc2_runs", "load_runs", "shared_data_dir",
 ]
 
 CANONICAL_COLUMNS = ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "tau_x", "tau_y", "tau_z")
@@ -94,48 +97,6 @@ def _as_array(values: Any, where: str, column: str) -> np.ndarray:
         raise DataError(f"{where}: column '{column}' is not numeric ({exc}); "
                         "convert it to numbers or leave it out.") from None
     return a
-
-
-def _psi_unwrap(psi: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Unwrap a heading; a jump of ~360 marks degree data (returns ``(unwrapped, in_degrees)``)."""
-    jumps = np.abs(np.diff(psi))
-    in_degrees = bool(np.any((jumps > 300.0) & (jumps < 360.5)))
-    return np.unwrap(psi, period=360.0 if in_degrees else 2 * np.pi), in_degrees
-
-
-def _check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> None:
-    """Conservative heuristics that catch degrees passed as radians; every problem in one error."""
-    problems: list[tuple[str, str]] = []  # (channel, what)
-    for c, limit, unit in (("delta", 1.0, "rad"), ("nozzle", 1.0, "rad"),
-                           ("r", 3.0, "rad/s"), ("p", 3.0, "rad/s"), ("q", 3.0, "rad/s")):
-        if c in ch and np.max(np.abs(ch[c])) > limit:
-            i = int(np.argmax(np.abs(ch[c])))
-            problems.append((c, f"column '{c}' looks like degrees (|value| up to {abs(ch[c][i]):.4g} at row {i}, "
-                                f"more than {limit} {unit})"))
-    if "psi" in ch:
-        psi = ch["psi"]
-        unwrapped, wraps_at_360 = _psi_unwrap(psi)
-        big = np.max(np.abs(psi)) > 2 * np.pi + 0.5
-        looks_0_360 = psi.min() >= -0.5 and psi.max() <= 360.5 and psi.max() > 7.0
-        if big and (wraps_at_360 or (looks_0_360 and abs(psi[0]) > 2 * np.pi + 0.5)):
-            problems.append(("psi", f"column 'psi' looks like degrees (values from {psi.min():.4g} "
-                                    f"to {psi.max():.4g})"))
-        elif "r" in ch and np.std(ch["r"]) > 1e-4 and not any(c == "r" for c, _ in problems):
-            r = ch["r"]
-            g = np.gradient(unwrapped, time)
-            if np.std(g) > 0 and np.corrcoef(g, r)[0, 1] > 0.7:
-                slope = float(g @ r / (r @ r))
-                if 30.0 < slope < 100.0:
-                    problems.append(("psi", f"column 'psi' looks like degrees while 'r' is in rad/s "
-                                            f"(d psi/dt = {slope:.3g} r)"))
-                if 0.01 < slope < 0.03:
-                    problems.append(("r", f"column 'r' looks like deg/s while 'psi' is in rad "
-                                          f"(d psi/dt = {slope:.3g} r, about 1/57.3)"))
-    if problems:
-        cols = " ".join(dict.fromkeys(c for c, _ in problems))
-        raise DataError(f"{where}: " + "; ".join(w for _, w in problems)
-                        + f"; pass degrees=[{', '.join(repr(c) for c in dict.fromkeys(c for c, _ in problems))}] "
-                        f"(CLI: --degrees {cols}), or check_units=False if the values really are radians.")
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -205,7 +166,7 @@ class Run:
                                 f"at row {i} (t={t[i]:.6g} s); drop or fill these rows before loading.")
             chans[c] = a
         if self.check_units:
-            _check_units(where, t, chans)
+            check_column_units(where, t, chans)
         for a in (t, *chans.values()):
             a.flags.writeable = False
         object.__setattr__(self, "time", t)
@@ -283,7 +244,7 @@ class Run:
             raise DataError(f"{self._loc}: resample step dt must be positive and finite, got {dt}.")
         k = int(np.floor(self.duration / dt + 1e-9))
         t = self.t0 + dt * np.arange(k + 1)
-        chans = {c: np.interp(t, self.time, _psi_unwrap(a)[0] if c == "psi" else a)
+        chans = {c: np.interp(t, self.time, psi_unwrap(a)[0] if c == "psi" else a)
                  for c, a in self.channels.items()}
         return self._derive(t, chans, resampled_dt=float(dt))
 
@@ -312,7 +273,7 @@ class Run:
                        columns: Mapping[str, str] | None = None, degrees: Sequence[str] = (),
                        rudder_sign: str = "starboard", time_column: str = "time",
                        source: str | None = None, metadata: Mapping[str, Any] | None = None,
-                       check_units: bool = True) -> Run:
+                       check_units: bool = True, time_unit: str = "s") -> Run:
         """Build a run from a DataFrame (which is never modified).
 
         Parameters
@@ -331,6 +292,9 @@ class Run:
             File path or description, quoted in messages and kept in the metadata.
         metadata : Mapping, optional
             Extra metadata merged into the run's metadata.
+        time_unit : str
+            Unit of a numeric time column: ``"s"`` (default), ``"ms"`` or ``"us"`` (converted to s).
+            Date-time stamps (text or datetime64) are read as seconds from the first.
         """
         where = _where(name, source or "DataFrame")
         if rudder_sign not in ("starboard", "port"):
@@ -358,8 +322,15 @@ class Run:
         arrays: dict[str, np.ndarray] = {}
         for ch, col in cmap.items():
             s = df[col]
+            if ch == "time" and not pd.api.types.is_datetime64_any_dtype(s) and not pd.api.types.is_numeric_dtype(s):
+                stamps = pd.to_datetime(s, errors="coerce", format="mixed") if s.notna().all() else None
+                if stamps is not None and stamps.notna().all():
+                    s = stamps  # date-time stamps: seconds from the first
             if ch == "time" and pd.api.types.is_datetime64_any_dtype(s):
                 s = (s - s.iloc[0]).dt.total_seconds()
+                if time_unit != "s":
+                    raise DataError(f"{where}: the time column holds date-times (read as seconds from the first); "
+                                    f"time_unit={time_unit!r} does not apply, drop it")
             elif not pd.api.types.is_numeric_dtype(s) or pd.api.types.is_complex_dtype(s):
                 num = pd.to_numeric(s, errors="coerce")
                 bad = num.isna().to_numpy() & s.notna().to_numpy()
@@ -382,10 +353,13 @@ class Run:
         flipped = [c for c in RUDDER_CHANNELS if c in arrays] if rudder_sign == "port" else []
         for c in flipped:
             arrays[c] = -arrays[c]
-        time = arrays.pop("time")
+        if time_unit not in TIME_UNITS:
+            raise DataError(f"{where}: time_unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}.")
+        time = arrays.pop("time") * TIME_UNITS[time_unit]
         meta = {"source": source or "DataFrame", "rudder_sign_in_source": rudder_sign,
                 "rudder_flipped": tuple(flipped), "degrees_converted": tuple(converted),
-                "column_map": dict(cmap), "ignored_columns": tuple(ignored), **(metadata or {})}
+                "column_map": dict(cmap), "ignored_columns": tuple(ignored), "time_unit_in_source": time_unit,
+                **(metadata or {})}
         return cls(name, time, arrays, meta, check_units=check_units)
 
     @classmethod
@@ -441,13 +415,28 @@ def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel
         raise DataError("load_runs: 'name' cannot be shared by several files; names are file stems.")
     stems = [Path(p).stem for p in paths]
     seen: dict[str, int] = {}
-    runs = []
+    runs, units = [], []
     for p, stem in zip(paths, stems):
         name = stem
         if stems.count(stem) > 1:
             seen[stem] = seen.get(stem, 0) + 1
             name = f"{stem}_{seen[stem]}"
-        runs.extend(log_runs(p, name, channel_map, kw, Run) if is_log(p) else [Run.from_csv(p, name, **kw)])
+        if is_log(p):
+            runs.extend(log_runs(p, name, channel_map, kw, Run))
+            continue
+        try:
+            runs.append(Run.from_csv(p, name, **kw))
+        except UnitsError as exc:  # every file's unit problems in one message
+            units.append(exc)
+    if len(units) == 1:
+        raise units[0]
+    if units:
+        degs = list(dict.fromkeys(c for e in units for c in e.columns))
+        tu = next((e.time_unit for e in units if e.time_unit), None)
+        fixes = ([f"--degrees {' '.join(degs)}"] if degs else []) + ([f"--time-unit {tu}"] if tu else [])
+        raise UnitsError(f"{len(units)} files have unit problems: "
+                         + " | ".join(e.detail.split("; pass ")[0] for e in units)
+                         + f"; pass {' and '.join(fixes)} (Python: degrees=..., time_unit=...)", degs, tu)
     return runs
 
 

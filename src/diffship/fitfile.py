@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .data import Run
+from .steering import measured_helm_rate
 from .errors import DataError
 from .integrators import RK4, AbstractIntegrator, Diffrax, Tsit5, get_integrator
 from .models import MODELS, AbstractModel
@@ -44,7 +45,7 @@ from .models import MODELS, AbstractModel
 if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
 
-__all__ = ["SCHEMA", "LoadedFit", "fit_document", "integrator_name", "load_fit", "save_fit"]
+__all__ = ["SCHEMA", "LoadedFit", "fit_document", "fit_warnings", "integrator_name", "load_fit", "save_fit"]
 
 SCHEMA = "diffship.fit/1"
 
@@ -104,7 +105,17 @@ def _operating_point(runs: Sequence[Run], first_s: float = 1.0) -> dict[str, flo
         sel = run.time <= run.t0 + first_s
         for c in run.channel_names:
             acc.setdefault(c, []).append(float(np.mean(run[c][sel])))
-    return {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
+    out = {c: float(np.mean(v)) for c, v in acc.items() if len(v) == len(runs)}
+    if "u" not in out and all(r.has("x0", "y0") for r in runs) and runs:
+        speeds = []  # no surge speed measured: the speed over ground of the track's first seconds (first_s ≥ 3 s)
+        for run in runs:
+            sel = run.time <= run.t0 + max(first_s, 3.0)
+            x, y, t = np.asarray(run["x0"])[sel], np.asarray(run["y0"])[sel], np.asarray(run.time)[sel]
+            if len(t) >= 3 and t[-1] > t[0]:
+                speeds.append(float(np.hypot(x[-1] - x[0], y[-1] - y[0]) / (t[-1] - t[0])))
+        if len(speeds) == len(runs):
+            out["u"] = float(np.mean(speeds))
+    return out
 
 
 def _ranges(runs: Sequence[Run]) -> dict[str, list[float]]:
@@ -155,6 +166,7 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
         "integrator": {**integrator_name(result.integrator), "description": result.integrator.describe()},
         "initial_states": x0,
         "operating_point": _operating_point(runs) if runs else {},
+        "helm_rate": measured_helm_rate(runs) if "delta" in model.input_names else None,
         "data_ranges": _ranges(runs),
         "ship": {"length_m": length, "model_scale": scales[0] if len(scales) == 1 else None},
         "data": [_provenance(r) for r in runs],
@@ -235,6 +247,30 @@ class LoadedFit:
             se = self.stderr.get(n, math.nan)
             lines.append(f"  {n:>10s} = {self.params[n]: .6g} ± {se:.3g} {self.units.get(n, '')}".rstrip())
         return "\n".join(lines)
+
+
+def fit_warnings(fit: LoadedFit) -> list[str]:
+    """What a user of a fit file must be told before using it: a fit labelled FAILED (not usable), not
+    converged, with unidentified parameters or training runs it does not follow (the verdict
+    ``python -m diffship.fit`` recorded, :mod:`diffship.usability`)."""
+    doc = fit.document
+    v = doc.get("verdict") or {}
+    out = []
+    if doc.get("usable") is False or v.get("usable") is False:
+        why = "; ".join(v.get("reasons", ())) or doc.get("status", "")
+        out.append(f"WARNING: this fit is labelled FAILED ({why}): do not use these values; predictions from it "
+                   "are not supported")
+    elif not fit.converged:
+        out.append(f"warning: the fit did NOT converge ({fit.status}): treat these predictions with care")
+    for w in v.get("unidentified", ()):
+        out.append(f"warning: parameter not identified by the data: {w}")
+    runs = v.get("runs", ())
+    if runs:
+        out.append("warning: runs the fit does not follow: " + "; ".join(
+            f"{r['kind']} run {r['run']} ({r['channel']}" + (f" from t = {r['from_s']:.0f} s" if r.get('from_s') is not None
+                                                              and math.isfinite(r['from_s']) else "") + ")"
+            for r in runs))
+    return out
 
 
 def read_document(path: str | Path) -> dict[str, Any]:

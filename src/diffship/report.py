@@ -15,11 +15,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .channels import CHANNEL_NAMES
+from .figures import pyplot
 from .data import CHANNEL_UNITS, Run
 from .metrics import Evaluation
 
 if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
     from .fit.result import FitResult
+    from .usability import Verdict
 
 __all__ = [
     "CHANNEL_NAMES",
@@ -67,8 +69,11 @@ def text_report(
     validation: Mapping[str, Evaluation],
     train_runs: Sequence[Run],
     val_runs: Sequence[Run],
+    verdicts: Mapping[str, Verdict] | None = None,
 ) -> str:
-    """A short plain-text report: parameters side by side, then metrics."""
+    """A short plain-text report: parameters side by side, each method's verdict
+    (:mod:`diffship.usability`: FAILED / not converged / unidentifiable / runs not followed), then
+    pooled and per-run metrics. Without ``verdicts``, a method is FAILED by :func:`failed_methods`."""
     methods = list(results)
     w = 26
     lines = [
@@ -92,11 +97,14 @@ def text_report(
                 row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
         lines.append(row)
     lines.append("")
-    failed = failed_methods(train, results)
+    failed = (tuple(m for m, v in verdicts.items() if not v.usable) if verdicts is not None
+              else failed_methods(train, results))
     for m in methods:
         r = results[m]
         how = r.info.get("programs", "")
-        if m in failed:
+        if verdicts is not None and m in verdicts:
+            lines += verdicts[m].lines()
+        elif m in failed:
             worst = min((f for c, f in train[m].fit_percent.items() if c not in ("x0", "y0")), default=float("nan"))
             lines.append(f"{_LABEL.get(m, m)}: FAILED — its simulation "
                          + ("blows up" if not train[m].ok else f"is worse than the measured mean (fit {worst:.0f} %)")
@@ -124,7 +132,33 @@ def text_report(
                          + ("   FAILED" if m in failed else ""))
     if train:
         lines.append(_common_cost(train, train_runs, failed))
+    lines += _per_run(train, validation)
     return "\n".join(lines)
+
+
+def _per_run(train: Mapping[str, Evaluation], validation: Mapping[str, Evaluation]) -> list[str]:
+    """Per-run RMSE and fit % of every method (the same numbers as the JSON's ``per_run``)."""
+    lines = []
+    names = [n for evs in (train, validation) for ev in list((evs or {}).values())[:1] for n in ev.per_run]
+    prefix = _common_prefix(names)
+    if prefix:
+        lines += ["", f"per-run tables: run names without their common prefix {prefix}"]
+    for title, evs in (("training", train), ("validation", validation)):
+        for m, ev in (evs or {}).items():
+            chans = [c for c in ev.channels]
+            lines += ["", f"{title} runs, {_LABEL.get(m, m)}: RMSE and fit [%] per run",
+                      f"  {'run':<18}" + "".join(f"{c + ' [' + CHANNEL_UNITS.get(c, ('', 1))[0] + ']':>16}" for c in chans)]
+            for name, pr in ev.per_run.items():
+                short = name[len(prefix):] or name
+                row = f"  {short[:18]:<18}"
+                for c in chans:
+                    unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
+                    if c in pr["rmse"]:
+                        row += f"{pr['rmse'][c] * k:>9.3g} {pr['fit_percent'][c]:>5.0f}%"
+                    else:
+                        row += f"{'—':>16}"
+                lines.append(row + ("" if pr.get("ok", True) else "   (simulation blew up)"))
+    return lines
 
 
 def _common_cost(evs: Mapping[str, Evaluation], runs: Sequence[Run], failed: Sequence[str]) -> str:
@@ -151,7 +185,7 @@ def plot_fit(
     train: Mapping[str, Evaluation],
     validation: Mapping[str, Evaluation],
     path: str | Path | None = None,
-    max_runs: int = 4,
+    max_runs: int = 6,
     failed: Sequence[str] = (),
 ):
     """Measured vs simulated channels (both methods) per run, plus the track where available.
@@ -159,19 +193,23 @@ def plot_fit(
     Curves of ``failed`` methods (:func:`failed_methods`) are drawn thin, labelled FAILED and
     left out of the axis limits, which follow the measurements and the other curves.
     """
-    import matplotlib
+    plt = pyplot()
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    rows = [(r, "train", train) for r in train_runs] + [(r, "validation", validation) for r in val_runs]
-    rows = rows[:max_runs]
+    n_val = min(len(val_runs), max(max_runs - len(train_runs), (max_runs + 1) // 2))  # held-out runs always shown
+    n_train = min(len(train_runs), max_runs - n_val)
+    rows = ([(r, "train", train) for r in train_runs[:n_train]]
+            + [(r, "held out", validation) for r in val_runs[:n_val]])
     evs = train or validation
     chans = list(next(iter(evs.values())).channels)
     plot_chans = [c for c in chans if c not in ("x0", "y0")]
     track = "x0" in chans and "y0" in chans
     ncol = len(plot_chans) + (1 if track else 0) + 1
-    fig, axes = plt.subplots(len(rows), ncol, figsize=(3.6 * ncol, 2.6 * len(rows)), squeeze=False)
+    names = [r.name for r, _, _ in rows]
+    prefix = _common_prefix(names)
+    short = {n: (n[len(prefix):] or n) for n in names}  # HSVA_CPMC_KVLCC2_Z_10_10_P -> Z_10_10_P
+    ratios = [1.0] * len(plot_chans) + ([1.3] if track else []) + [1.0]
+    fig, axes = plt.subplots(len(rows), ncol, figsize=(3.6 * sum(ratios), 2.9 * len(rows)), squeeze=False,
+                             gridspec_kw={"width_ratios": ratios})
     colors = {"equation_error": "tab:orange", "output_error": "tab:blue"}
     for i, (run, kind, ev_map) in enumerate(rows):
         t = np.asarray(run.time)
@@ -191,7 +229,7 @@ def plot_fit(
                 if not bad:
                     kept.append(ys)
             _limits(ax, kept)
-            ax.set_title(f"{run.name} ({kind}): {c}", fontsize=9)
+            ax.set_title(f"{short[run.name]} ({kind}): {c}", fontsize=8)
             ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
             ax.legend(fontsize=6, loc="best")
             ax.grid(alpha=0.3)
@@ -204,13 +242,12 @@ def plot_fit(
             for m, ev in ev_map.items():
                 s = ev.simulated[run.name]
                 ax.plot(s["y0"], s["x0"], color=colors.get(m), lw=1.2, ls="--" if m == "equation_error" else "-", label=_LABEL.get(m, m))
-            ax.set_aspect("equal", adjustable="box" if failed else "datalim")
-            if failed:
-                ok = [ev.simulated[run.name] for m, ev in ev_map.items() if m not in failed]
-                _limits(ax, [np.asarray(run["x0"])] + [s["x0"] for s in ok], xs=[np.asarray(run["y0"])] + [s["y0"] for s in ok])
+            ok = [ev.simulated[run.name] for m, ev in ev_map.items() if m not in failed]
+            _square_limits(ax, [np.asarray(run["y0"])] + [s["y0"] for s in ok],
+                           [np.asarray(run["x0"])] + [s["x0"] for s in ok])
             ax.set_xlabel("y0 (east/starboard) [m]", fontsize=8)
             ax.set_ylabel("x0 (north/ahead) [m]", fontsize=8)
-            ax.set_title(f"{run.name}: track", fontsize=9)
+            ax.set_title(f"{short[run.name]}: track", fontsize=8)
             ax.grid(alpha=0.3)
             j += 1
         ax = axes[i, j]
@@ -219,15 +256,43 @@ def plot_fit(
             y = np.asarray(run[n]) * k
             scale = np.max(np.abs(y)) or 1.0
             ax.plot(t, y / scale, lw=1.0, label=f"{n} / {scale:.3g} {unit}")
-        ax.set_title(f"{run.name}: inputs (normalised)", fontsize=9)
+        ax.set_title(f"{short[run.name]}: inputs (normalised)", fontsize=8)
         ax.legend(fontsize=6)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)", fontsize=11)
-    fig.tight_layout()
+    fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)"
+                 + (f"; runs {prefix}…" if prefix else ""), fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
     if path is not None:
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return fig
+
+
+def _common_prefix(names: Sequence[str]) -> str:
+    """The common prefix of several run names, cut after its last separator (``_``, ``-``, space); ``""``
+    for one name or none."""
+    if len(names) < 2:
+        return ""
+    p = names[0]
+    for n in names[1:]:
+        while not n.startswith(p):
+            p = p[:-1]
+    cut = max(p.rfind(c) for c in "_- ")
+    return p[:cut + 1] if cut >= 0 else ""
+
+
+def _square_limits(ax, xs, ys, pad=0.08) -> None:
+    """Equal-aspect track limits over the given curves (finite values), the shorter side widened to the
+    longer one so that a long straight track is not drawn as a sliver."""
+    x = np.concatenate([np.ravel(a)[np.isfinite(np.ravel(a))] for a in xs])
+    y = np.concatenate([np.ravel(a)[np.isfinite(np.ravel(a))] for a in ys])
+    if not (x.size and y.size):
+        return
+    half = max(float(np.ptp(x)), float(np.ptp(y)), 1e-9) * (0.5 + pad)
+    cx, cy = 0.5 * (float(x.min()) + float(x.max())), 0.5 * (float(y.min()) + float(y.max()))
+    ax.set_xlim(cx - half, cx + half)
+    ax.set_ylim(cy - half, cy + half)
+    ax.set_aspect("equal", adjustable="box")
 
 
 def _limits(ax, ys, xs=None, pad=0.08) -> None:
@@ -250,11 +315,18 @@ def _metrics(ev: Evaluation | None) -> dict:
 
 
 def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mapping[str, Evaluation],
-                 validation: Mapping[str, Evaluation], extra: Mapping | None = None) -> dict:
-    """The ``--json`` document: parameters in the model's SI units, metrics per channel (SI, rad)."""
+                 validation: Mapping[str, Evaluation], extra: Mapping | None = None,
+                 verdicts: Mapping[str, Verdict] | None = None, per_method: Mapping[str, Mapping] | None = None) -> dict:
+    """The ``--json`` document: parameters in the model's SI units, metrics per channel (SI, rad), each
+    method's outcome (``outcome``, ``usable``, ``verdict``); ``per_method``: further entries per method
+    made by the command line (fixed values, admissibility, cross-manoeuvre checks)."""
     methods = {}
     for m, r in results.items():
+        v = verdicts.get(m) if verdicts else None
         methods[m] = {
+            "outcome": r.outcome,
+            "usable": bool(r.usable) if v is None else v.usable,
+            "verdict": v.as_json() if v is not None else None,
             "params": r.params,
             "stderr": r.stderr,
             "free": list(r.free),
@@ -277,6 +349,7 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "admissibility": r.info.get("admissibility"),
             "cross_manoeuvre": r.info.get("cross_manoeuvre"),
             "fixed": r.info.get("fixed"),
+            **dict((per_method or {}).get(m, {})),
         }
     doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}
     if extra:

@@ -106,7 +106,7 @@ def test_right_model_predicts_the_turn_wrong_one_is_flagged(runs, fits, tmp_path
     assert fits["right"].noise_std["psi"] < math.radians(0.2)
 
     text = cross_text(wrong)
-    assert "Cross-manoeuvre validation (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
+    assert "Manoeuvre validation on held-out runs (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
     assert "FAILS cross-manoeuvre validation" in text and "tactical_diameter" in text and "MISS" in text
     doc = json.loads(json.dumps(cross_json(wrong)))
     assert doc["train_types"] == ["zigzag"] and doc["passed"] is False
@@ -134,7 +134,7 @@ def test_command_lines_report_cross_manoeuvre(runs, tmp_path):
                      "--method", "output-error", "--out", str(out), "--quiet"])
     assert code == 0
     text = (out / "report.txt").read_text()
-    assert "Cross-manoeuvre validation (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
+    assert "Manoeuvre validation on held-out runs (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
     assert "does not predict advance, transfer, tactical_diameter" in text
     doc = json.loads((out / "report.json").read_text())
     cm = doc["methods"]["output_error"]["cross_manoeuvre"]

@@ -116,3 +116,32 @@ def test_command_line_errors_are_one_line(tmp_path, capsys):
     assert "--helm-rate" in capsys.readouterr().err
     assert predict_main([str(tmp_path / "missing.json")]) == 2
     assert "fit file not found" in capsys.readouterr().err
+
+
+def test_readme_sspa_fit_predicts_its_own_zigzag_from_what_was_measured(tmp_path, capsys):
+    """The README's fit (``python -m diffship.fit --out DIR``: nomoto2 on the bundled SSPA 20/20 zigzag),
+    then ``python -m diffship.predict DIR/fit.json --manoeuvre zigzag:20/20`` with no helm rate and no speed:
+    the fit file carries the rudder rate the record shows (≈ 20°/s, where IMO's 2.32°/s gave a 45° first
+    overshoot), the switch delay and the speed over ground; the first table flies the training zigzag
+    again beside its measured metrics, and the predicted first overshoot lies within 3° of the measured."""
+    from diffship.data import example_runs
+    from diffship.fit.cli import main as fit_main
+    from diffship.predict.__main__ import main as predict_main
+    from diffship.predict.cross import classify_run, run_metrics
+
+    run = example_runs("sspa_zigzag")[0]
+    measured = run_metrics(run, classify_run(run))["first_overshoot"]  # 19.3° (50 Hz record)
+    assert fit_main(["--out", str(tmp_path / "fit"), "--quiet"]) == 0
+    doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert 15.0 < doc["helm_rate"]["deg_s"] < 30.0 and doc["usable"] is True
+    assert doc["training_manoeuvres"][0]["measured"]["first_overshoot"] == pytest.approx(measured, abs=0.5)
+    capsys.readouterr()
+    assert predict_main([str(tmp_path / "fit" / "fit.json"), "--manoeuvre", "zigzag:20/20", "--samples", "0"]) == 0
+    out = capsys.readouterr().out
+    compare = out.split("diffship prediction")[0]
+    assert "training manoeuvres flown again" in compare and "sspa_zigzag" in compare
+    row = next(ln for ln in compare.splitlines() if "first_overshoot" in ln).split()
+    assert abs(float(row[-2]) - measured) < 3.0, row  # the training zigzag flown again
+    first = next(ln for ln in out.split("diffship prediction")[1].splitlines() if "first overshoot" in ln)
+    assert abs(float(first.split()[3]) - measured) < 3.0, first
+    assert "measured in the training runs" in out

@@ -1,4 +1,12 @@
-"""``python -m diffship.diagnose TRAIN.csv ... --validate VAL.csv ... --model NAME`` (thin CLI)."""
+"""``python -m diffship.diagnose TRAIN.csv ... --validate VAL.csv ... --model NAME`` (thin CLI).
+
+Same options as ``python -m diffship.fit`` (:mod:`diffship.cli_options`): data, columns, degrees,
+rudder sign, vessel (with the fit's particulars rule: a model that needs the vessel's particulars
+stops, before JAX is imported, without ``--vessel`` or ``--fix`` for them), channels (default: the
+fit's, positions left out), fix/free/init, priors, filter, solver. The base model is fitted here by
+output error with those options (or started from ``--from-fit FIT.json``, whose verdict is read and
+warned about) and handed to :func:`diffship.diagnose.diagnose`.
+"""
 
 from __future__ import annotations
 
@@ -6,12 +14,22 @@ import argparse
 import sys
 import time
 
+from ..cli_options import (
+    add_data_options,
+    add_numerics_options,
+    add_output_options,
+    add_parameter_options,
+    add_prior_options,
+    add_vessel_option,
+    names_of,
+)
 from ..errors import DiffshipError
 from ..log_options import add_log_options, log_kwargs
-from ..models.effects import EFFECT_NAMES
+from ..particulars import MODEL_PARTICULARS, missing_message, missing_particulars
 
-EPILOG = (f"Effects: {', '.join(EFFECT_NAMES)} (wind needs wind_speed and wind_dir columns). "
-          "Exit status: 0 done, 2 user error (message on stderr).")
+EPILOG = ("Effects: see diffship.models.effects (wind needs wind_speed and wind_dir columns). "
+          "Exit status: 0 done, 1 the base fit is not usable (reason on the last line), 2 user error (message on "
+          "stderr). List options may be repeated: their items accumulate.")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -19,20 +37,34 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Diagnose where a fitted model misses, which unmodelled effect explains it "
                                             "(selected on held-out runs) and how much of the gap it closes.")
     p.add_argument("runs", nargs="+", metavar="TRAIN.csv", help="training runs")
-    p.add_argument("--validate", nargs="+", required=True, metavar="VAL.csv", help="held-out validation runs")
-    p.add_argument("--model", required=True, help="base model name (e.g. fossen3, nomoto1, nomoto2)")
-    p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="hold base parameters fixed")
-    p.add_argument("--rudder-sign", default="starboard", choices=("starboard", "port"))
-    p.add_argument("--columns", nargs="*", default=[], metavar="NAME=COLUMN")
-    p.add_argument("--degrees", nargs="*", default=[], metavar="COLUMN")
-    p.add_argument("--resample", type=float, default=None, metavar="DT")
+    p.add_argument("--model", required=True, metavar="MODEL",
+                   help=f"base model: one of {', '.join(MODEL_PARTICULARS)}")
+    add_data_options(p, validate_required=True)
+    add_vessel_option(p)
+    add_parameter_options(p, channels_help="channels of the base fit and of the diagnosis (default: the fit's: what "
+                                           "the model predicts and the runs have, positions x0, y0 left out)")
+    add_prior_options(p)
+    add_numerics_options(p, filter_help="initial-state filter: butter[:Hz] (default), savgol[:s] or none")
+    p.add_argument("--from-fit", default=None, metavar="FIT.json",
+                   help="start the base fit from a fit file's values (its verdict is read: a FAILED or doubtful fit "
+                        "is warned about)")
+    p.add_argument("--skip-sign-check", action="store_true",
+                   help="do not stop when the heading turns against the rudder (or yaw moment) in a run")
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
     p.add_argument("--refit-all", action="store_true", help="refit every candidate, not only the screen's best")
-    p.add_argument("--out", default=None, metavar="DIR", help="write diagnosis.md, diagnosis.json and figures here")
-    p.add_argument("--json", default=None, metavar="FILE", help="write the JSON result here")
-    p.add_argument("--quiet", action="store_true")
+    add_output_options(p, out_help="write diagnosis.md, diagnosis.json and figures here",
+                       json_help="write the JSON result here")
     add_log_options(p)  # --map (logs), --html (issue 30)
     return p
+
+
+def precheck(args) -> str | None:
+    """The particulars rule of ``python -m diffship.fit``, without JAX: the error line, or ``None``."""
+    needs = MODEL_PARTICULARS.get(args.model)
+    if needs is None or args.vessel is not None or not needs.particulars:
+        return None
+    missing = missing_particulars(needs.particulars, names_of(args.fix), args.free)
+    return missing_message(needs.name, needs.particulars, needs.reference_vessel, missing) if missing else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,29 +75,20 @@ def main(argv: list[str] | None = None) -> int:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
+    problem = precheck(args)
+    if problem is not None:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     try:
-        from ..data import load_runs
-        from ..models import get_model
-        from ..params import parse_assignments
-        from .diagnosis import DiagnoseOptions, diagnose
-        from .report import to_markdown, write_json, write_report
-
-        effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
-        options = DiagnoseOptions(effects=effects, refit_all=args.refit_all)
-        model = get_model(args.model)
-        fix = parse_assignments(args.fix, "--fix")
-        spec = model.spec()
-        spec = spec.fix(fix) if fix else spec
-        columns = dict(c.split("=", 1) for c in args.columns if "=" in c)
-        kw = dict(columns=columns or None, degrees=args.degrees, rudder_sign=args.rudder_sign, **log_kwargs(args))
-        train, val = load_runs(args.runs, **kw), load_runs(args.validate, **kw)
-        if args.resample:
-            train = [r.resample(args.resample) for r in train]
-            val = [r.resample(args.resample) for r in val]
-        d = diagnose(model, train, val, spec=spec, options=options, progress=say)
+        d, base = _diagnose(args, say)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if d is None:
+        print(f"error: no usable base fit was found ({base}); the diagnosis needs one", file=sys.stderr)
+        return 1
+    from .report import to_markdown, write_json, write_report
+
     print(to_markdown(d))
     if args.out:
         files = write_report(d, args.out)
@@ -78,6 +101,81 @@ def main(argv: list[str] | None = None) -> int:
 
         say(f"wrote {write_html_report(args.html, f'diffship diagnosis: {args.model}', to_markdown(d), lambda f: write_report(d, f))}")
     return 0
+
+
+def _load(args, paths):
+    from ..data import load_runs
+
+    runs = load_runs(paths, columns=dict(c.split("=", 1) for c in args.columns) or None, degrees=args.degrees,
+                     rudder_sign=args.rudder_sign, time_unit=args.time_unit, **log_kwargs(args))
+    return [r.resample(args.resample) for r in runs] if args.resample else runs
+
+
+def _diagnose(args, say):
+    """``(diagnosis, base fit)``, or ``(None, reason)`` when the base fit is not usable."""
+    from ..checks import check_channels, check_rudder_sign, check_yaw_direction
+    from ..errors import DataError
+    from ..fit import OutputErrorOptions, fit_output_error
+    from ..fit.priors import load_priors, parse_priors
+    from ..fit.problem import default_channels
+    from ..fitfile import fit_warnings, load_fit
+    from ..integrators import get_integrator
+    from ..models import get_model
+    from ..params import parse_assignments
+    from ..preprocess import Filter
+    from ..usability import verdict
+    from ..vessel import load_vessel, require_particulars
+    from .diagnosis import DiagnoseOptions, diagnose
+
+    effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
+    model = get_model(args.model)
+    if args.free_hydrodynamic:  # every parameter that is not a vessel particular
+        args.free = list(dict.fromkeys([*args.free, *(n for n in model.param_names if n not in model.PARTICULARS)]))
+    fix = parse_assignments(args.fix, "--fix")
+    init = parse_assignments(args.init, "--init")
+    vessel = load_vessel(args.vessel) if args.vessel else None
+    model, _ = require_particulars(model, vessel, fixed=fix, freed=args.free)
+    spec = model.spec()
+    for n in list(fix) + list(init) + list(args.free):
+        spec[n]  # unknown names fail early, with the list of valid ones
+    spec = spec.free(args.free).fix(fix)
+    if args.from_fit:
+        loaded = load_fit(args.from_fit)
+        for w in fit_warnings(loaded):
+            print(w, file=sys.stderr, flush=True)
+        init = {**{n: v for n, v in loaded.params.items() if n in spec and n not in fix}, **init}
+    if init:
+        spec = spec.with_values(init)
+    train, val = _load(args, args.runs), _load(args, args.validate)
+    if args.horizon:  # the first seconds of each training run (held-out runs whole)
+        train = [r.slice(None, r.time[0] + args.horizon) for r in train]
+    if args.starts is not None:
+        raise DataError("--starts: multi-start base fits need the fit driver of issue 25, not in this build yet")
+    check_channels(model, train + val, args.channels)
+    if not args.skip_sign_check:
+        check_rudder_sign(train + val, args.rudder_sign)
+        check_yaw_direction(train + val)
+    if args.filter == "kalman":
+        raise DataError("--filter kalman: the Kalman smoother is an equation-error preprocessing; the diagnosis fits "
+                        "by output error (use butter[:Hz], savgol[:s] or none)")
+    chans = tuple(args.channels) if args.channels else default_channels(model, train)
+    priors = parse_priors(args.prior)
+    if args.prior_file:
+        priors = load_priors(args.prior_file).merged(priors)
+    options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans)
+    opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
+                              integrator=get_integrator(args.solver), flt=Filter.parse(args.filter),
+                              priors=priors if len(priors) else None, reference_priors=not args.no_prior,
+                              prior_rel_sd=args.prior_sd)
+    say(f"fitting the base model {model.name} by output error on {len(train)} runs (channels {', '.join(chans)})...")
+    fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say)
+    v = verdict(fit, None, train)
+    if not v.usable:
+        return None, "; ".join(v.reasons) or v.label
+    for line in v.lines()[1:]:
+        print(f"warning (base fit):{line[1:]}", file=sys.stderr)
+    d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say)
+    return d, fit
 
 
 if __name__ == "__main__":

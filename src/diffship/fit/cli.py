@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..checks import check_channels, check_rudder_sign, check_yaw_direction  # noqa: F401 (also this module's names)
 from ..data import example_runs, load_runs
 from ..errors import DiffshipError
 from ..integrators import get_integrator
@@ -33,10 +34,10 @@ from ..vessel import (
 from ..fitfile import save_fit
 from ..html import write_html_report
 from ..log_options import log_kwargs
-from ..manoeuvres import check_turn_direction
 from ..predict.cross import cross_validate, train_types_json
 from ..predict.cross_report import cross_json, cross_text, plot_cross
 from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_json
+from ..usability import verdict
 from .args import build_parser
 from .both import fit_both
 from .output_error import OutputErrorOptions
@@ -81,12 +82,13 @@ def _admissibility(args, result, train, say):
 
 
 def _cross_manoeuvre(oe, train, val, say):
-    """Cross-manoeuvre validation of an output-error fit of a model with a rudder input on the
-    ``--validate`` runs of manoeuvre types not in the training runs; ``None`` when there are none."""
+    """Manoeuvre validation of an output-error fit of a model with a rudder input on every ``--validate``
+    run that is a standard manoeuvre (IMO metrics measured and predicted: held-out zigzags' overshoots,
+    turning circles' diameters), trained types included; ``None`` when there are none."""
     if oe is None or not val or "delta" not in oe.model.input_names:
         return None
-    say("cross-manoeuvre validation: classifying the runs, simulating the held-out manoeuvre types...")
-    cv = cross_validate(oe, train, val)
+    say("manoeuvre validation: classifying the runs, simulating every held-out standard manoeuvre...")
+    cv = cross_validate(oe, train, val, trained_types=True)
     return cv if cv.checks else None
 
 
@@ -101,16 +103,13 @@ def _progress(quiet: bool):
 
 
 def _columns(args) -> dict[str, str]:
-    columns = {k: v for k, v in (c.split("=", 1) if "=" in c else (c, "") for c in args.columns)}
-    bad = [k for k, v in columns.items() if not v]
-    if bad:
-        raise DiffshipError(f"--columns {bad[0]}: expected NAME=COLUMN, e.g. --columns psi=heading")
-    return columns
+    """``--columns`` items (checked ``NAME=COLUMN`` by :mod:`diffship.cli_options`) as a dict."""
+    return dict(c.split("=", 1) for c in args.columns)
 
 
 def _load(args, paths):
     runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
-                     **log_kwargs(args))
+                     time_unit=args.time_unit, **log_kwargs(args))
     if args.resample:
         runs = [r.resample(args.resample) for r in runs]
     return runs
@@ -182,12 +181,15 @@ def _filters(args):
 
 def _fit(args, say) -> int:
     model = get_model(args.model)
+    if args.free_hydrodynamic:  # every parameter that is not a vessel particular
+        args.free = list(dict.fromkeys([*args.free, *(n for n in model.param_names if n not in model.PARTICULARS)]))
     fix = parse_assignments(args.fix, "--fix")
     init = parse_assignments(args.init, "--init")
     model, vessel, sources = _with_vessel(args, model, fix, say)
+    sources.update({n: "--fix" for n in fix})  # given values say so, also where they equal the default
     flt, ee_filter = _filters(args)
     spec = model.spec()
-    for n in list(fix) + list(init):
+    for n in list(fix) + list(init) + list(args.free):
         spec[n]  # unknown names fail early, with the list of valid ones
     spec = spec.free(args.free).fix(fix)
     if args.runs:
@@ -201,38 +203,48 @@ def _fit(args, say) -> int:
     check_channels(model, train + list(val), args.channels)
     if not args.skip_sign_check:
         check_rudder_sign(train + list(val), args.rudder_sign)
+        check_yaw_direction(train + list(val))
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
-    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args))
+    options = OutputErrorOptions(integrator=get_integrator(args.solver), weights=args.weights, **_prior_options(args),
+                                 **({"max_steps": args.max_steps} if args.max_steps else {}))
+    fit_runs = train
+    if args.horizon:  # fit the first seconds only; metrics, verdicts and the fit file's data use whole runs
+        fit_runs = [r.slice(None, r.time[0] + args.horizon) for r in train]
+        say(f"--horizon {args.horizon:g}: fitting the first {args.horizon:g} s of each training run")
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
-    results = fit_both(model, train, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
+    results = fit_both(model, fit_runs, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
                        init=init or None, flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (),
-                       channels=args.channels, options=options, progress=say, ee_filter=ee_filter) if methods else {}
-    results.update(_sea_estimators(args, model, train, spec, init, flt, options, shooting if multiple else None,
+                       channels=args.channels, options=options, progress=say, ee_filter=ee_filter,
+                       **_starts(args)) if methods else {}
+    results.update(_sea_estimators(args, model, fit_runs, spec, init, flt, options, shooting if multiple else None,
                                    results, say))
     say("simulating every run over its whole horizon for the metrics...")
     ev_train, ev_val = evaluate_all(results, train, val, flt)
+    verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), val) for m, r in results.items()}
     notes = resample_notes(args, model, spec, results, flt, options, say)
-    report = text_report(model.name, results, ev_train, ev_val, train, val) + "\n\n" + fixed_values_text(spec, sources)
-    for r in results.values():
-        r.info["fixed"] = fixed_values(spec, sources)  # the same table in the JSON, with each value's source
+    report = (text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts) + "\n\n"
+              + fixed_values_text(spec, sources))
+    # what the command adds per method goes into its own JSON entries; the FitResult is not edited (issue 25)
+    per_method = {m: {"fixed": fixed_values(spec, sources)} for m in results}
     oe = results.get("output_error")
-    adm = _admissibility(args, oe, train, say) if oe is not None else None
+    adm = _admissibility(args, oe, train, say) if oe is not None and verdicts["output_error"].usable else None
     if oe is not None:
         report += "\n\n" + format_priors(oe)
         if adm is not None:
             report += "\n\n" + adm.summary()
-            oe.info["admissibility"] = adm.as_json()
+            per_method["output_error"]["admissibility"] = adm.as_json()
     cross = _cross_manoeuvre(oe, train, val, say)
     if cross is not None:  # held-out runs of manoeuvre types not trained on (issue 12)
         report += "\n\n" + cross_text(cross)
-        oe.info["cross_manoeuvre"] = cross_json(cross)
+        per_method["output_error"]["cross_manoeuvre"] = cross_json(cross)
     if notes:
         report += "\n" + "\n".join(notes)
     print(report)
-    write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say)
-    if cross is not None and args.out:
+    write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say, verdicts=verdicts,
+                  per_method=per_method, vessel=vessel)
+    if cross is not None and cross.checks and args.out:
         plot_cross(cross, Path(args.out) / "cross_manoeuvre.png")
         say(f"wrote {Path(args.out) / 'cross_manoeuvre.png'}")
     if args.html:  # issue 30: one self-contained file, the figures --out writes embedded
@@ -241,10 +253,24 @@ def _fit(args, say) -> int:
             return [d / "fit.png"] + ([plot_cross(cross, d / "cross_manoeuvre.png") or d / "cross_manoeuvre.png"]
                                       if cross is not None else [])
         say(f"wrote {write_html_report(args.html, f'diffship fit: {model.name}', report, figures)}")
-    if not any(r.converged for r in results.values()):
-        print("error: no fit converged (see the statuses above)", file=sys.stderr)
+    if not any(v.usable for v in verdicts.values()):
+        why = "; ".join(f"{m.replace('_', ' ')}: {v.reasons[0] if v.reasons else v.label}" for m, v in verdicts.items())
+        print(f"error: no usable fit was found ({why})", file=sys.stderr)
         return 1
     return 0
+
+
+def _starts(args) -> dict:
+    """``--starts N`` for the fit driver (issue 25); ``{}`` when not given."""
+    if args.starts is None:
+        return {}
+    import inspect
+
+    params = inspect.signature(fit_both).parameters
+    for name in ("n_starts", "starts"):
+        if name in params:
+            return {name: args.starts}
+    raise DiffshipError("--starts: multi-start fits need the fit driver of issue 25, not in this build yet")
 
 
 # -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
@@ -307,44 +333,6 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
 # ----------------------------------------------------------------------------------------
 # checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
 # ----------------------------------------------------------------------------------------
-def check_channels(model, runs, channels=None) -> None:
-    """Name every channel a model needs that a run lacks, before anything is compiled.
-
-    Needed: every model input (``model.input_names``), the surge speed ``u`` where it is a
-    state (a manoeuvring model cannot start without its speed), and the ``--channels`` asked for.
-    """
-    optional = getattr(model, "INPUT_DEFAULTS", {}) or {}  # inputs a run may omit (e.g. free decay: zero force)
-    need = ([n for n in model.input_names if n not in optional] + (["u"] if "u" in model.state_names else [])
-            + list(channels or ()))
-    problems = []
-    for run in runs:
-        missing = [c for c in dict.fromkeys(need) if not run.has(c)]
-        if missing:
-            problems.append(f"{run.metadata.get('source', run.name)} (run '{run.name}') lacks {', '.join(missing)}")
-    if problems:
-        raise DiffshipError(
-            f"model {model.name} needs channels {', '.join(dict.fromkeys(need))}: " + "; ".join(problems)
-            + f". Map file columns with --columns NAME=COLUMN, or choose a model these runs can drive "
-            f"(inputs here: {', '.join(c for c in runs[0].channel_names if c in ('delta', 'n', 'rpm', 'tau_x'))})")
-
-
-def check_rudder_sign(runs, declared: str) -> None:
-    """Stop when a run's heading clearly turns against its rudder (``--rudder-sign`` likely wrong)."""
-    bad = []
-    for run in runs:
-        if not run.has("delta", "psi"):
-            continue
-        verdict = check_turn_direction(run)
-        if verdict is not None and not verdict["agrees"]:
-            bad.append(f"run '{run.name}' ({run.metadata.get('source', '')}): {verdict['text']}")
-    if bad:
-        other = "port" if declared == "starboard" else "starboard"
-        raise DiffshipError(
-            "the heading turns against the rudder: " + "; ".join(bad) + f". The files were read with "
-            f"--rudder-sign {declared}; if positive delta turns these ships the other way, pass --rudder-sign {other} "
-            "(or --skip-sign-check if the record really does this)")
-
-
 def evaluate_all(results, train, val, flt):
     """Metrics with one initial-state rule for training and validation runs: the measured (filtered)
     state at the first sample, as :func:`diffship.metrics.evaluate` does by default."""
@@ -364,14 +352,14 @@ def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
         return []
     if not args.check_sampling:
         rate = 1.0 / load_runs(args.runs[:1], columns=_columns(args) or None, degrees=args.degrees,
-                               rudder_sign=args.rudder_sign, check_units=False, **log_kwargs(args))[0].dt
+                               rudder_sign=args.rudder_sign, check_units=False, time_unit=args.time_unit, **log_kwargs(args))[0].dt
         return ["", f"WARNING: the runs were resampled from {rate:.3g} Hz to {1 / args.resample:g} Hz; identified "
                 "parameters can depend on the sampling rate by more than their intervals (the bundled SSPA zigzag: "
                 "Nomoto K/T1 1.33/14.8 at 50 Hz vs 0.835/3.31 at 10 Hz). Add --check-sampling to refit at the "
                 "files' rate and compare."]
     say(f"--resample {args.resample:g}: refitting at the files' own sample rate to check the sensitivity...")
     raw = load_runs(args.runs, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
-                    **log_kwargs(args))
+                    time_unit=args.time_unit, **log_kwargs(args))
     try:
         ref = fit_both(model, raw, spec=spec.with_values(oe.params), methods=("output_error",), init=None,
                        flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
@@ -395,21 +383,38 @@ def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
     return ["", head, *lines]
 
 
-def write_outputs(args, model_name, results, ev_train, ev_val, train, val, report, say) -> None:
-    """``--out DIR``: report.txt, fit.png, report.json and the fit file fit.json; ``--json``, ``--save``."""
-    doc = to_json_dict(model_name, results, ev_train, ev_val)
-    key = "output_error" if "output_error" in results else next(iter(results))
-    best = results[key]
-    extra = {"metrics": {"train": doc["methods"][key]["train"],
-                         "validation": doc["methods"][key]["validation"],
+def write_outputs(args, model_name, results, ev_train, ev_val, train, val, report, say, *, verdicts=None,
+                  per_method=None, vessel=None) -> None:
+    """``--out DIR``: report.txt, fit.png, report.json and the fit file fit.json; ``--json``, ``--save``.
+
+    The fit file is the output-error fit where it is usable, else the first usable method's, else the
+    output-error one; it records the verdict (``usable``, ``verdict``) so that ``predict`` and
+    ``diagnose`` warn about a failed or doubtful fit."""
+    verdicts = verdicts or {}
+    doc = to_json_dict(model_name, results, ev_train, ev_val, verdicts=verdicts, per_method=per_method)
+    usable = [m for m in results if m in verdicts and verdicts[m].usable]
+    pick = "output_error" if "output_error" in usable else (usable[0] if usable else
+                                                              ("output_error" if "output_error" in results
+                                                               else next(iter(results))))
+    best = results[pick]
+    extra = {"metrics": {"train": doc["methods"][pick]["train"],
+                         "validation": doc["methods"][pick]["validation"],
                          "validation_runs": [r.name for r in val]}}
+    if pick in verdicts:
+        extra["usable"] = verdicts[pick].usable
+        extra["verdict"] = verdicts[pick].as_json()
+    if vessel is not None:  # predict takes the scale and approach speed from here unless given
+        extra["vessel"] = {"name": vessel.name, "scale": float(vessel.scale), "length_m": vessel.length,
+                           "approach_speed": vessel.approach_speed, "full_scale_length_m": vessel.full_scale_length}
     if "delta" in best.model.input_names:
-        extra["training_manoeuvres"] = train_types_json(train)
+        length = getattr(best.model, "L", None)
+        extra["training_manoeuvres"] = train_types_json(train, length=float(length) if length is not None else None)
     if args.out:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "report.txt").write_text(report + "\n")
-        plot_fit(model_name, train, val, ev_train, ev_val, out / "fit.png", failed=failed_methods(ev_train, results))
+        failed = tuple(m for m in results if m in verdicts and not verdicts[m].usable) or failed_methods(ev_train, results)
+        plot_fit(model_name, train, val, ev_train, ev_val, out / "fit.png", failed=failed)
         write_json(doc, out / "report.json")
         save_fit(best, out / "fit.json", train, registry=args.model, extra=extra)
         say(f"wrote {out / 'report.txt'}, {out / 'fit.png'}, {out / 'report.json'} and the fit file {out / 'fit.json'}")

@@ -8,47 +8,57 @@ import sys
 import time
 from pathlib import Path
 
+from ..cli_options import add_data_options, add_output_options, assignment, helm_rate, positive_float
 from ..data import load_runs
 from ..errors import DiffshipError
 from ..log_options import add_log_options, log_kwargs
-from ..params import parse_assignments
-from .core import predict
 from .cross import RunType, cross_validate
 from .cross_report import cross_json, cross_text, plot_cross
-from .report import prediction_json, prediction_text, write_prediction
+from .report import prediction_json, write_prediction
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m diffship.predict",
         description="Fly standard manoeuvres with a saved fit (python -m diffship.fit ... --out DIR writes "
-                    "DIR/fit.json): IMO metrics at model and full scale, intervals from the fit's covariance, "
-                    "IMO 2002 (MSC.137(76)) criteria. Speeds, rates and times are at the fit's (model) scale.")
+                    "DIR/fit.json): first the training manoeuvres again beside their measured metrics, then the "
+                    "asked manoeuvres: IMO metrics at model and full scale, intervals from the fit's covariance, "
+                    "IMO 2002 (MSC.137(76)) criteria. Speeds, rates and times are at the fit's (model) scale; "
+                    "approach speed, propeller setting, helm rate, switch delay and scale come from the fit file "
+                    "(what was measured) unless given.",
+        epilog="Exit status: 0 done (warnings on stderr for a fit labelled FAILED or doubtful), 2 a user error.")
     p.add_argument("fit", metavar="FIT.json", help="fit file (schema diffship.fit/1)")
-    p.add_argument("--manoeuvre", "-m", nargs="+", default=["turning:35", "zigzag:10/10", "zigzag:20/20"],
+    p.add_argument("--manoeuvre", "-m", nargs="+", action="extend", default=None,
                    metavar="SPEC", help="turning:ANGLE[:SIDE], zigzag:RUDDER/SWITCH[:SIDE], pullout[:ANGLE][:SIDE]; "
-                   "SIDE starboard|port|+1|-1 (default starboard); default: turning:35 zigzag:10/10 zigzag:20/20")
-    p.add_argument("--speed", type=float, default=None, metavar="M/S",
+                   "SIDE starboard|port|+1|-1 (default starboard); default: turning:35 zigzag:10/10 zigzag:20/20 "
+                   "(repeatable; items accumulate)")
+    p.add_argument("--speed", type=positive_float, default=None, metavar="M/S",
                    help="approach speed [m/s] (default: the training runs' speed); the propulsion input from trim")
-    p.add_argument("--rps", type=float, default=None, metavar="REV/S",
+    p.add_argument("--rps", type=positive_float, default=None, metavar="REV/S",
                    help="propeller rate [rev/s] (input n); alone: the speed from trim")
-    p.add_argument("--input", nargs="*", default=[], metavar="NAME=VALUE", help="other constant inputs")
-    p.add_argument("--scale", type=float, default=None, metavar="LAMBDA",
-                   help="length ratio L_full/L_model for full-scale values and criteria (default: the fit file's)")
-    p.add_argument("--length", type=float, default=None, metavar="M", help="ship length at the fit's scale "
+    p.add_argument("--input", nargs="+", action="extend", type=assignment, default=[], metavar="NAME=VALUE",
+                   help="other constant inputs (repeatable; items accumulate)")
+    p.add_argument("--scale", type=positive_float, default=None, metavar="LAMBDA",
+                   help="length ratio L_full/L_model for full-scale values and criteria (default: the fit file's, "
+                        "from the training data or the vessel file)")
+    p.add_argument("--length", type=positive_float, default=None, metavar="M", help="ship length at the fit's scale "
                    "(default: the model's L)")
-    p.add_argument("--helm-rate", type=float, default=None, metavar="DEG/S",
-                   help="steering-gear rate [°/s] at the fit's scale (default: IMO 2.32°/s × √λ)")
-    p.add_argument("--delay", type=float, default=0.0, metavar="S", help="zigzag autopilot delay [s] (default 0)")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="simulated time per manoeuvre [s]")
+    p.add_argument("--helm-rate", type=helm_rate, default=None, metavar="DEG/S",
+                   help="steering-gear rate [°/s] at the fit's scale (default: the rate measured in the training "
+                        "runs, else IMO 2.32°/s × √λ)")
+    p.add_argument("--delay", type=float, default=None, metavar="S",
+                   help="zigzag autopilot delay [s] (default: the delay measured in the training zigzags, else 0)")
+    p.add_argument("--duration", type=positive_float, default=None, metavar="S", help="simulated time per manoeuvre [s]")
     p.add_argument("--samples", type=int, default=40, help="parameter draws for the 95 %% intervals (0: none)")
-    p.add_argument("--measured", nargs="*", default=[], metavar="RUN.csv",
-                   help="measured runs to judge the fit on (cross-manoeuvre validation): runs of manoeuvre types "
-                        "the fit was not trained on are simulated with their measured inputs and their IMO metrics "
-                        "compared (columns and units as for python -m diffship.fit; starboard-positive rudder)")
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--no-compare", action="store_true",
+                   help="skip the first table (the training manoeuvres flown again beside their measured metrics)")
+    p.add_argument("--measured", nargs="+", action="extend", default=[], metavar="RUN.csv",
+                   help="measured runs to judge the fit on: every standard manoeuvre among them (zigzags' "
+                        "overshoots, turning circles' diameters, ...) is simulated with its measured inputs and its "
+                        "IMO metrics compared, trained types included (columns, units and rudder sign as for "
+                        "python -m diffship.fit; repeatable)")
+    add_data_options(p, validate=False, resample=False)
+    add_output_options(p, out_help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
     add_log_options(p)  # --map (logs for --measured), --html (issue 30)
     return p
 
@@ -57,15 +67,28 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     t0 = time.perf_counter()
     try:
+        from ..fitfile import load_fit
+        from ..params import parse_assignments
+        from .compare import compare_text, compare_training
+        from .core import predict
+        from .report import prediction_text
+
+        fit = load_fit(args.fit)
         inputs = parse_assignments(args.input, "--input")
         if args.rps is not None:
             inputs["n"] = args.rps
-        pred = predict(args.fit, args.manoeuvre, speed=args.speed, inputs=inputs or None, scale=args.scale,
-                       length=args.length, helm_rate_deg_s=args.helm_rate, delay_s=args.delay,
-                       duration=args.duration, samples=args.samples)
+        cond = dict(speed=args.speed, inputs=inputs or None, scale=args.scale, length=args.length,
+                    helm_rate_deg_s=args.helm_rate, duration=args.duration)
+        for w in _fit_warnings(fit):
+            print(w, file=sys.stderr, flush=True)
+        compare = None if args.no_compare else compare_training(fit, **cond)
+        pred = predict(fit, args.manoeuvre or ["turning:35", "zigzag:10/10", "zigzag:20/20"], delay_s=args.delay,
+                       samples=args.samples, **cond)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if compare is not None:
+        print(compare_text(compare) + "\n")
     print(prediction_text(pred))
     try:
         cross = _cross(args, pred)
@@ -76,11 +99,12 @@ def main(argv: list[str] | None = None) -> int:
         print("\n" + cross_text(cross))
     if args.out:
         files = write_prediction(pred, args.out)
-        if cross is not None:  # the cross-manoeuvre section joins prediction.json; its own figure
+        if cross is not None:  # the manoeuvre-validation section joins prediction.json; its own figure
             doc = {**prediction_json(pred), "cross_manoeuvre": cross_json(cross)}
             Path(files[1]).write_text(json.dumps(doc, indent=2))
-            files.append(Path(args.out) / "cross_manoeuvre.png")
-            plot_cross(cross, files[-1])
+            if cross.checks:
+                files.append(Path(args.out) / "cross_manoeuvre.png")
+                plot_cross(cross, files[-1])
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] wrote {', '.join(str(f) for f in files)}", file=sys.stderr)
     if args.html:
@@ -95,6 +119,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _fit_warnings(fit) -> list[str]:
+    from ..fitfile import fit_warnings
+
+    return fit_warnings(fit)
+
+
 def _cross(args, pred):
     """Cross-manoeuvre validation on ``--measured`` runs; training types from the fit file."""
     if not args.measured:
@@ -106,8 +136,13 @@ def _cross(args, pred):
     if known is None:
         raise DiffshipError(f"{args.fit}: the fit file does not say which manoeuvre types it was trained on "
                             "(training_manoeuvres); refit with this version of python -m diffship.fit")
-    return cross_validate(fit, [RunType.from_json(d) for d in known], load_runs(args.measured, **log_kwargs(args)),
-                          samples=args.samples, length=pred.condition.length)
+    from ..checks import check_rudder_sign
+
+    runs = load_runs(args.measured, columns=dict(c.split("=", 1) for c in args.columns) or None,
+                     degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit, **log_kwargs(args))
+    check_rudder_sign(runs, args.rudder_sign)  # a port-positive record read as starboard stops here
+    return cross_validate(fit, [RunType.from_json(d) for d in known], runs,
+                          samples=args.samples, length=pred.condition.length, trained_types=True)
 
 
 

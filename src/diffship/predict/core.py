@@ -7,7 +7,9 @@ list of manoeuvres (:func:`parse_manoeuvre`: ``turning:35``, ``zigzag:10/10``, `
 1. sets the **approach**: speed and propulsion input from ``speed`` / ``inputs`` where given,
    the other one from :func:`diffship.trim.trim` (straight-course equilibrium at zero rudder);
    neither given: the training runs' speed (the fit file's ``operating_point``) and trim;
-2. sets the **helm rate** (:func:`diffship.scaling.helm_rate`: given, or IMO's 2.32°/s × √λ)
+2. sets the **helm rate**: given; else the rate the training runs' rudder moved at (the fit file's
+   ``helm_rate``, :func:`diffship.steering.measured_helm_rate`), so a prediction of the trained
+   manoeuvre reproduces it; else :func:`diffship.scaling.helm_rate` (IMO's 2.32°/s × √λ)
    and the autopilot delay, and flies each manoeuvre closed loop
    (:mod:`diffship.manoeuvres.drive`) with the fit's integrator;
 3. computes the IMO metrics (:mod:`diffship.manoeuvres.imo`) at model scale and, with a scale
@@ -38,7 +40,7 @@ import numpy as np
 
 from ..data import Run
 from ..errors import DataError, ModelError
-from ..fitfile import LoadedFit, load_fit
+from ..fitfile import LoadedFit, fit_warnings, load_fit
 from ..manoeuvres import (
     pull_out,
     pullout_metrics,
@@ -360,7 +362,7 @@ def _fly_draws(fit: LoadedFit, spec: ManoeuvreSpec, cond: Condition, draws: np.n
 
 def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpec], *, speed: float | None = None,
             inputs: Mapping[str, float] | None = None, scale: float | None = None, length: float | None = None,
-            helm_rate_deg_s: float | None = None, delay_s: float = 0.0, duration: float | None = None,
+            helm_rate_deg_s: float | None = None, delay_s: float | None = None, duration: float | None = None,
             samples: int = 40, seed: int = 0) -> Prediction:
     """Fly standard manoeuvres with a fitted model (see the module docstring).
 
@@ -371,7 +373,9 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
         scale: λ = L_full / L_model; default the fit file's ``ship.model_scale`` (``None``: no full scale).
         length: ship length [m] at the fit's scale (default the model's ``L``).
         helm_rate_deg_s: steering-gear rate [°/s] at the fit's scale (default
-            :func:`diffship.scaling.helm_rate`); delay_s: autopilot delay [s] of the zigzag.
+            :func:`diffship.scaling.helm_rate`); delay_s: autopilot delay [s] of the zigzag (default:
+            the median delay measured in the training zigzags, ``training_manoeuvres[].switch_delay_s``,
+            else 0).
         duration: simulated time per manoeuvre [s] (default 40–50 L/V).
         samples: parameter draws for the intervals (0: none).
     """
@@ -380,13 +384,28 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
     specs = [m if isinstance(m, ManoeuvreSpec) else parse_manoeuvre(m) for m in manoeuvres]
     if not specs:
         raise DataError("no manoeuvre given: e.g. --manoeuvre turning:35 zigzag:10/10 zigzag:20/20")
-    notes = [] if fit.converged else [f"the fit did NOT converge ({fit.status}): treat these predictions with care"]
+    notes = list(fit_warnings(fit))
+    vessel = fit.document.get("vessel") or {}
     if scale is None and fit.ship.get("model_scale"):
         scale = float(fit.ship["model_scale"])
         notes.append(f"scale λ = {scale:g} from the fit file's training data (ship.model_scale)")
+    elif scale is None and vessel.get("scale") and float(vessel["scale"]) != 1.0:
+        scale = float(vessel["scale"])
+        notes.append(f"scale λ = {scale:g} from the vessel file of the fit ({vessel.get('name')})")
     length = length or model_length(model)
     sp, inp, how = approach(fit, speed=speed, inputs=inputs)
-    rate, rate_src = helm_rate(model, rudder_rate_deg_s=helm_rate_deg_s, scale=scale, length=length)
+    measured_rate = fit.document.get("helm_rate") or {}
+    if helm_rate_deg_s is None and measured_rate.get("deg_s"):
+        rate, rate_src = float(measured_rate["deg_s"]), (
+            f"measured in the training runs ({measured_rate.get('source', 'fit file')}; --helm-rate to change)")
+    else:
+        rate, rate_src = helm_rate(model, rudder_rate_deg_s=helm_rate_deg_s, scale=scale, length=length)
+    if delay_s is None:
+        measured = [float(m["switch_delay_s"]) for m in fit.document.get("training_manoeuvres") or ()
+                    if m.get("switch_delay_s") is not None]
+        delay_s = float(np.median(measured)) if measured else 0.0
+        if measured:
+            notes.append(f"zigzag switch delay {delay_s:.3g} s: measured in the training zigzags (--delay to change)")
     durs, dt, dnote = _durations(length, sp, duration)
     if dnote:
         notes.append(dnote)

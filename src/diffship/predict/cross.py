@@ -21,9 +21,13 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
      monotone (or down-and-up) staircase;
    * **other**: anything else (a rudder that never moves by 0.5°, random steps, ...);
 
-2. for every held-out run of a type **not** in the training set, simulates it with the fitted
-   model **open loop with the run's measured inputs** from its measured initial state (the one
-   initial-state rule of :func:`diffship.metrics.evaluate`) and computes the same IMO metrics on
+2. for every held-out run of a type **not** in the training set (with ``trained_types``: every
+   standard one), simulates it with the fitted model — a zigzag **closed loop**, flown by the
+   zigzag autopilot as a prediction is (the run's first side and execute time, helm rate and
+   switch delay measured in it), every other type **open loop with the run's measured inputs** —
+   from its initial state estimated on the run's
+   first seconds (the one initial-state rule of :func:`diffship.metrics.evaluate`,
+   :func:`diffship.metrics.start_state`) and computes the same IMO metrics on
    the measured and the predicted run (:mod:`diffship.manoeuvres.imo`): advance, transfer,
    tactical and steady turning diameter and steady yaw rate of a turning circle; overshoots,
    initial turning time and time to check yaw of a zigzag; yaw rate before release and residual
@@ -52,8 +56,11 @@ from ..data import Run
 from ..errors import DataError, ModelError
 from ..manoeuvres import first_execute, pullout_metrics, rudder_release, turning_metrics, zigzag_metrics
 from ..preprocess import Filter
-from ..simulate import initial_state, model_inputs
-from .sampling import draw_parameters, simulate_draws
+from ..metrics import start_state
+from ..simulate import model_inputs
+from ..steering import rudder_moves
+from .autopilot import switch_delay
+from .sampling import draw_parameters, fly_draws, manoeuvre_law, simulate_draws
 
 __all__ = [
     "METRIC_UNITS",
@@ -222,9 +229,25 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
                    f"rudder levels {', '.join(f'{lv:+.3g}' for lv in levels)}° fit no standard manoeuvre")
 
 
-def train_types_json(runs: Sequence[Run]) -> list[dict]:
-    """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``)."""
-    return [{"run": r.name, **classify_run(r).as_json()} for r in runs]
+def train_types_json(runs: Sequence[Run], length: float | None = None) -> list[dict]:
+    """The manoeuvre type of each training run, for the fit file (``training_manoeuvres``), with its
+    measured metrics (``measured``: :func:`run_metrics`) and, for a zigzag, the measured delay between
+    the heading reaching the switch angle and the rudder's reversal (``switch_delay_s``,
+    :func:`diffship.predict.autopilot.switch_delay`), so that ``python -m diffship.predict`` reproduces each training manoeuvre
+    beside what was measured."""
+    out = []
+    for r in runs:
+        rt = classify_run(r)
+        d = {"run": r.name, **rt.as_json()}
+        if rt.kind != "other":
+            try:
+                d["measured"] = {k: float(v) for k, v in run_metrics(r, rt, length).items()}
+            except (DataError, ModelError):
+                pass
+        if rt.kind == "zigzag":
+            d["switch_delay_s"] = switch_delay(r, rt.switch_deg)
+        out.append(d)
+    return out
 
 
 # ----------------------------------------------------------------------------------------
@@ -345,7 +368,8 @@ def _fit_parts(fit):
 
 
 def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Sequence[Run], *, samples: int = 100,
-                   seed: int = 0, flt: Filter | None = None, length: float | None = None) -> CrossValidation:
+                   seed: int = 0, flt: Filter | None = None, length: float | None = None,
+                   trained_types: bool = False) -> CrossValidation:
     """Judge ``fit`` on the held-out runs whose manoeuvre type is not among the training runs' types.
 
     Args:
@@ -354,6 +378,8 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
         heldout: measured runs to predict (open loop with their measured inputs).
         samples: parameter draws for the 95 % intervals (0: none; needs a finite covariance).
         length: ship length [m] for the turning metrics (default the model's ``L``).
+        trained_types: also judge held-out runs of the trained types (a held-out zigzag of a
+            zigzag-trained fit: its overshoots measured and predicted), labelled as such.
     """
     model, names, cov, integ = _fit_parts(fit)
     if "delta" not in model.input_names:
@@ -372,7 +398,7 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
     checks, skipped = [], []
     for run in heldout:
         rt = classify_run(run)
-        if rt.kind in trained:
+        if rt.kind in trained and not trained_types:
             skipped.append((run.name, f"{rt.label}: a trained manoeuvre type (an ordinary validation run)"))
             continue
         if rt.kind == "other":
@@ -390,26 +416,54 @@ def _as_run(model, run: Run, ys: np.ndarray, name: str) -> Run:
     return Run(name, run.time, ch, {"simulated": True, "model": model.name}, check_units=False)
 
 
+def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndarray) -> list[Run | None]:
+    """A zigzag flown again closed loop by the model (one run per row of ``thetas``): the run's own start
+    (``x0``), first side and execute time, angles, constant inputs (their means), helm rate
+    (:func:`diffship.steering.rudder_moves`) and switch delay (:func:`diffship.predict.autopilot.switch_delay`) — as a prediction is
+    flown, so the overshoots compare with the measured ones (open loop, the measured rudder reverses when
+    the *measured* heading reached the switch angle, and only the first overshoot would compare)."""
+    i0, side = first_execute(run)
+    moves = [m[2] for m in rudder_moves(run)]
+    rate = float(np.median(moves)) if moves else 15.0
+    initial = {n: float(v) for n, v in zip(model.state_names, x0)}
+    inputs = {n: float(np.mean(run[n])) for n in model.input_names if n != "delta" and run.has(n)}
+    law = manoeuvre_law(model, "zigzag", rudder_deg=float(rt.rudder_deg), side=float(side),
+                        t_execute=float(run.time[i0] - run.time[0]), initial=initial,
+                        switch_deg=float(rt.switch_deg), delay_s=switch_delay(run, rt.switch_deg))
+    return fly_draws(model, names, thetas, law, initial=initial, inputs=inputs, duration=run.duration, dt=run.dt,
+                     rudder_rate_deg_s=rate, integrator=integ, metadata={"manoeuvre": "zigzag"})
+
+
 def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, length) -> RunCheck:
     us = model_inputs(model, run)
-    x0 = initial_state(model, run, flt)
+    x0 = start_state(model, run, flt, integrator=integ)  # the metrics' initial-state rule
     theta0 = np.asarray([[float(getattr(model, n)) for n in names]])
-    ys0, ok0 = simulate_draws(model, names, theta0, run.time, us, x0, integ)
+    closed = rt.kind == "zigzag" and "psi" in model.state_names and run.has("psi") and bool(names)
+    if closed:
+        flown = _closed_loop(model, names, theta0, integ, run, rt, x0)
+        ok0 = [flown[0] is not None]
+    else:
+        ys0, ok0 = simulate_draws(model, names, theta0, run.time, us, x0, integ)
     measured = run_metrics(run, rt, length)
     if not ok0[0]:
         mc = tuple(MetricCheck(k, METRIC_UNITS.get(k, "deg/s"), v, math.nan, None, math.nan, math.nan,
                                math.isfinite(v)) for k, v in measured.items())
         return RunCheck(run.name, rt, mc, 0, 0, None, run, "the fitted model BLOWS UP on this run's inputs")
-    pred = _as_run(model, run, ys0[0], f"{run.name} (predicted)")
+    pred = (_as_run(model, flown[0], np.stack([flown[0][c] for c in model.output_names], axis=1),
+                    f"{run.name} (predicted)") if closed else _as_run(model, run, ys0[0], f"{run.name} (predicted)"))
     predicted = run_metrics(pred, rt, length)
     samp, failed = [], 0
     if len(draws):
-        ys, ok = simulate_draws(model, names, draws, run.time, us, x0, integ)
-        for s in range(len(draws)):
+        if closed:
+            sims = _closed_loop(model, names, draws, integ, run, rt, x0)
+        else:
+            ys, ok = simulate_draws(model, names, draws, run.time, us, x0, integ)
+            sims = [_as_run(model, run, ys[s], "draw") if ok[s] else None for s in range(len(draws))]
+        for sim in sims:
             try:
-                if not ok[s]:
+                if sim is None:
                     raise ModelError("blew up")
-                samp.append(run_metrics(_as_run(model, run, ys[s], "draw"), rt, length))
+                samp.append(run_metrics(sim, rt, length))
             except (ModelError, DataError):
                 failed += 1
     out = []

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .cross import CrossValidation
+from ..figures import pyplot
 
 __all__ = ["cross_json", "cross_text", "plot_cross"]
 
@@ -18,14 +19,17 @@ def _f(v) -> str:
 
 def cross_text(cv: CrossValidation) -> str:
     """The cross-manoeuvre section of a report: training types, one table per held-out run, verdict."""
-    lines = ["Cross-manoeuvre validation (trained on: "
+    lines = ["Manoeuvre validation on held-out runs (trained on: "
              + ", ".join(f"{t.label}" for t in cv.train_types) + ")",
-             ("  held-out runs of other manoeuvre types simulated open loop with their measured inputs; "
-              f"intervals: {cv.interval_method}"),
+             ("  held-out standard manoeuvres from their estimated initial state: zigzags flown closed loop by the "
+              "autopilot (measured side, execute time, helm rate and switch delay), other types open loop with "
+              f"their measured inputs; IMO metrics measured vs predicted; intervals: {cv.interval_method}"),
              ("  flagged (MISS): measured value outside the 95 % interval and error beyond 5 % (lengths, rates), "
               "10 % (times) or 1.5° (overshoots)")]
     for c in cv.checks:
+        trained = c.type.kind in {t.kind for t in cv.train_types}
         lines += ["", f"  {c.run}: {c.type.label} ({c.type.reason})"
+                  + ("; a trained manoeuvre type" if trained else "; a manoeuvre type NOT in the training runs")
                   + (f"; {c.draws_failed} of {c.draws_used + c.draws_failed} draws failed" if c.draws_failed else "")]
         if c.note:
             lines.append(f"  {c.note}")
@@ -40,11 +44,11 @@ def cross_text(cv: CrossValidation) -> str:
     for run, why in cv.skipped:
         lines.append(f"  not judged here: {run}: {why}")
     if not cv.checks:
-        lines.append("  no held-out run of a manoeuvre type outside the training set: nothing to judge")
+        lines.append("  no held-out run is a standard manoeuvre: nothing to judge")
     else:
         bad = [f"{c.run} ({', '.join(m.name for m in c.metrics if m.flagged) or 'blew up'})" for c in cv.checks
                if c.flagged]
-        lines += ["", "  verdict: " + ("the model PREDICTS the held-out manoeuvre types within their intervals or "
+        lines += ["", "  verdict: " + ("the model PREDICTS the held-out manoeuvres within their intervals or "
                                        "tolerances" if cv.passed else "FAILS cross-manoeuvre validation: "
                                        + "; ".join(bad) + ". The training manoeuvres do not determine these; add "
                                        "them to the training set or constrain the model (priors, bounds)")]
@@ -78,10 +82,7 @@ def cross_json(cv: CrossValidation) -> dict:
 def plot_cross(cv: CrossValidation, path: str | Path | None = None):
     """Predicted vs measured per metric (error bars: 95 % interval), one panel per held-out run, plus
     measured and predicted tracks (or headings) of each run."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     n = max(1, len(cv.checks))
     fig, axes = plt.subplots(n, 2, figsize=(11, 3.6 * n), squeeze=False)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .core import METRIC_KINDS, Prediction
+from ..figures import pyplot
 
 __all__ = ["plot_prediction", "prediction_json", "prediction_text", "write_prediction"]
 
@@ -69,10 +70,7 @@ def prediction_text(p: Prediction) -> str:
 
 def plot_prediction(p: Prediction, path: str | Path | None = None):
     """Tracks (left) and time histories of heading, yaw rate and rudder (right), one row per manoeuvre."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     n = len(p.manoeuvres)
     fig, axes = plt.subplots(n, 2, figsize=(11, 3.2 * n), squeeze=False)

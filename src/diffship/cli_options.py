@@ -1,0 +1,225 @@
+"""The options every diffship command line shares (fit, diagnose, predict, discover), from one place.
+
+Each ``add_*`` function adds one group of options to an :class:`argparse.ArgumentParser` with the
+same names, meanings, defaults and checks in every command:
+
+* **data**: ``--validate``, ``--columns``, ``--degrees``, ``--rudder-sign``, ``--resample``;
+* **vessel**: ``--vessel`` (a JSON file or a bundled vessel);
+* **parameters**: ``--channels``, ``--fix``, ``--free``, ``--init``;
+* **priors**: ``--prior``, ``--prior-file``, ``--no-prior``, ``--prior-sd``;
+* **numerics**: ``--filter``, ``--solver``, ``--starts``;
+* **output**: ``--out``, ``--json``, ``--quiet``.
+
+Rules (issue 26): a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
+fixes both: ``action="extend"``); a malformed item (``--fix A``, ``--fix A=x``, ``--columns psi``,
+an unknown channel) stops the command at once with argparse's one-line message and exit status 2,
+before JAX or NumPy is imported. This module imports only the standard library and the plain-Python
+tables (:mod:`diffship.particulars`, :mod:`diffship.channels`); a test checks it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from .channels import CHANNEL_NAMES
+from .particulars import bundled_vessels
+
+__all__ = [
+    "INTEGRATOR_NAMES",
+    "add_data_options",
+    "add_numerics_options",
+    "add_output_options",
+    "add_parameter_options",
+    "add_prior_options",
+    "add_vessel_option",
+    "assignment",
+    "channel_name",
+    "column_mapping",
+    "helm_rate",
+    "names_of",
+    "parameter_name",
+    "positive_float",
+    "positive_int",
+    "prior_item",
+    "RUDDER_SIGNS",
+]
+
+#: ``--solver`` choices: the keys of :data:`diffship.integrators.INTEGRATORS` (a test checks they agree).
+INTEGRATOR_NAMES = ("diffrax-rk4", "diffrax-tsit5", "rk4", "tsit5")
+
+#: Rudder sign conventions of the files (``--rudder-sign``).
+RUDDER_SIGNS = ("starboard", "port")
+
+
+# -- item types: each returns the item unchanged (or converted) or raises argparse's error ------------------
+def assignment(item: str) -> str:
+    """``NAME=VALUE`` with a number as VALUE (``--fix``, ``--init``, ``--input``); returned as given."""
+    name, sep, value = item.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"{item!r}: expected NAME=VALUE, e.g. T1=5.0")
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{item!r}: {value.strip()!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{item!r}: the value must be finite")
+    return f"{name.strip()}={value.strip()}"
+
+
+def column_mapping(item: str) -> str:
+    """``NAME=COLUMN`` (``--columns psi=heading``); returned as given."""
+    name, sep, column = item.partition("=")
+    if not sep or not name.strip() or not column.strip():
+        raise argparse.ArgumentTypeError(f"{item!r}: expected NAME=COLUMN, e.g. psi=heading")
+    return f"{name.strip()}={column.strip()}"
+
+
+def prior_item(item: str) -> str:
+    """``NAME=MEAN±SD`` (checked in full by :func:`diffship.fit.priors.parse_priors`); a name and ``=`` here."""
+    name, sep, rest = item.partition("=")
+    if not sep or not name.strip() or not rest.strip():
+        raise argparse.ArgumentTypeError(f"{item!r}: expected NAME=MEAN±SD, e.g. Nrrr=-0.05±0.02")
+    return item
+
+
+def channel_name(item: str) -> str:
+    """A channel name of :data:`diffship.channels.CHANNEL_NAMES` (``--channels``)."""
+    if item not in CHANNEL_NAMES:
+        raise argparse.ArgumentTypeError(f"{item!r} is not a channel; channels: {', '.join(CHANNEL_NAMES)}")
+    return item
+
+
+def parameter_name(item: str) -> str:
+    """A parameter name (``--free``): a name, no ``=``."""
+    if not item.strip() or "=" in item:
+        raise argparse.ArgumentTypeError(f"{item!r}: expected a parameter name (NAME, no value), e.g. Xu")
+    return item.strip()
+
+
+def positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"{text!r}: must be a positive number")
+    return v
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be at least 1")
+    return v
+
+
+def helm_rate(text: str) -> float:
+    """A steering-gear rate [°/s], positive."""
+    return positive_float(text)
+
+
+def _list(p, *flags, type, metavar, help, default=None):
+    """A repeatable list option: items accumulate over repetitions; at least one item each time."""
+    p.add_argument(*flags, nargs="*", action="extend", type=type, metavar=metavar,
+                   default=[] if default is None else default, help=help + " (repeatable; items accumulate)")
+
+
+# -- groups ------------------------------------------------------------------------------------------------
+def add_data_options(p: argparse.ArgumentParser, *, validate: bool = True, validate_required: bool = False,
+                     resample: bool = True) -> None:
+    """Held-out runs, column mapping, degree columns, rudder sign convention, resampling."""
+    g = p.add_argument_group("data (CSV runs; SI units, radians, NED/FRD, heading clockwise from north)")
+    if validate:
+        g.add_argument("--validate", nargs="+", action="extend", metavar="RUN.csv", required=validate_required,
+                       default=[], help="held-out runs, scored but never fitted (repeatable; items accumulate)")
+    _list(g, "--columns", type=column_mapping, metavar="NAME=COLUMN",
+          help="map diffship channel names to file columns, e.g. psi=heading. Channel names: "
+               + ", ".join(f"{c} [{u}]" for c, u in CHANNEL_NAMES.items())
+               + "; columns with other names are kept under their own names")
+    _list(g, "--degrees", type=str, metavar="COLUMN", help="columns given in degrees (deg/s)")
+    g.add_argument("--time-unit", default="s", choices=("s", "ms", "us"),
+                   help="unit of a numeric time column: s (default), ms or us (converted to seconds); date-time "
+                        "stamps are read as seconds from the first")
+    g.add_argument("--rudder-sign", default="starboard", choices=RUDDER_SIGNS,
+                   help="sign convention of delta in the files: starboard (positive turns to starboard; default) "
+                        "or port")
+    if resample:
+        g.add_argument("--resample", type=positive_float, default=None, metavar="DT",
+                       help="resample runs to a uniform step [s]")
+        g.add_argument("--horizon", type=positive_float, default=None, metavar="S",
+                       help="fit only the first S seconds of each training run (long zigzags: the later part drifts "
+                            "with unmodelled effects); the metrics still simulate every run over its whole length")
+
+
+def add_vessel_option(p: argparse.ArgumentParser) -> None:
+    """``--vessel FILE|NAME``: the particulars rule of every command (a model that needs particulars
+    stops without a vessel or ``--fix`` for them)."""
+    p.add_argument("--vessel", default=None, metavar="FILE|NAME",
+                   help="vessel particulars: a JSON file or a bundled vessel (" + ", ".join(bundled_vessels())
+                        + "); models that need particulars (mass, inertia, dimensions, ...) stop without one "
+                        "unless --fix gives them")
+
+
+def add_parameter_options(p: argparse.ArgumentParser, *, init: bool = True, channels_help: str | None = None) -> None:
+    """``--channels``, ``--fix``, ``--free``, ``--init``."""
+    g = p.add_argument_group("parameters and channels")
+    g.add_argument("--channels", nargs="+", action="extend", type=channel_name, default=None, metavar="NAME",
+                   help=(channels_help or "channels fitted by output error (default: what the model predicts and "
+                         "the runs have, positions x0, y0 left out)") + " (repeatable; items accumulate)")
+    _list(g, "--fix", type=assignment, metavar="NAME=VALUE", help="hold parameters fixed")
+    _list(g, "--free", type=parameter_name, metavar="NAME", help="estimate parameters fixed by default")
+    g.add_argument("--free-hydrodynamic", action="store_true",
+                   help="estimate every parameter that is not a vessel particular (mmg: the 33 hull, rudder, "
+                        "interaction and wake coefficients of diffship.studies.kvlcc2), each held by its reference "
+                        "prior where the model has one")
+    if init:
+        _list(g, "--init", type=assignment, metavar="NAME=VALUE", help="start values for output error")
+
+
+def add_prior_options(p: argparse.ArgumentParser) -> argparse._ArgumentGroup:
+    """Gaussian priors (MAP fits): ``--prior``, ``--prior-file``, ``--no-prior``, ``--prior-sd``."""
+    g = p.add_argument_group("priors and admissibility (predictive identification)")
+    _list(g, "--prior", type=prior_item, metavar="NAME=MEAN±SD",
+          help="Gaussian prior on a parameter (MAP fit); also NAME=MEAN+-SD or SD in %% of MEAN")
+    g.add_argument("--prior-file", default=None, metavar="FILE",
+                   help='priors from JSON {"NAME": {"mean": M, "sd": S}} (or a saved fit file\'s priors)')
+    g.add_argument("--no-prior", action="store_true",
+                   help="no priors from the model's reference set (on by default for mmg/KVLCC2, fossen3/USV, "
+                        "fossen6/BlueROV2 when the fixed particulars are the reference vessel's)")
+    g.add_argument("--prior-sd", type=positive_float, default=0.5, metavar="REL",
+                   help="relative standard deviation of the reference-set priors (default 0.5)")
+    return g
+
+
+def add_numerics_options(p: argparse.ArgumentParser, *, filter_help: str | None = None) -> None:
+    """``--filter``, ``--solver``, ``--starts``."""
+    g = p.add_argument_group("numerics")
+    g.add_argument("--filter", default="butter", metavar="butter[:Hz]|savgol[:s]|none|kalman",
+                   help=filter_help or "differentiation / initial-state filter: butter[:Hz] (default), savgol[:s], "
+                                       "none, or kalman (extended Kalman filter + RTS smoother)")
+    g.add_argument("--solver", default="diffrax-rk4", choices=INTEGRATOR_NAMES,
+                   help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
+                        "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
+                        "(diffrax Tsit5, adaptive within each sample)")
+    g.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
+                   help="Levenberg–Marquardt steps per output-error pass (default 200)")
+    g.add_argument("--starts", type=positive_int, default=None, metavar="N",
+                   help="output error from N starts (the model's values, the equation-error estimate, spread "
+                        "starts); the lowest cost is kept and the report says how many reached it")
+
+
+def add_output_options(p: argparse.ArgumentParser, *, out_help: str, json_help: str | None = None) -> None:
+    """``--out DIR``, ``--json FILE``, ``--quiet``."""
+    p.add_argument("--out", default=None, metavar="DIR", help=out_help)
+    if json_help is not None:
+        p.add_argument("--json", default=None, metavar="FILE", help=json_help)
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+
+
+def names_of(items) -> list[str]:
+    """Parameter names of checked ``NAME=VALUE`` items."""
+    return [i.partition("=")[0].strip() for i in items]

@@ -1,0 +1,115 @@
+"""Unit checks of a run's columns, before anything is computed: degrees passed as radians and time
+stamps in milliseconds or microseconds, every problem of a run in one :class:`UnitsError` (which
+:func:`diffship.data.load_runs` joins over files, so one message names every file and column).
+NumPy only; :class:`diffship.data.Run` calls :func:`check_units` on construction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .errors import DataError
+
+__all__ = ["TIME_UNITS", "UnitsError", "check_units", "psi_unwrap"]
+
+
+def psi_unwrap(psi: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Unwrap a heading; a jump of ~360 marks degree data (returns ``(unwrapped, in_degrees)``)."""
+    jumps = np.abs(np.diff(psi))
+    in_degrees = bool(np.any((jumps > 300.0) & (jumps < 360.5)))
+    return np.unwrap(psi, period=360.0 if in_degrees else 2 * np.pi), in_degrees
+
+
+class UnitsError(DataError):
+    """Unit problems of one run: ``columns`` to declare in degrees, ``time_unit`` the time stamps
+    seem to be in (``"ms"``, ``"us"``) or ``None``; :func:`load_runs` joins those of every file."""
+
+    def __init__(self, message: str, columns: Sequence[str] = (), time_unit: str | None = None) -> None:
+        super().__init__(message)
+        self.columns = tuple(columns)
+        self.time_unit = time_unit
+        self.detail = message
+
+
+#: Time units ``Run.from_dataframe(time_unit=...)`` / ``--time-unit`` converts to seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+
+
+def _time_unit_problem(time: np.ndarray, ch: Mapping[str, np.ndarray]) -> str | None:
+    """``"ms"`` or ``"us"`` when the time stamps look like milliseconds or microseconds: the heading's
+    rate against the measured yaw rate (or the track's speed against the measured surge speed) is
+    10⁻³ or 10⁻⁶ of what seconds give; without those channels, a median step of 5 or more "seconds"
+    (a 200 Hz to 0.2 Hz log in ms) on whole numbers."""
+    dt = float(np.median(np.diff(time)))
+    ratios = []
+    if "psi" in ch and "r" in ch and np.std(ch["r"]) > 1e-3:
+        g = np.gradient(np.unwrap(ch["psi"]), time)
+        r = ch["r"]
+        if np.std(g) > 0 and abs(np.corrcoef(g, r)[0, 1]) > 0.7:
+            ratios.append(abs(float(g @ r / (r @ r))))
+    if "x0" in ch and "y0" in ch and "u" in ch and np.mean(np.abs(ch["u"])) > 1e-2:
+        sog = np.hypot(np.gradient(ch["x0"], time), np.gradient(ch["y0"], time))
+        ratios.append(float(np.median(sog)) / float(np.mean(np.abs(ch["u"]))))
+    for ratio in ratios:
+        if 3e-4 < ratio < 3e-3:
+            return "ms"
+        if 3e-7 < ratio < 3e-6:
+            return "us"
+    if ratios:
+        return None
+    whole = bool(np.all(np.abs(time - np.round(time)) < 1e-9))
+    if dt >= 5000.0 and whole:
+        return "us"
+    if dt >= 5.0 and whole:
+        return "ms"
+    return None
+
+
+def check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> None:
+    """Conservative heuristics that catch degrees passed as radians and time stamps in ms or µs;
+    every problem of the run in one error (:class:`UnitsError`)."""
+    problems: list[tuple[str, str]] = []  # (channel, what)
+    tunit = _time_unit_problem(time, ch)
+    if tunit is not None:
+        dt = float(np.median(np.diff(time)))
+        problems.append(("time", f"the time stamps look like {'milliseconds' if tunit == 'ms' else 'microseconds'} "
+                                 f"(median step {dt:.6g}; heading rate against yaw rate, or track against speed, "
+                                 f"off by {'1000' if tunit == 'ms' else '10⁶'})"))
+    for c, limit, unit in (("delta", 1.0, "rad"), ("nozzle", 1.0, "rad"),
+                           ("r", 3.0, "rad/s"), ("p", 3.0, "rad/s"), ("q", 3.0, "rad/s")):
+        if c in ch and np.max(np.abs(ch[c])) > limit:
+            i = int(np.argmax(np.abs(ch[c])))
+            problems.append((c, f"column '{c}' looks like degrees (|value| up to {abs(ch[c][i]):.4g} at row {i}, "
+                                f"more than {limit} {unit})"))
+    if "psi" in ch:
+        psi = ch["psi"]
+        unwrapped, wraps_at_360 = psi_unwrap(psi)
+        big = np.max(np.abs(psi)) > 2 * np.pi + 0.5
+        looks_0_360 = psi.min() >= -0.5 and psi.max() <= 360.5 and psi.max() > 7.0
+        if big and (wraps_at_360 or (looks_0_360 and abs(psi[0]) > 2 * np.pi + 0.5)):
+            problems.append(("psi", f"column 'psi' looks like degrees (values from {psi.min():.4g} "
+                                    f"to {psi.max():.4g})"))
+        elif "r" in ch and np.std(ch["r"]) > 1e-4 and not any(c == "r" for c, _ in problems):
+            r = ch["r"]
+            g = np.gradient(unwrapped, time)
+            if np.std(g) > 0 and np.corrcoef(g, r)[0, 1] > 0.7:
+                slope = float(g @ r / (r @ r))
+                if 30.0 < slope < 100.0:
+                    problems.append(("psi", f"column 'psi' looks like degrees while 'r' is in rad/s "
+                                            f"(d psi/dt = {slope:.3g} r)"))
+                if 0.01 < slope < 0.03:
+                    problems.append(("r", f"column 'r' looks like deg/s while 'psi' is in rad "
+                                          f"(d psi/dt = {slope:.3g} r, about 1/57.3)"))
+    if problems:
+        degs = list(dict.fromkeys(c for c, _ in problems if c != "time"))
+        fixes = []
+        if degs:
+            fixes.append(f"degrees=[{', '.join(repr(c) for c in degs)}] (CLI: --degrees {' '.join(degs)})")
+        if tunit is not None:
+            fixes.append(f"time_unit={tunit!r} (CLI: --time-unit {tunit})")
+        detail = "; ".join(w for _, w in problems)
+        raise UnitsError(f"{where}: {detail}; pass " + " and ".join(fixes)
+                         + ", or check_units=False if the values really are SI (s, rad).",
+                         degs, tunit)

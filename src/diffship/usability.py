@@ -1,0 +1,218 @@
+r"""What a user may do with a fit: one verdict per method, with its reasons in words.
+
+A :class:`Verdict` joins what the solver said (:attr:`FitResult.result`, :mod:`diffship.fit.status`)
+with what the whole-horizon simulations of the training and held-out runs show
+(:class:`diffship.metrics.Evaluation`) and what the data identify:
+
+* **FAILED** — not usable: the solver's outcome is unusable (the simulation blows up, the filter
+  diverges, every start diverges), or the simulation is worse than the measured mean
+  (NRMSE fit < 0 %) on *every* training run, or on the pooled training runs while no held-out run
+  is followed either;
+* **not followed (per run)** — a training or held-out run whose simulation is worse than its
+  mean in a fitted channel is named with the channel and the time from which the error stays
+  above the level the other runs reach (:func:`run_problems`); when the other training runs and
+  the held-out runs are followed, the fit stays usable and says so;
+* **not converged** — the solver stopped at its step limit (usable, with a warning);
+* **unidentifiable** — a free parameter with a standard error larger than
+  :data:`WEAK_RATIO` × its value (or infinite): the data do not determine it; the cause is named
+  where the data show it (a degree of freedom that hardly varies: "surge speed hardly varies:
+  excite it or fix Xu").
+
+The verdict travels: the fit file (``usable``, ``verdict``), the JSON report, the text report and
+the exit status of ``python -m diffship.fit`` (1 when no method is usable, the reason on the last
+line); ``predict`` and ``diagnose`` read it from the fit file and warn.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .data import Run
+from .metrics import Evaluation
+
+__all__ = ["WEAK_RATIO", "RunProblem", "Verdict", "run_problems", "unidentified", "verdict"]
+
+#: A free parameter whose standard error exceeds this multiple of its magnitude is not identified.
+WEAK_RATIO = 10.0
+#: Surge or sway "hardly varies" when the spread of its measured speed is below this share of the
+#: mean surge speed.
+QUIET_SHARE = 0.02
+
+#: A yaw or roll rate whose spread is below this [rad/s] (0.2°/s) hardly varies.
+QUIET_RATE = float(np.radians(0.2))
+
+#: Which channel excites the parameters whose names start with each letter (MMG/VMM/Fossen names).
+_DOF = {"X": ("u", "surge speed"), "Y": ("v", "sway speed"), "N": ("r", "yaw rate"), "K": ("p", "roll rate")}
+
+
+@dataclasses.dataclass(frozen=True)
+class RunProblem:
+    """A run the model does not follow: ``run``, ``channel``, NRMSE ``fit`` [%] of that run and
+    channel, ``from_s``: the time [s] from which the error stays large (``nan`` if from the start),
+    ``kind``: ``"training"`` or ``"validation"``."""
+
+    run: str
+    channel: str
+    fit: float
+    from_s: float
+    kind: str
+
+    def text(self) -> str:
+        when = (f" from t = {self.from_s:.0f} s" if math.isfinite(self.from_s) else "")
+        return (f"{self.kind} run {self.run}: the model does not follow {self.channel}{when} "
+                f"(fit {self.fit:.0f} % on this run)")
+
+    def as_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """One method's verdict: ``label`` (``"usable"``, ``"FAILED"``, ``"not converged"``,
+    ``"unidentifiable"``), ``usable``, ``reasons`` (sentences), ``runs`` (per-run problems) and
+    ``weak`` (parameters the data do not determine, with the cause where known)."""
+
+    method: str
+    label: str
+    usable: bool
+    reasons: tuple[str, ...] = ()
+    runs: tuple[RunProblem, ...] = ()
+    weak: tuple[str, ...] = ()
+
+    def lines(self) -> list[str]:
+        name = self.method.replace('_', ' ')
+        if not self.usable:
+            why = self.reasons[0] if self.reasons else "no usable estimate"
+            head, rest = f"{name}: FAILED — {why}; do not use these values", self.reasons[1:]
+        else:
+            head, rest = f"{name}: {self.label}", self.reasons
+        out = [head] + [f"  - {r}" for r in rest] + [f"  - {p.text()}" for p in self.runs]
+        out += [f"  - not identified: {w}" for w in self.weak]
+        return out
+
+    def as_json(self) -> dict:
+        return {"label": self.label, "usable": self.usable, "reasons": list(self.reasons),
+                "runs": [p.as_json() for p in self.runs], "unidentified": list(self.weak)}
+
+
+def _onset(t: np.ndarray, e: np.ndarray, level: float) -> float:
+    """The first time from which at least 80 % of the later samples have ``|e| > level``
+    (``nan`` when that is the first sample or never)."""
+    big = np.abs(e) > level
+    if not big.any():
+        return math.nan
+    later = np.cumsum(big[::-1])[::-1] / np.arange(len(big), 0, -1)  # share of big samples from k on
+    k = int(np.argmax((later >= 0.8) & big))
+    return float(t[k]) if k > 0 else math.nan
+
+
+def run_problems(ev: Evaluation, runs: Sequence[Run], channels: Sequence[str], angles: Sequence[str] = ("psi",),
+                 kind: str = "training") -> list[RunProblem]:
+    """Runs of ``ev`` whose simulation is worse than their mean (fit < 0 %) in one of ``channels``,
+    with the time from which the error stays above twice the channel's RMSE on the runs that are
+    followed (or above the run's own spread when none is)."""
+    out = []
+    good_rmse = {c: [v["rmse"][c] for v in ev.per_run.values() if c in v["rmse"] and v["fit_percent"].get(c, -1) >= 0]
+                 for c in channels}
+    for run in runs:
+        pr = ev.per_run.get(run.name)
+        if pr is None:
+            continue
+        for c in channels:
+            f = pr["fit_percent"].get(c)
+            if f is None or (math.isfinite(f) and f >= 0.0):
+                continue
+            y = np.asarray(run[c])
+            yh = np.asarray(ev.simulated[run.name][c])
+            e = yh - y
+            if c in angles:
+                e = np.arctan2(np.sin(e), np.cos(e))
+            level = 2.0 * float(np.median(good_rmse[c])) if good_rmse[c] else float(np.std(y))
+            from_s = _onset(np.asarray(run.time), np.where(np.isfinite(e), e, np.inf), level) if level > 0 else math.nan
+            out.append(RunProblem(run.name, c, float(f) if math.isfinite(f) else -math.inf, from_s, kind))
+    return out
+
+
+def _spread(runs: Sequence[Run], c: str) -> tuple[float, float] | None:
+    vals = [np.asarray(r[c]) for r in runs if r.has(c)]
+    if not vals:
+        return None
+    y = np.concatenate(vals)
+    return float(np.std(y)), float(np.mean(np.abs(y)))
+
+
+def unidentified(params: Mapping[str, float], stderr: Mapping[str, float], free: Sequence[str],
+                 runs: Sequence[Run]) -> list[str]:
+    """Free parameters with ``SE > WEAK_RATIO·|value|`` (or infinite), each with the cause where the data
+    show one: the degree of freedom its name belongs to (X: surge, Y: sway, N: yaw) hardly varies."""
+    out = []
+    u = _spread(runs, "u")
+    for n in free:
+        v, se = float(params.get(n, math.nan)), float(stderr.get(n, math.nan))
+        if not (math.isinf(se) or (math.isfinite(se) and se > WEAK_RATIO * max(abs(v), 1e-300))):
+            continue
+        text = f"{n} = {v:.3g} ± {se:.3g}"
+        dof = _DOF.get(n[:1])
+        sp = _spread(runs, dof[0]) if dof else None
+        if dof and sp is not None:
+            # surge and sway against the mean surge speed [m/s]; rates against QUIET_RATE [rad/s]
+            ref = (sp[1] if dof[0] == "u" else (u[1] if u else 0.0)) * QUIET_SHARE if dof[0] in ("u", "v") else QUIET_RATE
+            if sp[0] < ref:
+                unit = "m/s" if dof[0] in ("u", "v") else "rad/s"
+                text += (f": {dof[1]} hardly varies in the runs (spread {sp[0]:.3g} {unit}, below {ref:.3g}): "
+                         f"excite it or fix {n} (--fix {n}=VALUE)")
+        if ":" not in text:
+            text += f": the data do not determine it; fix it (--fix {n}=VALUE), give a prior, or add runs that excite it"
+        out.append(text)
+    return out
+
+
+def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: Evaluation | None = None,
+            val: Sequence[Run] = ()) -> Verdict:
+    """The verdict of one method's fit (see the module docstring)."""
+    m = result.method
+    angles = tuple(getattr(result.model, "angle_outputs", ("psi",)))
+    if not result.usable:
+        return Verdict(m, "FAILED", False, (result.status,))
+    chans = [c for c in (result.channels or ()) if train_ev is not None and c in train_ev.channels]
+    if train_ev is not None and not chans:
+        chans = [c for c in train_ev.channels if c not in ("x0", "y0")]
+    reasons, probs = [], []
+    if train_ev is not None:
+        if not train_ev.ok:
+            return Verdict(m, "FAILED", False, ("its simulation of the training runs blows up",))
+        probs = run_problems(train_ev, train, chans, angles, "training")
+    vprobs = run_problems(val_ev, val, chans, angles, "validation") if val_ev is not None and val else []
+    bad_train = {p.run for p in probs}
+    val_followed = bool(val) and val_ev is not None and val_ev.ok and not vprobs
+    pooled_bad = train_ev is not None and any(not (train_ev.fit_percent.get(c, -1.0) >= 0.0) for c in chans)
+    if train and bad_train and len(bad_train) == len(train):
+        worst = min(probs, key=lambda p: p.fit)
+        return Verdict(m, "FAILED", False, (f"its simulation is worse than the measured mean on every training run "
+                                            f"(worst: {worst.run}, {worst.channel} fit {worst.fit:.0f} %)",),
+                       tuple(probs + vprobs))
+    if pooled_bad and not val_followed:
+        worst = min(((c, train_ev.fit_percent.get(c, math.nan)) for c in chans), key=lambda x: x[1])
+        return Verdict(m, "FAILED", False, (f"its simulation of the training runs is worse than the measured mean "
+                                            f"({worst[0]} fit {worst[1]:.0f} %)"
+                                            + ("" if val else "; no held-out run shows it predicts"),),
+                       tuple(probs + vprobs))
+    label = "usable"
+    if probs:
+        followed = len(train) - len(bad_train)
+        reasons.append(f"{len(bad_train)} of {len(train)} training runs not followed (listed below); the other "
+                       f"{followed}" + (" and the held-out runs are" if val_followed else " are") + " followed")
+    if not result.converged:
+        label = "not converged"
+        reasons.append(result.status)
+    weak = unidentified(result.params, result.stderr, result.free, train)
+    if weak and label == "usable":
+        label = "unidentifiable"
+    if weak:
+        reasons.append(f"{len(weak)} free parameter(s) not determined by the data (SE > {WEAK_RATIO:g}× value); "
+                       "their values are arbitrary, predictions that depend on them are not supported")
+    return Verdict(m, label, True, tuple(reasons), tuple(probs + vprobs), tuple(weak))
