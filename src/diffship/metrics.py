@@ -77,8 +77,9 @@ def _noise_sigma(y: np.ndarray) -> float:
 
 def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s: float = START_WINDOW_S,
                 integrator: AbstractIntegrator = Diffrax()) -> np.ndarray:
-    r"""**The initial-state rule of every metric**: the state at the first sample that makes the model's
-    own simulation over the run's first ``window_s`` seconds fit the measured channels best
+    r"""**The initial-state rule of every metric**: the measured states at the first sample that make the
+    model's own simulation over the run's first ``window_s`` seconds fit the measured channels best (states
+    that are not measured channels keep the data's value)
     (two Gauss–Newton steps from :func:`diffship.simulate.initial_state`, the filtered first sample, with
     finite-difference sensitivities; every channel weighted by its noise level σ̂ = std(Δ²y)/√6).
 
@@ -108,6 +109,11 @@ def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s
     y = np.stack(ys, axis=1)
     sig = np.asarray(sig)
     angles = [j for j, c in enumerate(chans) if c in model.angle_outputs]
+    # only measured states move: an internal state (Nomoto2's ξ̇) keeps its data rule — moved freely on a short
+    # window it trades off against the parameters (SSPA zigzag: 3.2° instead of 0.42° heading error)
+    moved = [i for i, s_ in enumerate(model.state_names) if s_ in chans]
+    if not moved:
+        return x
 
     def resid(xv):
         sol = simulate_run(model, w, xv, integrator)
@@ -123,7 +129,7 @@ def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s
         if r0 is None or not np.all(np.isfinite(r0)):
             break
         cols = []
-        for i in range(len(x)):
+        for i in moved:
             h = 1e-6 * max(1.0, abs(x[i]))
             xp = x.copy()
             xp[i] += h
@@ -134,7 +140,8 @@ def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s
         dx, *_ = np.linalg.lstsq(np.stack(cols, axis=1), -r0, rcond=1e-10)
         if not np.all(np.isfinite(dx)):
             break
-        x_new = x + dx
+        x_new = x.copy()
+        x_new[moved] += dx
         r1 = resid(x_new)
         if r1 is None or not (r1 @ r1 <= r0 @ r0):
             break
