@@ -38,7 +38,7 @@ from ..models import AbstractModel
 from ..params import ParamSpec
 from .priors import Priors
 
-__all__ = ["AbstractEstimator", "Problem", "Solved"]
+__all__ = ["AbstractEstimator", "OnOutputError", "Problem", "Solved"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -174,3 +174,25 @@ class AbstractEstimator(abc.ABC):
     def describe(self) -> str:
         """One line naming the estimator and its main settings."""
         return self.method.replace("_", " ")
+
+
+class OnOutputError(AbstractEstimator):
+    """An estimator built on output error's settings (field ``oe``): priors and the start rule are its."""
+
+    oe: Any
+
+    @property
+    def priors(self):
+        return self.oe.priors
+
+    @property
+    def reference_priors(self):
+        return self.oe.reference_priors
+
+    @property
+    def prior_rel_sd(self):
+        return self.oe.prior_rel_sd
+
+    @property
+    def choose(self):
+        return self.oe.choose

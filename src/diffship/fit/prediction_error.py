@@ -92,7 +92,7 @@ from ..params import ParamSpec
 from ..simulate import MAX_ABS
 from . import status as st
 from .driver import fit
-from .estimator import AbstractEstimator, Problem, Solved
+from .estimator import OnOutputError, Problem, Solved
 from .identifiability import per_scale_columns
 from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
 from .output_error import OutputErrorOptions
@@ -367,7 +367,7 @@ def pe_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, chann
 
 
 @dataclasses.dataclass(frozen=True)
-class PredictionError(AbstractEstimator):
+class PredictionError(OnOutputError):
     """The prediction-error method (module docstring): the settings of the estimator.
 
     Attributes:
@@ -383,22 +383,6 @@ class PredictionError(AbstractEstimator):
 
     oe: OutputErrorOptions = OutputErrorOptions()
     noise: PredictionErrorOptions = PredictionErrorOptions()
-
-    @property
-    def priors(self):
-        return self.oe.priors
-
-    @property
-    def reference_priors(self):
-        return self.oe.reference_priors
-
-    @property
-    def prior_rel_sd(self):
-        return self.oe.prior_rel_sd
-
-    @property
-    def choose(self):
-        return self.oe.choose
 
     def describe(self) -> str:
         return "prediction error"

@@ -67,7 +67,7 @@ from ..params import ParamSpec
 from ..simulate import initial_state, simulate
 from . import status as st
 from .driver import fit
-from .estimator import AbstractEstimator, Problem, Solved
+from .estimator import OnOutputError, Problem, Solved
 from .identifiability import per_scale_columns
 from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
 from .output_error import OutputErrorOptions
@@ -324,7 +324,7 @@ def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec,
 
 
 @dataclasses.dataclass(frozen=True)
-class MultipleShooting(AbstractEstimator):
+class MultipleShooting(OnOutputError):
     """Output error by multiple shooting (module docstring): the settings of the estimator.
 
     Attributes:
@@ -337,22 +337,6 @@ class MultipleShooting(AbstractEstimator):
 
     oe: OutputErrorOptions = OutputErrorOptions()
     shooting: ShootingOptions = ShootingOptions()
-
-    @property
-    def priors(self):
-        return self.oe.priors
-
-    @property
-    def reference_priors(self):
-        return self.oe.reference_priors
-
-    @property
-    def prior_rel_sd(self):
-        return self.oe.prior_rel_sd
-
-    @property
-    def choose(self):
-        return self.oe.choose
 
     def describe(self) -> str:
         return "multiple shooting"
