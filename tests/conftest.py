@@ -1,6 +1,19 @@
-"""Test configuration: float64 everywhere and strict dtype promotion (as equinox/diffrax do)."""
+"""Test configuration: float64 everywhere, strict dtype promotion (as equinox/diffrax do), and a
+compilation cache of the session's own."""
 
-import jax
+import atexit
+import os
+import shutil
+import tempfile
+
+# A compilation cache of this test session's own (shared with the subprocesses the CLI tests start):
+# the suite never depends on programs left in the home folder by another run, jaxlib or machine.
+# Set DIFFSHIP_CACHE_DIR to reuse a folder between sessions.
+if "DIFFSHIP_CACHE_DIR" not in os.environ:
+    os.environ["DIFFSHIP_CACHE_DIR"] = tempfile.mkdtemp(prefix="diffship-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["DIFFSHIP_CACHE_DIR"], ignore_errors=True)
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")

@@ -87,7 +87,6 @@ def _csv(tmp_path, run, name, columns):
     return str(p)
 
 
-@pytest.mark.slow  # KNOWN FAILURE at stop 31 (3.01 sigma on I, 150.95 vs 150 +- 0.315): moved out of CI until investigated
 def test_cli_decay_without_input_column_and_without_m(surge_decay, tmp_path, capsys):
     """A free-decay file with only time and velocity: no zero ``tau`` column by hand; without ``--fix m``
     the fit stops at once naming m (the rate alone is not the damping)."""

@@ -15,6 +15,8 @@ CHECK = ("import jax, jax.numpy as jnp\n"
     "import diffship.models",  # a diffship module imports JAX
     "import jax\nimport diffship",  # JAX first, diffship after
     "import diffship.particulars, diffship.fit.args\nfrom diffship.fit import FitResult",
+    "from diffship import cache",  # the module that applies the cache settings imports JAX itself
+    "import diffship.precision",
 ])
 def test_float64_and_cache_whatever_imports_jax_first(first, tmp_path):
     env = {"PATH": "/usr/bin:/bin", "DIFFSHIP_CACHE_DIR": str(tmp_path / "cache"), "HOME": str(tmp_path)}

@@ -4,8 +4,9 @@ Without it every new process (each ``python -m diffship.fit``) recompiles the sa
 and compilation dominates small fits. diffship turns JAX's persistent compilation cache on when
 it is imported:
 
-* folder: ``$DIFFSHIP_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/diffship/jax`` or
-  ``~/.cache/diffship/jax``;
+* folder: ``$DIFFSHIP_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/diffship/jax/<machine>`` or
+  ``~/.cache/diffship/jax/<machine>``, where ``<machine>`` fingerprints the processor and jaxlib
+  (machine code compiled for one CPU is never loaded on another);
 * ``DIFFSHIP_CACHE_DIR=off`` (or ``0``, ``none``, empty) disables it;
 * every program is cached, however quick to compile (``jax_persistent_cache_min_compile_time_secs
   = 0``), unless the user configured JAX's cache already (then diffship leaves it alone).
@@ -27,9 +28,35 @@ __all__ = ["cache_dir", "enable", "hits"]
 _STATE = {"dir": None, "hits": 0}
 
 
+def _machine() -> str:
+    """A short fingerprint of this processor and jaxlib: the default folder holds one sub-folder per
+    fingerprint, so a home folder shared by machines of different processors (a CI pool, a cluster)
+    never loads machine code compiled for another CPU (XLA aborts the process on such an entry)."""
+    import hashlib
+    import platform
+
+    text = [platform.machine(), platform.processor()]
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith(("model name", "flags", "Features", "CPU part")):
+                    text.append(line.strip())
+                if line.strip() == "":  # the first processor says it all
+                    break
+    except OSError:
+        pass
+    try:
+        import importlib.metadata
+
+        text.append(importlib.metadata.version("jaxlib"))
+    except Exception:  # noqa: BLE001 — a source build without metadata: the processor alone
+        pass
+    return hashlib.sha256("\n".join(text).encode()).hexdigest()[:12]
+
+
 def _default_dir() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "diffship" / "jax"
+    return Path(base) / "diffship" / "jax" / _machine()
 
 
 def enable(path: str | os.PathLike | None = None) -> Path | None:

@@ -29,10 +29,14 @@ __all__ = ["apply", "install"]
 
 def apply() -> None:
     """Apply diffship's JAX settings now (imports JAX)."""
-    # the submodules themselves, not names of the package: ``from . import cache`` would go through
-    # diffship's lazy face (``diffship.__getattr__``) and back into the package that imports this module
-    from .cache import cache_dir  # noqa: F401 — importing the modules applies the settings
-    from .precision import __all__ as _  # noqa: F401
+    # the submodules themselves, not names of the package or of the modules: ``from . import cache``
+    # would go through diffship's lazy face (``diffship.__getattr__``), and ``from .cache import
+    # cache_dir`` fails when ``diffship.cache`` is the module importing JAX (it is then in
+    # ``sys.modules`` but not yet initialised; it applies its settings itself once JAX is in)
+    import importlib
+
+    for name in ("cache", "precision"):  # importing the modules applies the settings
+        importlib.import_module(f"{__package__}.{name}")
 
 
 class _ThenApply(importlib.abc.Loader):

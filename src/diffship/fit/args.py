@@ -45,8 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "Kalman filter innovations: for data with unmeasured disturbances) or both (EE then OE); decay1/decay2 curve fits: python -m diffship.decay")
     add_data_options(p)
     add_parameter_options(p)
-    p.add_argument("--x0", default="data", choices=("estimate", "data"),
-                   help="initial states in the fit: taken from the data (default: the measured, filtered state, so the "
+    p.add_argument("--x0", default=None, choices=("estimate", "data"),
+                   help="initial states in the fit: taken from the data (default, except for a free decay (decay1, "
+                        "decay2), whose released state is estimated: the measured, filtered state, so the "
                         "fit minimises what it is judged by) or estimated per run with the parameters within each "
                         "channel's noise (for a noisy first sample: a heading offset never decays and biases the "
                         "estimates); the metrics start every run from its state estimated on its first 3 s "

@@ -26,7 +26,7 @@ def fit_both(
     methods: Sequence[str] = ("equation_error", "output_error"),
     init: Mapping[str, float] | None = None,
     flt: Filter = Filter(),
-    estimate_x0: Sequence[str] | str = (),
+    estimate_x0: Sequence[str] | str | None = None,
     channels: Sequence[str] | None = None,
     options: OutputErrorOptions = OutputErrorOptions(),
     progress: Callable[[str], None] | None = None,
@@ -41,7 +41,8 @@ def fit_both(
     many starts reached it and whether the user's own start ended higher.
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
-    ``estimate_x0=()`` (default) takes every run's initial state from the data — the measured (filtered)
+    ``estimate_x0=None`` (default) follows the model (``model.X0_DEFAULT``: the data for manoeuvring
+    models, ``"fitted"`` for a free decay); ``()`` takes every run's initial state from the data — the measured (filtered)
     state every metric starts from, so the fit minimises what it is judged by; ``"fitted"`` estimates the
     initial values of the fitted channels' states within their noise (``OutputError.x0_prior``), for data
     whose first sample is noisy (a heading offset never decays and biases the estimates); ``options`` holds the other output-error settings.
@@ -63,6 +64,8 @@ def fit_both(
             if list(methods) == ["equation_error"]:
                 raise
     if "output_error" in methods:
+        if estimate_x0 is None:
+            estimate_x0 = "fitted" if model.X0_DEFAULT == "estimate" else ()
         if estimate_x0 == "fitted":
             chans = tuple(channels) if channels else default_channels(model, runs)
             est = model.states_for_channels(chans)

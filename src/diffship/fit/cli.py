@@ -156,7 +156,7 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
     ee = results.get("equation_error")
     starts = {"the equation-error estimate": {n: ee.params[n] for n in ee.free}} if ee else {}
     chans = tuple(args.channels) if args.channels else default_channels(model, train)
-    est = model.states_for_channels(chans) if args.x0 == "estimate" else ()
+    est = model.states_for_channels(chans) if _x0(args, model) == "fitted" else ()
     opts = dataclasses.replace(options, estimate_x0=est, flt=flt, choose="first" if init else "best")
     if shooting is not None:
         out["output_error"] = fit_multiple_shooting(model, train, spec=spec, starts=starts, channels=args.channels,
@@ -166,6 +166,12 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
             model, train, spec=spec, starts=starts, channels=args.channels, options=opts,
             noise=PredictionErrorOptions(disturbance=args.disturbance), progress=say)
     return out
+
+
+def _x0(args, model) -> str | tuple:
+    """``--x0`` as ``fit_both``'s ``estimate_x0``: ``"fitted"``, ``()`` (the data) or, without the option,
+    the model's default (``X0_DEFAULT``)."""
+    return "fitted" if (args.x0 or model.X0_DEFAULT) == "estimate" else ()
 
 
 def _filters(args):
@@ -215,7 +221,7 @@ def _fit(args, say) -> int:
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
     results = fit_both(model, fit_runs, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
-                       init=init or None, flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (),
+                       init=init or None, flt=flt, estimate_x0=_x0(args, model),
                        channels=args.channels, options=options, progress=say, ee_filter=ee_filter,
                        **_starts(args)) if methods else {}
     results.update(_sea_estimators(args, model, fit_runs, spec, init, flt, options, shooting if multiple else None,
@@ -362,7 +368,7 @@ def resample_notes(args, model, spec, results, flt, options, say) -> list[str]:
                     time_unit=args.time_unit, **log_kwargs(args))
     try:
         ref = fit_both(model, raw, spec=spec.with_values(oe.params), methods=("output_error",), init=None,
-                       flt=flt, estimate_x0="fitted" if args.x0 == "estimate" else (), channels=args.channels,
+                       flt=flt, estimate_x0=_x0(args, model), channels=args.channels,
                        options=options)["output_error"]
     except DiffshipError as exc:
         return [f"note: the refit at the files' own sample rate failed ({exc}); sampling sensitivity unknown"]

@@ -158,6 +158,11 @@ class AbstractModel(eqx.Module):
     REFERENCE_VESSEL: ClassVar[str | None] = None
     #: Inputs that are a known constant when a run has no such column (e.g. zero force in a free decay).
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {}
+    #: Where a fit takes each run's initial state by default (``fit_both``, ``--x0``): ``"data"`` (the
+    #: measured, filtered state; manoeuvres driven by their inputs) or ``"estimate"`` (fitted with the
+    #: parameters; a free response such as a decay, whose every sample depends on the released state
+    #: as a curve fit's amplitude does).
+    X0_DEFAULT: ClassVar[str] = "data"
 
     @classmethod
     def _select_params(cls, declared: tuple[str, ...]) -> tuple[str, ...]:
