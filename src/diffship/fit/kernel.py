@@ -39,6 +39,8 @@ All compiled programs come from the one cache, :func:`diffship.compiled.compiled
 from __future__ import annotations
 
 import os
+import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import equinox as eqx
@@ -52,6 +54,7 @@ from ..compiled import compiled_many
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
+from ..progress import heartbeat, per_start
 from ..simulate import Solution, simulate
 from ._lm import MaterialisedLM, rms_norm
 
@@ -230,7 +233,8 @@ class Kernel(eqx.Module):
         z, result, *rest = self.solve(z0, data, **lm)
         return z, jax.tree_util.tree_leaves(result)[0], *rest
 
-    def solve_many(self, z0s: Float[Array, "B n_z"], data: KernelData, *, workers: int | None = None, **lm):
+    def solve_many(self, z0s: Float[Array, "B n_z"], data: KernelData, *, workers: int | None = None,
+                   progress: Callable[[str], None] | None = None, label: str = "solve", **lm):
         """Levenberg–Marquardt from each of ``B`` starts (multi-start, or bootstrap resamples that
         share ``data``'s shapes): ``[(z, result, steps, residuals), ...]`` in start order.
 
@@ -239,17 +243,26 @@ class Kernel(eqx.Module):
         interpreter while a program runs, so the fits run in parallel. On a CPU this beats
         ``jax.vmap`` of the solve, which runs every fit in lockstep until the slowest has
         converged and evaluates both branches of every step (``benchmarks/cold_start.py``).
+        ``progress`` (e.g. the CLI's progress line) hears of each start as it finishes (steps, cost,
+        time per step) and, every 10 s, that the solve is still running (:mod:`diffship.progress`;
+        the compiled program is the same with and without it).
         """
         fn, _ = self.compiled("solve", np.asarray(z0s)[0], data, **lm)
         starts = [jnp.asarray(z, dtype=jnp.float64) for z in np.asarray(z0s)]
         workers = min(len(starts), workers or os.cpu_count() or 1)
+        done = per_start(progress, label, len(starts))
 
-        def one(z0):
-            return jax.block_until_ready(fn(z0, data))
-        if workers <= 1:
-            return [one(z0) for z0 in starts]
-        with ThreadPoolExecutor(workers) as pool:
-            return list(pool.map(one, starts))
+        def one(i, z0):
+            t0 = time.perf_counter()
+            out = jax.block_until_ready(fn(z0, data))
+            r = np.asarray(out[3])
+            done(i, int(out[2]), 0.5 * float(r @ r), time.perf_counter() - t0)
+            return out
+        with heartbeat(progress, label):
+            if workers <= 1:
+                return [one(i, z0) for i, z0 in enumerate(starts)]
+            with ThreadPoolExecutor(workers) as pool:
+                return list(pool.map(one, range(len(starts)), starts))
 
     # -- compiled entry points (NumPy in, NumPy out) ----------------------------------------
     def compiled(self, name: str, z, data: KernelData, **static):

@@ -50,6 +50,7 @@ from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..preprocess import Filter
+from ..progress import heartbeat
 from . import status as st
 from .driver import fit, fit_priors
 from .equation_error import equation_error_start
@@ -221,7 +222,8 @@ class OutputError(AbstractEstimator):
         if n_warm:
             # Growing horizon: converge on the first part of every run, then the whole runs (a fit on
             # the first part that blows up on the whole runs is dropped: that start goes on from itself)
-            warm = kernel.solve_many(np.stack(zs), data.head(n_warm), **self.lm)
+            warm = kernel.solve_many(np.stack(zs), data.head(n_warm), progress=say,
+                                     label=f"output error, first {n_warm} samples", **self.lm)
             best_w = None
             for i, (zw, _, k, rw) in enumerate(warm):
                 steps[i] += int(k)
@@ -239,7 +241,7 @@ class OutputError(AbstractEstimator):
                 st_["data"], st_["noise_done"] = data, True
             say(f"output error: first {n_warm} samples of each run fitted ({', '.join(map(str, steps))} steps); "
                 "now the whole runs")
-        outs = kernel.solve_many(np.stack(zs), data, jacobian=True, **self.lm)
+        outs = kernel.solve_many(np.stack(zs), data, jacobian=True, progress=say, label="output error", **self.lm)
         res = []
         for i, (z, _, k, r, *_) in enumerate(outs):
             r = np.asarray(r)
@@ -265,7 +267,9 @@ class OutputError(AbstractEstimator):
         passes, steps_per_pass, last_jac = [], [steps], []
 
         def run_solve(z, d):
-            z, result, k, r, *jac = solve_fn(jnp.asarray(z), d)
+            with heartbeat(say, "output error, refining"):
+                z, result, k, r, *jac = solve_fn(jnp.asarray(z), d)
+                jax.block_until_ready(z)
             passes.append(result)
             steps_per_pass.append(int(k))
             last_jac[:] = jac

@@ -425,7 +425,8 @@ class PredictionError(OnOutputError):
             zs = zs[:1]
         st_ = problem.state
         t0 = time.perf_counter()
-        outs = st_["kernel"].solve_many(np.stack([np.asarray(z) for z in zs]), st_["data"], **st_["lm"])
+        outs = st_["kernel"].solve_many(np.stack([np.asarray(z) for z in zs]), st_["data"], progress=say,
+                                        label="prediction error", **st_["lm"])
         st_["pe_s"] = time.perf_counter() - t0
         st_["results"] = [o_[1] for o_ in outs]
         res = []
