@@ -19,3 +19,17 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
 import diffship  # noqa: E402,F401  (imported after the config so nothing runs in float32)
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Programs compiled by one test module are released after it where the process's memory maps
+    crowd the kernel's limit (:func:`diffship.compiled.release_if_crowded`): the whole suite runs
+    in one process."""
+    yield
+    from diffship.compiled import release_if_crowded
+
+    release_if_crowded()

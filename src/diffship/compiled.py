@@ -47,7 +47,11 @@ import numpy as np
 
 from . import cache
 
-__all__ = ["cache_size", "clear", "compiled", "compiled_many", "exported", "loaded"]
+__all__ = ["cache_size", "clear", "compiled", "compiled_many", "exported", "loaded", "release_if_crowded"]
+
+#: Share of the kernel's limit on a process's memory maps (``vm.max_map_count``, 65 530 by default)
+#: above which the programs held here and in JAX's caches are released before compiling more.
+MAP_SHARE = 0.4
 
 _CACHE: dict[Hashable, Callable] = {}
 _LOADED: list[int] = [0]
@@ -194,6 +198,8 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
     t0 = time.perf_counter()
     hits = cache.hits()
     keys = [_key(*r) for r in requests]
+    if any(k not in _CACHE for k in keys):
+        release_if_crowded()
     todo = {}
     for k, (owner, name, args, static) in zip(keys, requests):
         if k not in _CACHE and k not in todo:
@@ -211,6 +217,39 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
         _CACHE[k] = wrap(program)
     _LOADED[0] += min(cache.hits() - hits, len(items))  # programs that came from the persistent cache
     return [_CACHE[k] for k in keys], time.perf_counter() - t0
+
+
+def _maps() -> tuple[int, int] | None:
+    """``(memory maps of this process, the kernel's limit)``; ``None`` where /proc does not tell."""
+    try:
+        with open("/proc/sys/vm/max_map_count") as f:
+            limit = int(f.read())
+        with open("/proc/self/maps", "rb") as f:
+            return sum(1 for _ in f), limit
+    except (OSError, ValueError):
+        return None
+
+
+def release_if_crowded(share: float = MAP_SHARE) -> bool:
+    """Release every compiled program nobody holds when the process's memory maps pass ``share`` of
+    the kernel's limit; returns whether it did.
+
+    Each XLA CPU executable maps its machine code in several pieces (about 20 memory maps for a
+    small program, hundreds for a fit's solve). A long session — a notebook fitting many models, a
+    diagnosis or discovery refitting many structures, a test suite — that keeps every program it
+    ever compiled reaches Linux's ``vm.max_map_count`` and the next compile dies with a
+    segmentation fault inside LLVM. Released programs are compiled again (from the persistent
+    cache when it is on) if they are needed again.
+    """
+    m = _maps()
+    if m is None or m[0] <= share * m[1]:
+        return False
+    import gc
+
+    clear()
+    jax.clear_caches()
+    gc.collect()
+    return True
 
 
 def loaded() -> int:
