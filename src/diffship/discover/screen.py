@@ -38,10 +38,8 @@ from ..preprocess import Filter
 from ..stats import block_indices
 from ..fit.equation_error import equation_samples
 
-__all__ = ["Screen", "screen", "stlsq", "THRESHOLDS"]
+__all__ = ["Screen", "screen", "forward", "stlsq"]
 
-#: Thresholds of the selection path (relative force contribution), smallest first.
-THRESHOLDS: tuple[float, ...] = (0.003, 0.01, 0.03, 0.1)
 
 
 @dataclasses.dataclass(frozen=True)
