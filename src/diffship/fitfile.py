@@ -3,7 +3,9 @@ r"""The fit file: one fit as a versioned JSON document, and loading it back.
 A fit file (``"schema": "diffship.fit/1"``) holds everything needed to predict with a fit
 without the data or the code that made it:
 
-* ``model``: the model's name and its registry key (``--model NAME``);
+* ``model``: the model's name and its registry key (``--model NAME``); for a model with library terms
+  (:mod:`diffship.models.terms`, ``python -m diffship.discover``) the key is its base model's and
+  ``terms`` lists the term names, from which :func:`load_fit` rebuilds it;
 * ``params`` (every parameter, SI units as in ``units``), ``free`` (estimated), ``fixed``
   (held values), ``stderr`` and ``covariance`` (free parameters, ``covariance.names`` order;
   ``null`` when the method gives none; ``Infinity`` for unidentifiable directions), ``priors``
@@ -41,6 +43,7 @@ from .steering import measured_helm_rate
 from .errors import DataError
 from .integrators import RK4, AbstractIntegrator, Diffrax, Tsit5, get_integrator
 from .models import MODELS, AbstractModel
+from .models.terms import base_of, terms_of, with_terms
 
 if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
@@ -145,9 +148,10 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
     doc = {
         "schema": SCHEMA,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "model": {"name": model.name, "registry": registry or registry_key(model), "class": type(model).__name__,
-                  "states": list(model.state_names), "inputs": list(model.input_names),
-                  "outputs": list(model.output_names)},
+        "model": {"name": model.name, "registry": registry or registry_key(base_of(model)),
+                  "class": type(model).__name__, "states": list(model.state_names), "inputs": list(model.input_names),
+                  "outputs": list(model.output_names),
+                  **({"terms": list(terms_of(model))} if terms_of(model) else {})},
         "method": result.method,
         "status": result.status,
         "outcome": result.outcome,
@@ -302,6 +306,7 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
             raise DataError(f"{path}: model {doc['model'].get('name')!r} is not in the model registry; pass a "
                             "model of the same structure: load_fit(path, model=...)")
         model = MODELS[key]()
+        model = with_terms(model, doc["model"].get("terms") or ())  # a discovered structure (diffship.discover)
     inputs = doc["model"].get("inputs")
     if inputs is not None and tuple(inputs) != tuple(model.input_names):
         raise DataError(f"{path}: the fitted model has inputs {tuple(inputs)}, model {model.name} here has "

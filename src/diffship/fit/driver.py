@@ -75,6 +75,13 @@ def fit_priors(model: AbstractModel, spec: ParamSpec, estimator) -> tuple[Priors
     return priors, note
 
 
+def _reference(model: AbstractModel) -> dict[str, float]:
+    """The model's declared (reference) values: the class's, or for a model whose parameters are
+    per instance (a base model with effects or terms) its base's declared values and the null values."""
+    params = type(model).PARAMS
+    return {p.name: p.value for p in (params if isinstance(params, tuple) else model.PARAMS)}
+
+
 def _has_equation_form(model: AbstractModel) -> bool:
     return bool(getattr(model, "EQUATIONS", ()))
 
@@ -128,7 +135,7 @@ def fit(
     for k, v in problem.state.get("extra_starts", {}).items():  # the estimator's own (a linear regression,
         named.setdefault(k, v)                                    # the equation-error estimate)
     messages.extend(problem.state.get("start_notes", ()))
-    reference = {p.name: p.value for p in type(model).PARAMS}
+    reference = _reference(model)
     first = "your start (--init)" if init else "the model's values"
     cands = named_starts(spec, named, reference, first_label=first)
     n_total = max(DEFAULT_STARTS if n_starts is None else int(n_starts), 1)
@@ -250,7 +257,7 @@ def _assemble(model, spec, estimator, problem: Problem, s: Solved, priors, prior
             result = RESULTS.simulation_blew_up
             msgs.append(f"the estimate's simulation blows up on training run(s) {', '.join(bad)}")
     ident = identifiability(J[:, :n_p] / math.sqrt(s2), spec, values, cov, start=start_vals, start_label=label,
-                            priors=priors, reference={p.name: p.value for p in type(model).PARAMS})
+                            priors=priors, reference=_reference(model))
     msgs.extend(ident.warnings)
     if result != RESULTS.successful:
         msgs.append(f"status: {message(result)}")

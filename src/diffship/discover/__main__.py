@@ -1,0 +1,119 @@
+"""``python -m diffship.discover TRAIN.csv ... --validate HELD.csv ... --model fossen3`` (thin: parse, call,
+print). Errors a user can fix are one line ``error: ...`` with exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..cli_options import (add_data_options, add_numerics_options, add_output_options, add_parameter_options,
+                           add_prior_options, add_vessel_option, positive_int)
+from ..errors import DiffshipError
+
+__all__ = ["build_parser", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m diffship.discover",
+                                description="Find the terms a 3-DOF model's equations need: equation-error screen "
+                                            "of a term library, output-error refit of every candidate structure, "
+                                            "ranking on output residuals, confirmation on held-out runs.")
+    p.add_argument("runs", nargs="+", metavar="RUN.csv", help="training runs")
+    p.add_argument("--model", default="fossen3", choices=("fossen3",), help="base model (default fossen3)")
+    add_data_options(p)
+    add_parameter_options(p)
+    add_numerics_options(p)
+    add_output_options(p, out_help="write report.txt, discover.png, report.json and the fit file fit.json here",
+                       json_help="write the results as JSON")
+    p.add_argument("--save", default=None, metavar="FILE", help="write the discovered model's fit file here")
+    add_prior_options(p)
+    add_vessel_option(p)
+    p.add_argument("--library", default="symmetric", metavar="NAME|TERMS",
+                   help="term library: symmetric (default), all, or term names/expressions separated by commas "
+                        "(N_v_r, 'Y: r|r|')")
+    p.add_argument("--max-terms", type=int, default=4, metavar="N", help="most terms in a candidate (default 4)")
+    p.add_argument("--candidates", type=positive_int, default=6, metavar="N",
+                   help="most structures refitted by output error, the base included (default 6)")
+    p.add_argument("--criterion", default="bic", choices=("bic", "aic"))
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _run(args)
+    except DiffshipError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args) -> int:
+    if args.max_terms < 1:
+        raise DiffshipError(f"--max-terms {args.max_terms}: give at least 1")
+    from ..models.terms import library_terms
+
+    library_terms(args.library)  # unknown names fail here, before JAX work
+    from ..data import load_runs
+    from ..fit import OutputError
+    from ..fitfile import save_fit
+    from ..integrators import get_integrator
+    from ..models import get_model
+    from ..params import parse_assignments
+    from ..preprocess import Filter
+    from ..vessel import load_vessel, require_particulars
+    from .discovery import discover
+    from .report import discovery_json, discovery_text, plot_discovery
+
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if not args.quiet:
+            print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    model = get_model(args.model)
+    fix = parse_assignments(args.fix, "--fix")
+    init = parse_assignments(args.init, "--init")
+    vessel = load_vessel(args.vessel) if args.vessel else None
+    model, _ = require_particulars(model, vessel, fixed=fix, freed=args.free)
+    spec = model.spec()
+    for n in list(fix) + list(init) + list(args.free):
+        spec[n]
+    spec = spec.free(args.free).fix(fix).with_values(init)
+    cols = dict(c.split("=", 1) for c in args.columns) or None
+    kw = dict(columns=cols, degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit)
+    train = load_runs(args.runs, **kw)
+    val = load_runs(args.validate, **kw) if args.validate else []
+    if args.resample:
+        train, val = [r.resample(args.resample) for r in train], [r.resample(args.resample) for r in val]
+    opts = OutputError(integrator=get_integrator(args.solver), reference_priors=not args.no_prior,
+                       prior_rel_sd=args.prior_sd, **({"max_steps": args.max_steps} if args.max_steps else {}))
+    flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()
+    d = discover(model.with_params(spec.values()), train, val, spec=spec, library=args.library,
+                 max_terms=args.max_terms, max_candidates=args.candidates, criterion=args.criterion, options=opts,
+                 flt=flt, progress=say)
+    text = discovery_text(d, model.name)
+    print(text)
+    doc = discovery_json(d, model.name)
+    dump = lambda obj, path: Path(path).write_text(json.dumps(obj, indent=2, default=float))  # noqa: E731
+    extra = {"discover": {"terms": list(d.selected.terms), "confirmed": d.confirmed},
+             "metrics": {"train": doc["selected"]["train"], "validation": doc["selected"]["validation"],
+                         "validation_runs": [r.name for r in val]}}
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "report.txt").write_text(text + "\n")
+        dump(doc, out / "report.json")
+        plot_discovery(d, model.name, train, val, out / "discover.png")
+        save_fit(d.selected.result, out / "fit.json", train, registry=args.model, extra=extra)
+    if args.save:
+        save_fit(d.selected.result, args.save, train, registry=args.model, extra=extra)
+    if args.json:
+        dump(doc, args.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

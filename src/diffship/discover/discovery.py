@@ -1,0 +1,201 @@
+r"""Structure discovery: which library terms a vessel's equations need, fitted by output error.
+
+:func:`discover` runs, in order:
+
+1. the **base fit** — the base model by output error through the one driver (:func:`diffship.fit.fit`);
+2. the **screen** — equation error on smoothed derivatives, greedy forward selection over the term
+   library, block-bootstrap inclusion probabilities (:mod:`.screen`); it proposes candidate
+   structures: none, the forward path's prefixes, the terms nested by inclusion probability;
+3. the **refit** of every candidate by output error through the driver, started from the base fit
+   with the terms at their screen values (and at zero), each term's scale its equation's force level
+   over the RMS of its regressor on the training data;
+4. the **ranking** by BIC (or AIC) on the output residuals with effective sample sizes (:mod:`.rank`);
+   the best is the selected structure, **confirmed** when it predicts the held-out runs at least as well
+   as the base model (mean over runs and channels of the RMSE relative to the base's);
+5. **warnings**: selected terms with inclusion probability below 0.5 (weakly supported), and pairs of
+   free parameters whose estimates correlate beyond 0.95 in the selected fit (terms that trade off).
+
+The discovered model is :func:`diffship.models.terms.with_terms` of the base: an ordinary model that a
+fit file saves and :func:`diffship.load_fit` rebuilds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..data import Run
+from ..errors import DiffshipError
+from ..fit import FitResult, OutputError, fit
+from ..fit.driver import fit_priors
+from ..metrics import Evaluation, evaluate
+from ..models import AbstractModel
+from ..models.terms import library_terms, term_class, with_terms
+from ..params import ParamSpec
+from ..preprocess import Filter
+from .rank import criteria, effective_samples, residuals
+from .screen import Screen, screen
+
+__all__ = ["Candidate", "Discovery", "discover", "term_spec", "TRADEOFF"]
+
+#: |correlation| between two estimates above which they are said to trade off.
+TRADEOFF = 0.95
+
+
+@dataclasses.dataclass(frozen=True)
+class Candidate:
+    """One refitted structure: its terms, output-error fit, criteria and metrics."""
+
+    terms: tuple[str, ...]
+    result: FitResult
+    train: Evaluation
+    validation: Evaluation | None
+    criteria: dict[str, float]
+    n_params: int
+    held_out: float  # mean held-out RMSE relative to the base's (nan without held-out runs)
+
+
+@dataclasses.dataclass(frozen=True)
+class Discovery:
+    """The result of :func:`discover`: candidates ranked best first, the selected one and the base."""
+
+    base: Candidate
+    candidates: tuple[Candidate, ...]
+    screen: Screen
+    criterion: str
+    n_eff: dict[str, float]
+    confirmed: bool | None
+    weak: tuple[str, ...]
+    tradeoffs: tuple[tuple[str, str, float], ...]
+    seconds: float
+
+    @property
+    def selected(self) -> Candidate:
+        return self.candidates[0]
+
+    @property
+    def model(self) -> AbstractModel:
+        return self.selected.result.model
+
+
+def term_spec(model: AbstractModel, base_spec: ParamSpec, runs: Sequence[Run], level: dict[str, float]) -> ParamSpec:
+    """The spec of ``model`` (base with terms): ``base_spec`` followed by the terms, free, each scaled by
+    its equation's force level over the RMS of its regressor on ``runs``."""
+    u = np.concatenate([np.asarray(r["u"]) for r in runs])
+    v = np.concatenate([np.asarray(r["v"]) if r.has("v") else np.zeros(r.n) for r in runs])
+    r_ = np.concatenate([np.asarray(r["r"]) for r in runs])
+    spec = model.spec(base_spec)
+    params = []
+    for p in spec.params:
+        if p.name in base_spec:
+            params.append(p)
+            continue
+        cls = term_class(p.name)
+        rms = float(np.sqrt(np.mean(np.asarray(cls.regressor(u, v, r_)) ** 2))) or 1.0
+        params.append(dataclasses.replace(p, scale=0.1 * level[cls.equation] / rms))
+    return ParamSpec(tuple(params))
+
+
+def _levels(runs: Sequence[Run], model: AbstractModel) -> dict[str, float]:
+    """Force level per equation: the RMS of the measured generalised force, at least a tenth of the largest."""
+    out = {}
+    for eq, name in zip(("X", "Y", "N"), ("tau_x", "tau_y", "tau_z")):
+        vals = [np.asarray(r[name]) for r in runs if r.has(name)]
+        out[eq] = float(np.sqrt(np.mean(np.concatenate(vals) ** 2))) if vals else 1.0
+    top = max(out.values()) or 1.0
+    return {k: max(v, 0.1 * top) for k, v in out.items()}
+
+
+def _score(ev: Evaluation | None, ref: Evaluation | None) -> float:
+    """Mean over held-out runs and channels of the RMSE relative to ``ref``'s."""
+    if ev is None or ref is None:
+        return math.nan
+    ratios = [ev.per_run[r]["rmse"][c] / max(ref.per_run[r]["rmse"][c], 1e-12)
+              for r in ev.per_run for c in ev.per_run[r]["rmse"] if c in ref.per_run.get(r, {}).get("rmse", {})]
+    return float(np.mean(ratios)) if ratios else math.nan
+
+
+def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] = (), *,
+             spec: ParamSpec | None = None, library: str | Sequence[str] = "symmetric", max_terms: int = 4,
+             max_candidates: int = 6, criterion: str = "bic", options: OutputError = OutputError(),
+             flt: Filter = Filter(), n_boot: int = 30, seed: int = 0,
+             progress: Callable[[str], None] | None = None) -> Discovery:
+    """Discover the library terms ``base`` needs on ``train`` (module docstring).
+
+    Args:
+        base: a 3-DOF model (:mod:`diffship.models.terms`) with its fixed values set.
+        train, validate: training and held-out runs.
+        spec: the base model's free/fixed parameters (default ``base.spec()``).
+        library: a library name or term names/expressions (:func:`~diffship.models.terms.library_terms`).
+        max_terms: the most terms a candidate has (≥ 1); max_candidates: the most structures refitted.
+        criterion: ``"bic"`` or ``"aic"``.
+        options: the output-error estimator (priors, integrator, ...).
+    """
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    if int(max_terms) < 1:
+        raise DiffshipError(f"--max-terms {max_terms}: give at least 1 term")
+    if criterion not in ("bic", "aic"):
+        raise DiffshipError(f"criterion {criterion!r}: use bic or aic")
+    terms = library_terms(library)
+    spec = spec or base.spec()
+    options = dataclasses.replace(options, ee_start=False)
+    # every structure under the base's priors (a model with terms has no reference set of its own)
+    priors, _ = fit_priors(base, spec, options)
+    term_options = dataclasses.replace(options, priors=priors if len(priors) else None, reference_priors=False)
+    say(f"base fit: {base.name} by output error on {len(train)} run(s)...")
+    res0 = fit(base, train, options, spec=spec, n_starts=1, progress=say)
+    say(f"screen: {len(terms)} library terms by equation error, forward selection, {n_boot} bootstrap resamples...")
+    sc = screen(base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
+    structures = [c for c in sc.candidates(max_terms) if c][: max(max_candidates - 1, 0)]
+    levels = _levels(train, base)
+    fits: list[tuple[tuple[str, ...], FitResult]] = [((), res0)]
+    fitted = res0.params
+    for cand in structures:
+        say(f"refit by output error: {' + '.join(cand)}")
+        model = with_terms(base.with_params(fitted), cand)
+        cspec = term_spec(model, spec.with_values({n: fitted[n] for n in spec.free_names}), train, levels)
+        starts = {"the base fit, terms from the screen": {**{n: fitted[n] for n in spec.free_names},
+                                                          **{t: sc.coefficients[t] for t in cand}}}
+        try:
+            res = fit(model, train, term_options, spec=cspec, starts=starts, n_starts=1, progress=say, throw=False)
+        except DiffshipError as exc:
+            say(f"  refit failed: {exc}")
+            continue
+        if math.isfinite(res.cost):
+            fits.append((cand, res))
+    say("ranking: simulating every candidate on the training and held-out runs...")
+    channels = tuple(res0.channels)
+    evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator),
+            evaluate(res.model, validate, flt=flt, integrator=res.integrator) if validate else None)
+           for cand, res in fits]
+    resid = [residuals(res.model.output_names, res.model.angle_outputs, ev, train, channels) for _, res, ev, _ in evs]
+    total = [sum(float(np.sum(np.concatenate(p) ** 2)) / max(res0.noise_std.get(c, 1.0), 1e-12) ** 2
+                 for c, p in rr.items() if p) for rr in resid]
+    n_eff = effective_samples(resid[int(np.argmin(total))])
+    val0 = evs[0][3]
+    cands = []
+    for (cand, res, ev, vev), rr in zip(evs, resid):
+        k = len(res.free)
+        crit = criteria(rr, n_eff, k)
+        crit = {**crit, **{c: v for c, v in crit.items()}} if ev.ok else {**crit, "aic": math.inf, "bic": math.inf}
+        cands.append(Candidate(cand, res, ev, vev, crit, k, _score(vev, val0)))
+    ranked = sorted(cands, key=lambda c: (c.criteria[criterion], len(c.terms)))
+    best = ranked[0]
+    confirmed = None if not validate else bool(best.held_out <= 1.0 + 1e-9)
+    weak = tuple(t for t in best.terms if sc.inclusion.get(t, 0.0) < 0.5)
+    trade = []
+    cov, free = best.result.covariance, best.result.free
+    if cov is not None and np.all(np.isfinite(cov)):
+        sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        corr = cov / np.outer(sd, sd)
+        for i in range(len(free)):
+            for j in range(i + 1, len(free)):
+                if abs(corr[i, j]) > TRADEOFF and (free[i] in best.terms or free[j] in best.terms):
+                    trade.append((free[i], free[j], float(corr[i, j])))
+    return Discovery(base=cands[0], candidates=tuple(ranked), screen=sc, criterion=criterion, n_eff=n_eff,
+                     confirmed=confirmed, weak=weak, tradeoffs=tuple(trade), seconds=time.perf_counter() - t0)

@@ -1,0 +1,95 @@
+"""Text, JSON and figure of a :class:`~.discovery.Discovery`.
+
+JSON (``"schema": "diffship.discover/1"``): ``selected`` has the layout of one method of
+``python -m diffship.fit``'s JSON — ``params``, ``stderr``, ``train`` and ``validation`` metrics
+(``validation.per_run.<run>.rmse.<channel>``, SI, rad, as ``methods.output_error.validation.per_run``) —
+plus ``terms`` (value, standard error, inclusion probability, readable form), ``confirmed``, ``weak`` and
+``tradeoffs``; ``base`` the same for the base model; ``candidates`` the ranked table; ``screen`` the
+equation-error screen.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from ..models.terms import term_label
+from ..report import plot_fit
+from .discovery import Candidate, Discovery
+
+__all__ = ["discovery_json", "discovery_text", "plot_discovery"]
+
+
+def _metrics(ev) -> dict:
+    if ev is None:
+        return {"rmse": {}, "fit_percent": {}, "per_run": {}}
+    return {"rmse": dict(ev.rmse), "fit_percent": dict(ev.fit_percent), "ok": ev.ok,
+            "per_run": {k: {"rmse": v["rmse"], "fit_percent": v["fit_percent"], "ok": v["ok"]} for k, v in ev.per_run.items()}}
+
+
+def _method(c: Candidate, d: Discovery) -> dict:
+    r = c.result
+    return {"terms": {t: {"value": r.params[t], "stderr": r.stderr.get(t, math.nan),
+                          "inclusion_probability": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
+                      for t in c.terms},
+            "params": dict(r.params), "stderr": dict(r.stderr), "free": list(r.free), "status": r.status,
+            "converged": bool(r.converged), "criteria": dict(c.criteria), "n_params": c.n_params,
+            "held_out_relative_rmse": c.held_out, "train": _metrics(c.train), "validation": _metrics(c.validation)}
+
+
+def discovery_json(d: Discovery, model_name: str) -> dict:
+    """The ``--json`` document (module docstring)."""
+    sel = {**_method(d.selected, d), "confirmed": d.confirmed, "weak": list(d.weak),
+           "tradeoffs": [{"a": a, "b": b, "correlation": c} for a, b, c in d.tradeoffs]}
+    table = [{"rank": i + 1, "terms": list(c.terms), "n_params": c.n_params, "aic": c.criteria["aic"],
+              "bic": c.criteria["bic"], "held_out_relative_rmse": c.held_out, "status": c.result.status}
+             for i, c in enumerate(d.candidates)]
+    sc = d.screen
+    return {"schema": "diffship.discover/1", "model": model_name, "criterion": d.criterion,
+            "effective_samples": d.n_eff, "seconds": d.seconds, "selected": sel, "base": _method(d.base, d),
+            "candidates": table,
+            "screen": {"library": list(sc.terms), "inclusion": sc.inclusion, "coefficients": sc.coefficients,
+                       "forward_path": [list(v) for v in sc.path.values()], "min_gain": sc.threshold,
+                       "n_boot": sc.n_boot, "block_s": sc.block_s}}
+
+
+def discovery_text(d: Discovery, model_name: str) -> str:
+    """A short text report: the selected terms, the ranked candidates, held-out errors, warnings."""
+    sel = d.selected
+    lines = [f"structure discovery on {model_name}: {len(d.screen.terms)} library terms screened, "
+             f"{len(d.candidates)} structures refitted by output error, ranked by {d.criterion.upper()} on output "
+             f"residuals ({d.seconds:.0f} s)"]
+    if sel.terms:
+        lines.append("selected terms (value ± standard error, bootstrap inclusion probability of the screen):")
+        for t in sel.terms:
+            lines.append(f"  {t:>10s}  {term_label(t):<12s} {sel.result.params[t]: .5g} ± "
+                         f"{sel.result.stderr.get(t, math.nan):.2g}   inclusion {d.screen.inclusion.get(t, math.nan):.2f}")
+    else:
+        lines.append(f"selected: no term beyond {model_name}")
+    for t in d.weak:
+        lines.append(f"note: {t} is weakly supported (inclusion probability {d.screen.inclusion[t]:.2f} < 0.5)")
+    for a, b, c in d.tradeoffs:
+        lines.append(f"warning: {a} and {b} trade off (estimates correlated {c:+.2f}); runs that separate them "
+                     "would be needed to tell them apart")
+    lines.append("")
+    lines.append(f"  rank  {d.criterion.upper():>10s}  held-out RMSE/base  terms")
+    for i, c in enumerate(d.candidates):
+        lines.append(f"  {i + 1:>4d}  {c.criteria[d.criterion]:>10.1f}  {c.held_out:>18.3f}  "
+                     + (" + ".join(c.terms) or "(base)"))
+    if sel.validation is not None:
+        lines.append("")
+        lines.append("held-out runs, RMSE base → selected:")
+        for run, pr in sel.validation.per_run.items():
+            b = d.base.validation.per_run[run]["rmse"]
+            lines.append(f"  {run}: " + ", ".join(f"{c} {b[c]:.3g} → {v:.3g}" for c, v in pr["rmse"].items()))
+        lines.append("confirmed on the held-out runs" if d.confirmed else
+                     "NOT confirmed: the selected structure predicts the held-out runs worse than the base model")
+    return "\n".join(lines)
+
+
+def plot_discovery(d: Discovery, model_name: str, train, val, path: str | Path) -> None:
+    """The fit CLI's figure, base and selected structure side by side."""
+    names = {"base": d.base, "selected": d.selected}
+    ev_t = {k: c.train for k, c in names.items()}
+    ev_v = {k: c.validation for k, c in names.items() if c.validation is not None}
+    plot_fit(model_name, train, val, ev_t, ev_v, path)

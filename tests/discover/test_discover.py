@@ -1,0 +1,88 @@
+"""Structure discovery: the screen on an independent truth, the command's one-line errors, and (slow) the
+whole command on the done-when scenario, the null check and the fit file read by predict."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from diffship.data import Run
+from diffship.discover import screen
+from diffship.discover.__main__ import main
+from diffship.models import Fossen3
+from diffship.models.terms import library_terms
+
+BENCH = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def _truth():
+    sys.path.insert(0, str(BENCH))
+    try:
+        from independent import usv_terms
+    finally:
+        sys.path.pop(0)
+    return usv_terms
+
+
+def _runs(kinds, extra=None, duration=90.0, noise=True):
+    T = _truth()
+    return [Run.from_dataframe(pd.DataFrame(T.run_table(k, duration, 0.1, i, extra=extra, noise=noise)), name=k)
+            for i, k in enumerate(kinds)]
+
+
+def test_screen_proposes_a_withheld_term():
+    runs = _runs(["steps", "sines", "chirp", "zigzag"])
+    base = Fossen3()
+    sc = screen(base, runs, base.spec(), library_terms("symmetric"), n_boot=10)
+    proposed = {t for c in sc.candidates(4) for t in c}
+    assert "N_v_ar" in proposed
+    assert set(sc.inclusion) == set(sc.terms) and all(0.0 <= p <= 1.0 for p in sc.inclusion.values())
+
+
+@pytest.mark.parametrize("argv", [["--max-terms", "0"], ["--library", "N_q_r"]])
+def test_bad_input_is_one_line(argv, capsys, tmp_path):
+    f = tmp_path / "run.csv"
+    pd.DataFrame({"time": [0.0, 0.1], "u": [1.0, 1.0]}).to_csv(f, index=False)
+    assert main([str(f), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ")
+
+
+def _csvs(tmp_path, kinds, extra=None, duration=90.0):
+    T = _truth()
+    out = []
+    for i, k in enumerate(kinds):
+        p = tmp_path / f"{k}.csv"
+        pd.DataFrame(T.run_table(k, duration, 0.1, i, extra=extra)).to_csv(p, index=False)
+        out.append(str(p))
+    return out
+
+
+@pytest.mark.slow
+def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
+    train = _csvs(tmp_path, ["steps", "sines", "chirp", "zigzag"])
+    held = _csvs(tmp_path, ["pullout", "fast_pulses"])
+    out = tmp_path / "d.json"
+    fit = tmp_path / "fit.json"
+    assert main([*train, "--validate", *held, "--no-prior", "--json", str(out), "--save", str(fit),
+                 "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["selected"]["terms"] and doc["selected"]["confirmed"]
+    assert set(doc["selected"]["validation"]["per_run"]) == {"pullout", "fast_pulses"}
+    assert "r" in doc["selected"]["validation"]["per_run"]["pullout"]["rmse"]
+    r = subprocess.run([sys.executable, "-m", "diffship.predict", str(fit), "--manoeuvre", "turning:20"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
+@pytest.mark.slow
+def test_null_check_adds_no_supported_term(tmp_path):
+    train = _csvs(tmp_path, ["steps", "sines", "chirp", "zigzag"], extra={})
+    out = tmp_path / "d.json"
+    assert main([*train, "--no-prior", "--json", str(out), "--quiet"]) == 0
+    sel = json.loads(out.read_text())["selected"]["terms"]
+    assert all(v["inclusion_probability"] < 0.5 for v in sel.values())
