@@ -31,7 +31,7 @@ def main(out: Path) -> None:
         paths[k] = out / f"{k}.csv"
         pd.DataFrame(run_table(k, 120.0, 0.1, i)).to_csv(paths[k], index=False)
     cmd = [sys.executable, "-m", "diffship.discover", *(str(paths[k]) for k in TRAIN), "--validate",
-           *(str(paths[k]) for k in HELD), "--model", "fossen3", "--no-prior", "--solver", "rk4",
+           *(str(paths[k]) for k in HELD), "--model", "fossen3", "--vessel", "usv", "--no-prior", "--solver", "rk4",
            "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet"]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)

@@ -68,8 +68,8 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     held = _csvs(tmp_path, ["pullout", "fast_pulses"])
     out = tmp_path / "d.json"
     fit = tmp_path / "fit.json"
-    assert main([*train, "--validate", *held, "--no-prior", "--json", str(out), "--save", str(fit),
-                 "--quiet"]) == 0
+    assert main([*train, "--validate", *held, "--vessel", "usv", "--no-prior", "--json", str(out), "--save",
+                 str(fit), "--quiet"]) == 0
     doc = json.loads(out.read_text())
     assert doc["selected"]["terms"] and doc["selected"]["confirmed"]
     assert set(doc["selected"]["validation"]["per_run"]) == {"pullout", "fast_pulses"}
@@ -83,6 +83,6 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
 def test_null_check_adds_no_supported_term(tmp_path):
     train = _csvs(tmp_path, ["steps", "sines", "chirp", "zigzag"], extra={})
     out = tmp_path / "d.json"
-    assert main([*train, "--no-prior", "--json", str(out), "--quiet"]) == 0
+    assert main([*train, "--vessel", "usv", "--no-prior", "--json", str(out), "--quiet"]) == 0
     sel = json.loads(out.read_text())["selected"]["terms"]
     assert all(v["inclusion_probability"] < 0.5 for v in sel.values())
