@@ -74,12 +74,26 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     assert doc["selected"]["terms"] and doc["selected"]["confirmed"]
     assert set(doc["selected"]["validation"]["per_run"]) == {"pullout", "fast_pulses"}
     assert "r" in doc["selected"]["validation"]["per_run"]["pullout"]["rmse"]
+    # the fit file rebuilds the discovered structure: the held-out runs simulated from it score as discover said
+    import diffship
+    from diffship.data import load_runs
+    from diffship.metrics import evaluate
+
+    loaded = diffship.load_fit(fit)
+    assert set(doc["selected"]["terms"]) <= set(loaded.model.param_names)
+    ev = evaluate(loaded.model, load_runs(held), integrator=loaded.integrator)
+    for c in ("psi", "r"):
+        assert ev.per_run["pullout"]["rmse"][c] == pytest.approx(
+            doc["selected"]["validation"]["per_run"]["pullout"]["rmse"][c], rel=1e-6)
+    # predict reads it (fossen3 has force inputs, no rudder: it says so in one line, no traceback)
     r = subprocess.run([sys.executable, "-m", "diffship.predict", str(fit), "--manoeuvre", "turning:20"],
                        capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "tau_x" in r.stderr, r.stderr[-2000:]
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 29 open: on plain fossen3 data the screen includes X_v_v with "
+                   "probability 1.00 and the output-error refit keeps it (25 ± 10)")
 def test_null_check_adds_no_supported_term(tmp_path):
     train = _csvs(tmp_path, ["steps", "sines", "chirp", "zigzag"], extra={})
     out = tmp_path / "d.json"
