@@ -335,6 +335,18 @@ def test_no_usable_fit_exits_1_with_the_reason_last(sspa_without_r, tmp_path, ca
     assert rep["usable"] is False and rep["fixed"]["K"]["source"] == "--fix" and rep["fixed"]["T1"]["source"] == "--fix"
 
 
+def test_run_without_r_leaves_nomoto2_undetermined_and_says_so_in_the_exit_status(sspa_without_r, capsys):
+    """Output error of the default nomoto2 on the zigzag without ``r``: heading alone leaves K and T1 free
+    along K/T1 (infinite standard errors, K ~ 1e8). However well the heading is followed (98 %), the values
+    identify nothing: FAILED, exit status 1, the reason on the last line."""
+    code = fit_main([sspa_without_r, "--method", "output-error", "--quiet"])
+    cap = capsys.readouterr()
+    assert code == 1, cap.err
+    last = cap.err.strip().splitlines()[-1]
+    assert last.startswith("error: no usable fit was found") and "infinite standard errors" in last, last
+    assert "output error: FAILED" in cap.out
+
+
 def test_counter_clockwise_yaw_and_millisecond_time_stop_with_one_line(tmp_path, capsys):
     """ROS-habit yaw (ψ, r, v, y0 negated) on a force-input model, and time stamps in ms: each stops
     before any compute with one line naming the problem and the fix."""

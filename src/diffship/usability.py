@@ -13,6 +13,9 @@ with what the whole-horizon simulations of the training and held-out runs show
   above the level the other runs reach (:func:`run_problems`); when the other training runs and
   the held-out runs are followed, the fit stays usable and says so;
 * **not converged** — the solver stopped at its step limit (usable, with a warning);
+* **FAILED** also — a free parameter with an infinite standard error (the data leave it entirely
+  free: a rank-deficient Jacobian), or every free parameter unidentified as below: the values
+  identify nothing, however well the simulation follows the runs;
 * **unidentifiable** — a free parameter with a standard error larger than
   :data:`WEAK_RATIO` × its value (or infinite): the data do not determine it; the cause is named
   where the data show it (a degree of freedom that hardly varies: "surge speed hardly varies:
@@ -210,6 +213,15 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
         label = "not converged"
         reasons.append(result.status)
     weak = unidentified(result.params, result.stderr, result.free, train)
+    lost = [n for n in result.free if math.isinf(float(result.stderr.get(n, 0.0)))]
+    if lost or (weak and len(weak) == len(result.free)):
+        # values the data leave entirely free (a rank-deficient Jacobian), or not one parameter determined:
+        # whatever the simulation shows, these values are not an identification of anything
+        why = (f"the data leave {', '.join(lost)} entirely free (infinite standard errors: the Jacobian is rank "
+               "deficient); the values are arbitrary" if lost else
+               f"not one of the {len(weak)} free parameters is determined by the data (SE > {WEAK_RATIO:g}× value)")
+        return Verdict(m, "FAILED", False, (why + "; fix some of them (--fix NAME=VALUE), give priors, or add runs "
+                                            "that excite them",), tuple(probs + vprobs), tuple(weak))
     if weak and label == "usable":
         label = "unidentifiable"
     if weak:
