@@ -19,3 +19,19 @@ jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "strict")
 
 import diffship  # noqa: E402,F401  (imported after the config so nothing runs in float32)
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop the compiled programs after each test module. Every XLA CPU executable holds memory
+    mappings; one process that keeps every program of the suite reached the kernel's limit of
+    65 530 mappings (``vm.max_map_count``: measured 64 972 just before XLA aborted in a cache read,
+    at tests/predict/test_cross.py once issue 27's tests were added). Later modules load what they
+    need from the session's persistent cache."""
+    yield
+    from diffship import compiled
+
+    compiled.clear()
+    jax.clear_caches()
