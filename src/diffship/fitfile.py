@@ -57,7 +57,7 @@ def integrator_name(integ: AbstractIntegrator) -> dict[str, Any]:
     """``{"name": ..., "options": ...}`` such that ``get_integrator(name, **options)`` rebuilds ``integ``."""
     if isinstance(integ, Diffrax):
         name = "diffrax-tsit5" if type(integ.solver).__name__ == "Tsit5" else "diffrax-rk4"
-        return {"name": name, "options": {"substeps": int(integ.substeps)}}
+        return {"name": name, "options": {"substeps": int(integ.substeps), **({} if integ.unroll else {"unroll": False})}}
     if isinstance(integ, Tsit5):
         return {"name": "tsit5", "options": {"rtol": float(integ.rtol), "atol": float(integ.atol)}}
     if isinstance(integ, RK4):

@@ -220,6 +220,9 @@ def _fit(args, say) -> int:
         say(f"--horizon {args.horizon:g}: fitting the first {args.horizon:g} s of each training run")
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
+    if args.bootstrap and ("output_error" not in methods or multiple):
+        raise DiffshipError("--bootstrap: refits single-shooting output error (use --method output-error or both, "
+                            "without --shooting multiple)")
     results = fit_both(model, fit_runs, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
                        init=init or None, flt=flt, estimate_x0=_x0(args, model),
                        channels=args.channels, options=options, progress=say, ee_filter=ee_filter,
@@ -241,6 +244,10 @@ def _fit(args, say) -> int:
         if adm is not None:
             report += "\n\n" + adm.summary()
             per_method["output_error"]["admissibility"] = adm.as_json()
+    if args.bootstrap and oe is not None:  # issue 27: percentile intervals from refits of resamples
+        text, boot = _bootstrap(args, oe, fit_runs, spec, dataclasses.replace(options, flt=flt), say)
+        report += "\n\n" + text
+        per_method["output_error"]["bootstrap"] = boot
     cross = _cross_manoeuvre(oe, train, val, say)
     if cross is not None:  # held-out runs of manoeuvre types not trained on (issue 12)
         report += "\n\n" + cross_text(cross)
@@ -277,6 +284,17 @@ def _starts(args) -> dict:
         if name in params:
             return {name: args.starts}
     raise DiffshipError("--starts: multi-start fits need the fit driver of issue 25, not in this build yet")
+
+
+def _bootstrap(args, oe, runs, spec, options, say) -> tuple[str, dict | None]:
+    """``--bootstrap N``: the text block and the JSON entry ``bootstrap`` (``None`` when skipped)."""
+    from .bootstrap import bootstrap_fit
+    if not oe.converged:
+        return "bootstrap: skipped (the output-error fit did not converge)", None
+    say(f"bootstrap: refitting {args.bootstrap} resamples ({args.bootstrap_method})...")
+    boot = bootstrap_fit(oe, runs, spec=spec, options=options, n=args.bootstrap, method=args.bootstrap_method)
+    say(f"bootstrap: {boot.n_ok} of {boot.n} refits converged in {boot.seconds:.1f} s")
+    return boot.text(), boot.as_json()
 
 
 # -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --

@@ -27,8 +27,10 @@ one row per free parameter follows the data rows,
 :math:`e^{\text{prior}}_j = w_j(\theta_j(z) - \mu_j)` with :math:`w_j = 1/\sigma_j` (0 for no prior),
 so the least-squares optimum is the MAP estimate (:meth:`Kernel.split` separates the two parts).
 
-**Solver.** Levenberg–Marquardt on optimistix with the forward-mode Jacobian materialised once
-per accepted step (:class:`~diffship.fit._lm.MaterialisedLM`). The compiled programs hold no
+**Solver.** The batched Levenberg–Marquardt of :mod:`diffship.fit.batched` (a single fit is a
+batch of one; :meth:`Kernel.solve_many` runs many starts or resamples in one program), the
+forward-mode Jacobian materialised once per accepted step, the algorithm of
+:class:`~diffship.fit._lm.MaterialisedLM`. The compiled programs hold no
 host callback (no progress print inside the solve): JAX does not keep programs with host
 callbacks in its persistent cache, and a solve loaded from the cache saves a new process more
 time than per-step progress would show. Progress is reported between passes by the caller.
@@ -50,13 +52,14 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float
 
+from ..compiled import compiled as _compiled
 from ..compiled import compiled_many
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..progress import heartbeat, per_start
 from ..simulate import Solution, simulate
-from ._lm import MaterialisedLM, rms_norm
+from .batched import lm_advance, lm_start, solve_batch
 
 __all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "wrap_angle"]
 
@@ -209,6 +212,14 @@ class Kernel(eqx.Module):
         """Forward-mode Jacobian of :meth:`residuals`."""
         return jax.jacfwd(self.residuals)(z, data)
 
+    def _lm_static(self, *, max_steps: int, rtol: float, atol: float, ftol: float = 1e-9, jacobian: bool = False,
+                   gntol: float = 0.05, variance: float | None = None, gn_params: int | None = -1) -> dict:
+        """The batched LM's static options from :meth:`solve`'s keywords."""
+        k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
+        return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol),
+                    keep_jacobian=bool(jacobian), gntol=float(gntol),
+                    variance=None if variance is None else float(variance), gn_params=k)
+
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
               ftol: float = 1e-9, jacobian: bool = False, gntol: float = 0.05, variance: float | None = None,
               gn_params: int | None = -1):
@@ -218,14 +229,31 @@ class Kernel(eqx.Module):
         stalled cost stops it only when the Gauss–Newton step is shorter than ``gntol`` standard
         errors (residual variance ``variance``, estimated when ``None``; :mod:`diffship.fit._lm`), judged
         on the first ``gn_params`` unknowns (default ``-1``: the parameters ``(z_θ, w)``, not the
-        nuisance unknowns after them; ``None``: all)."""
-        k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
-        solver = MaterialisedLM(rtol=rtol, atol=atol, norm=rms_norm, ftol=ftol, keep_jacobian=jacobian, gntol=gntol,
-                                variance=variance, gn_params=k)
-        sol = optx.least_squares(lambda z, d: self.residuals(z, d), solver, z0, args=data, max_steps=max_steps,
-                                 throw=False)
-        out = (sol.value, sol.result, sol.stats["num_steps"], self.residuals(sol.value, data))
-        return (*out, sol.state.descent_state.jac) if jacobian else out
+        nuisance unknowns after them; ``None``: all).
+
+        The solve is the batched LM (:mod:`diffship.fit.batched`) at ``B = 1``; a final point whose
+        simulation still blows up has the status ``nonlinear_divergence``."""
+        lm = self._lm_static(max_steps=max_steps, rtol=rtol, atol=atol, ftol=ftol, jacobian=jacobian, gntol=gntol,
+                             variance=variance, gn_params=gn_params)
+        z0 = jnp.asarray(z0)[None]
+        free = jnp.ones(z0.shape, bool)
+        st = self.batch_start(z0, data, free, **lm)
+        st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **lm)
+        result = jax.tree_util.tree_unflatten(_RESULT_TREE, [st["status"][0]])
+        out = (st["z"][0], result, st["steps"][0], st["r"][0])
+        return (*out, st["jac"][0]) if jacobian else out
+
+    def batch_start(self, z0s: Float[Array, "B n_z"], data: KernelData, free: Bool[Array, "B n_z"], *,
+                    per_problem: bool = False, **lm) -> dict:
+        """State of the batched LM (:func:`diffship.fit.batched.lm_start`) from ``B`` starts;
+        ``data`` shared, or with a leading batch axis on every array when ``per_problem``."""
+        return lm_start(self.residuals, z0s, data, free, data_axis=0 if per_problem else None, penalty=PENALTY, **lm)
+
+    def batch_advance(self, state: dict, data: KernelData, stop_below, *, per_problem: bool = False, **lm) -> dict:
+        """The batched LM advanced until at most ``stop_below`` problems are unfinished
+        (:func:`diffship.fit.batched.lm_advance`)."""
+        return lm_advance(self.residuals, state, data, stop_below, data_axis=0 if per_problem else None,
+                          penalty=PENALTY, **lm)
 
     def solve_coded(self, z0: Float[Array, " n_z"], data: KernelData, **lm):
         """:meth:`solve` with the optimistix result as its integer code (plain arrays out: the
@@ -234,35 +262,88 @@ class Kernel(eqx.Module):
         return z, jax.tree_util.tree_leaves(result)[0], *rest
 
     def solve_many(self, z0s: Float[Array, "B n_z"], data: KernelData, *, workers: int | None = None,
+                   method: str = "auto", free=None, per_problem: bool = False, repack: bool | None = None,
                    progress: Callable[[str], None] | None = None, label: str = "solve", **lm):
         """Levenberg–Marquardt from each of ``B`` starts (multi-start, or bootstrap resamples that
-        share ``data``'s shapes): ``[(z, result, steps, residuals), ...]`` in start order.
+        share ``data``'s shapes): ``[(z, result, steps, residuals[, jacobian]), ...]`` in start order.
 
-        Each start runs the one-start compiled :meth:`solve` (the program ``fit_output_error``
-        uses), spread over ``workers`` threads (default: one per core). XLA releases the
-        interpreter while a program runs, so the fits run in parallel. On a CPU this beats
-        ``jax.vmap`` of the solve, which runs every fit in lockstep until the slowest has
-        converged and evaluates both branches of every step (``benchmarks/cold_start.py``).
-        ``progress`` (e.g. the CLI's progress line) hears of each start as it finishes (steps, cost,
-        time per step) and, every 10 s, that the solve is still running (:mod:`diffship.progress`;
-        the compiled program is the same with and without it).
+        ``free`` (``(B, n_z)`` booleans) holds masked unknowns of padded problems where they start;
+        with ``per_problem`` every array of ``data`` has a leading axis ``B`` (bootstrap resamples).
+        Every start runs the batched LM of :mod:`diffship.fit.batched` (same steps, same optimum);
+        ``method`` chooses how the batch is laid out:
+
+        * ``"batched"``: all starts in one compiled program (per-problem damping, acceptance and
+          status; on a CPU in rounds that repack unfinished problems, ``repack``);
+        * ``"threads"``: one problem per program call (the ``B = 1`` program :meth:`solve`, the one
+          ``fit_output_error`` compiles), spread over ``workers`` threads (default one per core;
+          XLA releases the interpreter while a program runs);
+        * ``"auto"`` (default): ``"threads"`` on a CPU, ``"batched"`` on a GPU/TPU. On a CPU the
+          forward-mode Jacobian, most of a step, costs the same per problem in a batch as alone
+          (measured in ``benchmarks/results/batched.md``), so a batch gains nothing there, and
+          threads use every core without compiling further programs; on a GPU the time-step loop
+          is latency-bound and a batch costs about what one problem costs.
+
+        ``progress`` (e.g. the CLI's progress line) hears, every 10 s, that the solve is still
+        running, and with ``"threads"`` of each start as it finishes (steps, cost, time per step;
+        :mod:`diffship.progress`: the compiled programs are the same with and without it).
         """
-        fn, _ = self.compiled("solve", np.asarray(z0s)[0], data, **lm)
-        starts = [jnp.asarray(z, dtype=jnp.float64) for z in np.asarray(z0s)]
-        workers = min(len(starts), workers or os.cpu_count() or 1)
-        done = per_start(progress, label, len(starts))
-
-        def one(i, z0):
-            t0 = time.perf_counter()
-            out = jax.block_until_ready(fn(z0, data))
-            r = np.asarray(out[3])
-            done(i, int(out[2]), 0.5 * float(r @ r), time.perf_counter() - t0)
-            return out
         with heartbeat(progress, label):
-            if workers <= 1:
-                return [one(i, z0) for i, z0 in enumerate(starts)]
-            with ThreadPoolExecutor(workers) as pool:
-                return list(pool.map(one, range(len(starts)), starts))
+            return self._solve_many(z0s, data, workers=workers, method=method, free=free, per_problem=per_problem,
+                                    repack=repack, done=per_start(progress, label, len(z0s)), **lm)
+
+    def _solve_many(self, z0s, data, *, workers, method, free, per_problem, repack, done, **lm):
+        z0s = np.asarray(z0s, dtype=np.float64)
+        if z0s.ndim != 2:
+            raise ValueError(f"solve_many: starts must have shape (B, n_z), got {z0s.shape}")
+        if method == "auto":
+            method = "threads" if jax.default_backend() == "cpu" else "batched"
+        if method not in ("batched", "threads"):
+            raise ValueError(f"solve_many: method must be 'auto', 'batched' or 'threads', got {method!r}")
+        free = None if free is None else np.asarray(free, bool)
+        if free is not None and free.shape != z0s.shape:
+            raise ValueError(f"solve_many: free mask shape {free.shape} differs from the starts' {z0s.shape}")
+        if method == "threads" and free is None:
+            return self._solve_threads(z0s, data, workers, per_problem, done, **lm)
+        static = dict(self._lm_static(**lm), per_problem=bool(per_problem))
+        free = np.ones(z0s.shape, bool) if free is None else free
+
+        def start(z, d, f):
+            args = (jnp.asarray(z), d, jnp.asarray(f))
+            fn, _ = _compiled(self, "batch_start", args, **static)
+            return fn(*args)
+
+        def advance(st, d, stop):
+            args = (st, d, jnp.asarray(stop))
+            fn, _ = _compiled(self, "batch_advance", args, **static)
+            return fn(*args)
+        if method == "threads":  # free masks: the B = 1 batched programs, one problem per call
+            def one(b):
+                d = jax.tree_util.tree_map(lambda a: a[b:b + 1], data) if per_problem else data
+                return solve_batch(start, advance, z0s[b:b + 1], d, free[b:b + 1], per_problem_data=per_problem,
+                                   repack=False)
+            parts = _pool(one, range(z0s.shape[0]), workers)
+            st = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        else:
+            st = solve_batch(start, advance, z0s, data, free, per_problem_data=per_problem, repack=repack)
+        out = []
+        for b in range(z0s.shape[0]):
+            res = jax.tree_util.tree_unflatten(_RESULT_TREE, [jnp.asarray(st["status"][b])])
+            one = (jnp.asarray(st["z"][b]), res, jnp.asarray(st["steps"][b]), jnp.asarray(st["r"][b]))
+            out.append((*one, jnp.asarray(st["jac"][b])) if static["keep_jacobian"] else one)
+        return out
+
+    def _solve_threads(self, z0s, data, workers, per_problem, done, **lm):
+        first = jax.tree_util.tree_map(lambda a: a[0], data) if per_problem else data
+        fn, _ = self.compiled("solve", z0s[0], first, **lm)
+
+        def one(b):
+            d = jax.tree_util.tree_map(lambda a: a[b], data) if per_problem else data
+            t0 = time.perf_counter()
+            out = jax.block_until_ready(fn(jnp.asarray(z0s[b], dtype=jnp.float64), d))
+            r = np.asarray(out[3])
+            done(b, int(out[2]), 0.5 * float(r @ r), time.perf_counter() - t0)
+            return out
+        return _pool(one, range(z0s.shape[0]), workers)
 
     # -- compiled entry points (NumPy in, NumPy out) ----------------------------------------
     def compiled(self, name: str, z, data: KernelData, **static):
@@ -285,6 +366,16 @@ class Kernel(eqx.Module):
         """Run a compiled method; returns its output (JAX arrays)."""
         fn, _ = self.compiled(name, z, data, **static)
         return fn(jnp.asarray(z, dtype=jnp.float64), data)
+
+
+def _pool(fn, items, workers):
+    """``[fn(i) for i in items]`` in ``workers`` threads (default one per core), in order."""
+    items = list(items)
+    workers = min(len(items), workers or os.cpu_count() or 1)
+    if workers <= 1:
+        return [fn(i) for i in items]
+    with ThreadPoolExecutor(workers) as pool:
+        return list(pool.map(fn, items))
 
 
 def _with_result(fn):

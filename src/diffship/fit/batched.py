@@ -1,0 +1,285 @@
+r"""Batched Levenberg–Marquardt: ``B`` independent least-squares problems of one shape, one program.
+
+Every output-error fit in diffship is a batch: a single fit is ``B = 1``; multi-start, bootstrap
+resamples, candidate structures with padded parameter vectors and fleets of vessels are ``B > 1``.
+Problem ``b`` minimises :math:`\tfrac12\lVert r(z_b; D_b)\rVert^2` over its own unknowns
+:math:`z_b` (data :math:`D_b` shared by all problems or given per problem), with its own damping,
+acceptance, convergence test and status. The algorithm per problem is the one of
+:class:`diffship.fit._lm.MaterialisedLM` (optimistix's Gauss–Newton framework with the classical
+trust region and a materialised forward-mode Jacobian), re-written on arrays with a leading batch
+axis so that a batch advances in lockstep *without* evaluating both branches of a step:
+
+1. trial point :math:`z^{+}_b = z_b + \delta_b`, :math:`(J_b^\top J_b + \lambda_b I)\,\delta_b = -J_b^\top r_b`
+   (batched Cholesky; :math:`\lambda_b = 1/\Delta_b`, :math:`\Delta_b` the trust-region step size);
+2. **one** residual evaluation for the whole batch at the trial points;
+3. classical trust-region acceptance per problem: with the predicted reduction
+   :math:`p_b = \delta_b^\top J_b^\top r_b + \tfrac12\delta_b^\top J_b^\top J_b\delta_b < 0`
+   and the actual one :math:`a_b = c(z^{+}_b) - c(z_b)`, accept when :math:`a_b \le 0.01\,p_b`,
+   grow :math:`\Delta_b` by 3.5 when :math:`a_b < 0.99\,p_b`, shrink it by 0.25 when rejected
+   (Gould et al., "Sensitivity of trust-region algorithms to their parameters", 2005; optimistix's
+   defaults);
+4. the Jacobian by forward mode (``n`` batched JVPs through the simulator) **only when some problem
+   accepted**: a ``lax.cond`` on the scalar "any accepted" is a real branch in XLA (a cond on a
+   batched predicate would be a select that runs both sides);
+5. per-problem termination, exactly :class:`~diffship.fit._lm.MaterialisedLM`'s: optimistix's
+   Cauchy test (small step and small residual change) or a stalled cost, each counting only when the
+   Gauss–Newton step is shorter than ``gntol`` standard errors (or negligible in ``z``).
+
+Finished problems (converged, failed, out of steps) are frozen by masks: their trial point is
+their current point and nothing of theirs changes. On a CPU a frozen problem still costs its share
+of each batched simulation, so the host driver (:func:`solve_batch`) runs the program in *rounds*:
+it returns when the number of unfinished problems falls to a quarter of the batch, and the host drops
+the finished ones and repacks the rest into the next power-of-two bucket (a few compiled sizes, reused).
+On a GPU a batch costs about what one problem costs (the time-step loop is latency-bound), so the
+whole batch runs to the end in one call. The choice is :func:`repack_default` (by backend).
+
+**Padded parameters.** An optional boolean ``free`` mask ``(B, n)`` holds the masked coordinates
+of a problem where they are (their rows and columns of :math:`J^\top J` are replaced by the
+identity and their gradient by zero, so :math:`\delta` is exactly zero there) — candidate
+structures of different sizes in one batch.
+
+**Status** per problem, as optimistix ``RESULTS`` integer codes: ``successful`` (converged),
+``nonlinear_max_steps_reached``, ``singular`` (a non-finite damped step) and
+``nonlinear_divergence`` (the start's cost is not finite, or the final residuals still carry the
+blow-up penalty of a simulation that diverged, when ``penalty`` is given).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+from jaxtyping import Array, Bool, Float
+
+from ._lm import gauss_newton_step
+
+__all__ = ["CODES", "lm_advance", "lm_start", "repack_default", "solve_batch"]
+
+
+def _code(result) -> int:
+    return int(jax.tree_util.tree_leaves(result)[0])
+
+
+#: optimistix ``RESULTS`` integer codes used as per-problem status.
+CODES = {"successful": _code(optx.RESULTS.successful),
+         "max_steps": _code(optx.RESULTS.nonlinear_max_steps_reached),
+         "singular": _code(optx.RESULTS.singular),
+         "divergence": _code(optx.RESULTS.nonlinear_divergence)}
+
+_LOW, _HIGH, _GROW, _SHRINK = 0.01, 0.99, 3.5, 0.25  # optimistix's ClassicalTrustRegion defaults
+
+
+def _rms(x, axis=-1):
+    return jnp.sqrt(jnp.mean(jnp.square(x), axis=axis))
+
+
+def _eval(res: Callable, z, data, data_axis):
+    return jax.vmap(res, in_axes=(0, data_axis))(z, data)
+
+
+def _jacobian(res: Callable, z, data, data_axis):
+    """``(J, r)`` per problem by forward mode: ``n`` JVPs batched over the tangents."""
+    n = z.shape[-1]
+
+    def one(zb, db):
+        def jvp(t):
+            return jax.jvp(lambda x: res(x, db), (zb,), (t,))
+        r, jac = jax.vmap(jvp, out_axes=(None, 1))(jnp.eye(n, dtype=zb.dtype))
+        return jac, r
+    return jax.vmap(one, in_axes=(0, data_axis))(z, data)
+
+
+def _gn_short(z, jtj, jtr, cost, rows, n_free, *, gntol, variance, gn_params, rtol, atol):
+    """Per problem: the Gauss–Newton step is short in standard errors or negligible in ``z``."""
+    def one(zb, a, g, c, m, nf):
+        dz, chi2 = gauss_newton_step(a, g, gn_params)
+        s2 = (2.0 * c / jnp.maximum(m - nf, 1).astype(c.dtype)) if variance is None else variance
+        k = zb.size if gn_params is None else min(gn_params, zb.size)
+        tiny = jnp.all(jnp.abs(dz[:k]) < atol + rtol * jnp.abs(zb[:k]))
+        return (chi2 < gntol ** 2 * s2) | tiny
+    return jax.vmap(one)(z, jtj, jtr, cost, rows, n_free)
+
+
+def _masked(jtj, jtr, free):
+    """Normal equations with held coordinates decoupled (identity rows, zero gradient)."""
+    f = free.astype(jtj.dtype)
+    outer = f[:, :, None] * f[:, None, :]
+    eye = jnp.eye(jtj.shape[-1], dtype=jtj.dtype)
+    return jtj * outer + eye * (1.0 - f)[:, None, :], jtr * f
+
+
+def _step(jtj, jtr, step_size):
+    """Damped step per problem and whether it is finite."""
+    eps = jnp.finfo(jtr.dtype).eps
+    lam = jnp.where(step_size > eps, 1.0 / jnp.maximum(step_size, eps), 1.0 / eps)
+    a = jtj + lam[:, None, None] * jnp.eye(jtr.shape[-1], dtype=jtr.dtype)
+    chol = jnp.linalg.cholesky(a)
+    diff = -jax.vmap(lambda c, g: jax.scipy.linalg.cho_solve((c, True), g))(chol, jtr)
+    ok = jnp.all(jnp.isfinite(diff), axis=-1)
+    return jnp.where(ok[:, None], diff, 0.0), ok
+
+
+def lm_start(res: Callable, z0: Float[Array, "B n"], data, free: Bool[Array, "B n"], *, data_axis=None,
+             keep_jacobian: bool = False, penalty: float | None = None, **tol) -> dict:
+    """State of the batched LM after its first step (residuals and Jacobian at the starts)."""
+    jac, r = _jacobian(res, z0, data, data_axis)
+    return _accept_all(res, z0, r, jac, free, keep_jacobian=keep_jacobian, penalty=penalty, **tol)
+
+
+def _accept_all(res, z, r, jac, free, *, keep_jacobian, penalty, rtol, atol, ftol, gntol, variance, gn_params,
+                max_steps):
+    B, n = z.shape
+    f = free.astype(z.dtype)
+    jac = jac * f[:, None, :]
+    jtj = jnp.einsum("bmi,bmj->bij", jac, jac)
+    jtr = jnp.einsum("bmi,bm->bi", jac, r)
+    cost = 0.5 * jnp.sum(r * r, axis=-1)
+    rows = jnp.sum(r != 0, axis=-1)
+    n_free = jnp.sum(free, axis=-1)
+    # optimistix's first step: residuals compared with zeros, no step in z.
+    cauchy = _rms(jnp.abs(r) / (atol + rtol * jnp.abs(r))) < 1
+    gn = _gn_short(z, *_masked(jtj, jtr, free), cost, rows, n_free, gntol=gntol, variance=variance,
+                   gn_params=gn_params, rtol=rtol, atol=atol)
+    bad = ~jnp.isfinite(cost)
+    st = dict(z=z, r=r, cost=cost, prev_cost=jnp.full((B,), jnp.inf, z.dtype), jtj=jtj, jtr=jtr, rows=rows,
+              n_free=n_free, free=free, step_size=jnp.ones((B,), z.dtype), accepted=jnp.ones((B,), jnp.int32),
+              steps=jnp.ones((B,), jnp.int32), done=jnp.zeros((B,), bool),
+              status=jnp.full((B,), CODES["successful"], jnp.int32))
+    if keep_jacobian:
+        st["jac"] = jac
+    st = _finish_step(st, cauchy & gn, bad, penalty=penalty, max_steps=max_steps)
+    return st
+
+
+def _finish_step(st, converged, diverged, *, penalty, max_steps):
+    """Mark newly finished problems and form the next trial step of the others."""
+    active = ~st["done"]
+    a, g = _masked(st["jtj"], st["jtr"], st["free"])
+    diff, ok = _step(a, g, st["step_size"])
+    status = st["status"]
+    blown = jnp.zeros_like(converged) if penalty is None else jnp.any(st["r"] == penalty, axis=-1)
+    newly = active & converged
+    status = jnp.where(newly & blown, CODES["divergence"], status)
+    fail = active & ~converged & diverged
+    status = jnp.where(fail, CODES["divergence"], status)
+    sing = active & ~converged & ~diverged & ~ok
+    status = jnp.where(sing, CODES["singular"], status)
+    done = st["done"] | newly | fail | sing
+    out = active & ~done & (st["steps"] >= max_steps)
+    status = jnp.where(out, jnp.where(blown, CODES["divergence"], CODES["max_steps"]), status)
+    done = done | out
+    st = dict(st, done=done, status=status)
+    st["z_eval"] = jnp.where(done[:, None], st["z"], st["z"] + diff)
+    return st
+
+
+def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=None, keep_jacobian: bool = False,
+               penalty: float | None = None, rtol, atol, ftol, gntol, variance, gn_params, max_steps) -> dict:
+    """Advance every unfinished problem until all are done or no more than ``stop_below`` remain
+    unfinished (a dynamic scalar: the host repacks then; ``0`` runs to the end)."""
+    tol = dict(rtol=rtol, atol=atol, gntol=gntol, variance=variance, gn_params=gn_params)
+
+    def body(st):
+        active = ~st["done"]
+        z, z_eval = st["z"], st["z_eval"]
+        r_eval = _eval(res, z_eval, data, data_axis)
+        cost_eval = 0.5 * jnp.sum(r_eval * r_eval, axis=-1)
+        d = z_eval - z
+        pred = jnp.einsum("bi,bi->b", d, st["jtr"]) + 0.5 * jnp.einsum("bi,bij,bj->b", d, st["jtj"], d)
+        actual = cost_eval - st["cost"]
+        accept = active & (actual <= _LOW * pred)
+        good = (actual < _HIGH * pred) & (pred < 0)
+        mul = jnp.where(accept, jnp.where(good, _GROW, 1.0), _SHRINK)
+        step_size = jnp.where(active, mul * st["step_size"], st["step_size"])
+
+        n = z.shape[-1]
+        m = r_eval.shape[-1]
+        zeros_j = jnp.zeros(z.shape[:1] + (m, n), z.dtype)
+
+        def with_jac(_):
+            jac, _r = _jacobian(res, z_eval, data, data_axis)
+            return jac * st["free"].astype(z.dtype)[:, None, :]
+        jac = jax.lax.cond(jnp.any(accept), with_jac, lambda _: zeros_j, None)
+        jtj_new = jnp.einsum("bmi,bmj->bij", jac, jac)
+        jtr_new = jnp.einsum("bmi,bm->bi", jac, r_eval)
+
+        cauchy = accept & (_rms(jnp.abs(d) / (atol + rtol * jnp.abs(z_eval))) < 1) \
+            & (_rms(jnp.abs(r_eval - st["r"]) / (atol + rtol * jnp.abs(r_eval))) < 1)
+        A = accept[:, None]
+        new = dict(st,
+                   z=jnp.where(A, z_eval, z), r=jnp.where(A, r_eval, st["r"]),
+                   cost=jnp.where(accept, cost_eval, st["cost"]),
+                   prev_cost=jnp.where(accept, st["cost"], st["prev_cost"]),
+                   jtj=jnp.where(accept[:, None, None], jtj_new, st["jtj"]),
+                   jtr=jnp.where(A, jtr_new, st["jtr"]),
+                   rows=jnp.where(accept, jnp.sum(r_eval != 0, axis=-1), st["rows"]),
+                   accepted=st["accepted"] + accept.astype(jnp.int32),
+                   steps=st["steps"] + active.astype(jnp.int32), step_size=step_size)
+        if keep_jacobian:
+            new["jac"] = jnp.where(accept[:, None, None], jac, st["jac"])
+        stalled = (new["accepted"] >= 3) & ((new["prev_cost"] - new["cost"]) <= ftol * new["cost"])
+        gn = _gn_short(new["z"], *_masked(new["jtj"], new["jtr"], new["free"]), new["cost"], new["rows"],
+                       new["n_free"], **tol)
+        return _finish_step(new, (cauchy | stalled) & gn, jnp.zeros_like(accept), penalty=penalty,
+                            max_steps=max_steps)
+
+    def cond(st):
+        left = jnp.sum(~st["done"])
+        return (left > 0) & (left > jnp.asarray(stop_below).astype(left.dtype))
+
+    return jax.lax.while_loop(cond, body, st)
+
+
+def repack_default() -> bool:
+    """Whether the host repacks unfinished problems into smaller batches between rounds: on a CPU
+    (work grows with the batch, so frozen problems cost time), not on a GPU or TPU (a batch step
+    costs about one problem's step: repacking would only add compiles)."""
+    return jax.default_backend() == "cpu"
+
+
+def _bucket(k: int) -> int:
+    return 1 << max(0, int(k) - 1).bit_length()
+
+
+def solve_batch(start: Callable, advance: Callable, z0s, data, free, *, per_problem_data: bool,
+                repack: bool | None = None, min_bucket: int = 1, factor: int = 4) -> dict:
+    """Host driver of the batched LM: ``start(z0, data, free)`` and ``advance(state, data, stop)`` are
+    the compiled programs (one per bucket size, the callables compile on first use). Runs rounds,
+    repacking unfinished problems into power-of-two buckets when ``repack`` (default
+    :func:`repack_default`) once no more than ``1/factor`` of a bucket is unfinished (each new
+    bucket size is a new compiled program: seconds on a CPU). Returns the final state with NumPy arrays, rows in start order."""
+    repack = repack_default() if repack is None else repack
+    z0s = np.asarray(z0s, dtype=np.float64)
+    B = z0s.shape[0]
+    take = (lambda tree, idx: jax.tree_util.tree_map(lambda a: np.asarray(a)[idx], tree))
+    bucket = _bucket(B) if repack else B
+    idx = np.concatenate([np.arange(B), np.zeros(bucket - B, int)])
+    d = take(data, idx) if per_problem_data else data
+    st = start(z0s[idx], d, np.asarray(free)[idx])
+    if bucket > B:  # padding copies of problem 0: frozen from the start
+        st = dict(st, done=jnp.asarray(np.arange(bucket) >= B) | st["done"])
+    final = {}
+    rows = np.arange(bucket)
+    rows = np.where(rows < B, rows, -1)
+    while True:
+        stop = bucket // factor if (repack and bucket > min_bucket) else 0
+        st = advance(st, d, np.asarray(stop, dtype=np.int32))
+        host = {k: np.asarray(v) for k, v in st.items()}
+        done = host["done"]
+        for i in np.flatnonzero(done & (rows >= 0)):
+            final[int(rows[i])] = {k: v[i] for k, v in host.items()}
+            rows[i] = -1
+        left = np.flatnonzero(rows >= 0)
+        if left.size == 0:
+            break
+        bucket = max(_bucket(left.size), min_bucket)
+        pick = np.concatenate([left, np.full(bucket - left.size, left[0])])
+        rows = np.concatenate([rows[left], np.full(bucket - left.size, -1)])
+        host["done"] = np.concatenate([np.zeros(left.size, bool), np.ones(bucket - left.size, bool)])
+        host = {k: (v[pick] if k != "done" else v) for k, v in host.items()}
+        st = {k: jnp.asarray(v) for k, v in host.items()}
+        d = take(d, pick) if per_problem_data else d
+    return {k: np.stack([final[b][k] for b in range(B)]) for k in final[0]}
