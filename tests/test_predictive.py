@@ -40,6 +40,7 @@ def zigzag_run():
     return Run("zigzag 10/10", np.asarray(z.time), ch, {}, check_units=False)
 
 
+@pytest.mark.slow  # CI time budget (48 s): run with python -m pytest -m slow
 def test_priors_make_a_zigzag_fit_predict_the_turning_circle(zigzag_run):
     truth = _td(TRUTH)
     spec = REF.spec().only_free(DEFAULT_FREE)
