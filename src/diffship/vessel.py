@@ -365,6 +365,25 @@ def particulars(model: AbstractModel, vessel: Vessel | None, fixed: Iterable[str
     return Particulars(values, sources, tuple(missing))
 
 
+def model_spec(name: str, vessel_path: str | None, fix_items: Iterable[str], init_items: Iterable[str],
+               free: Iterable[str]):
+    """What every command line does first (``--model``, ``--vessel``, ``--fix``, ``--init``, ``--free``):
+    ``(model with its particulars, spec with free and fixed set, fix, init)``; an unknown parameter
+    name or a missing particular stops with one line naming it."""
+    from .models import get_model
+    from .params import parse_assignments
+
+    fix = parse_assignments(fix_items, "--fix")
+    init = parse_assignments(init_items, "--init")
+    free = list(free)
+    model, _ = require_particulars(get_model(name), load_vessel(vessel_path) if vessel_path else None,
+                                   fixed=fix, freed=free)
+    spec = model.spec()
+    for n in list(fix) + list(init) + free:
+        spec[n]  # unknown names fail early, with the list of valid ones
+    return model, spec.free(free).fix(fix), fix, init
+
+
 def require_particulars(model: AbstractModel, vessel: Vessel | None, fixed: Iterable[str] = (),
                         freed: Iterable[str] = ()) -> tuple[AbstractModel, Particulars]:
     """``model`` with its particulars from ``vessel``; a :class:`ModelError` naming every missing one."""

@@ -121,24 +121,16 @@ def _diagnose(args, say):
     from ..fitfile import fit_warnings, load_fit
     from ..integrators import get_integrator
     from ..models import get_model
-    from ..params import parse_assignments
     from ..preprocess import Filter
     from ..usability import verdict
-    from ..vessel import load_vessel, require_particulars
+    from ..vessel import model_spec
     from .diagnosis import DiagnoseOptions, diagnose
 
     effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
-    model = get_model(args.model)
     if args.free_hydrodynamic:  # every parameter that is not a vessel particular
-        args.free = list(dict.fromkeys([*args.free, *(n for n in model.param_names if n not in model.PARTICULARS)]))
-    fix = parse_assignments(args.fix, "--fix")
-    init = parse_assignments(args.init, "--init")
-    vessel = load_vessel(args.vessel) if args.vessel else None
-    model, _ = require_particulars(model, vessel, fixed=fix, freed=args.free)
-    spec = model.spec()
-    for n in list(fix) + list(init) + list(args.free):
-        spec[n]  # unknown names fail early, with the list of valid ones
-    spec = spec.free(args.free).fix(fix)
+        base = get_model(args.model)
+        args.free = list(dict.fromkeys([*args.free, *(n for n in base.param_names if n not in base.PARTICULARS)]))
+    model, spec, fix, init = model_spec(args.model, args.vessel, args.fix, args.init, args.free)
     if args.from_fit:
         loaded = load_fit(args.from_fit)
         for w in fit_warnings(loaded):

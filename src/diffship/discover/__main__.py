@@ -60,10 +60,8 @@ def _run(args) -> int:
     from ..fit import OutputError
     from ..fitfile import save_fit
     from ..integrators import get_integrator
-    from ..models import get_model
-    from ..params import parse_assignments
     from ..preprocess import Filter
-    from ..vessel import load_vessel, require_particulars
+    from ..vessel import model_spec
     from .discovery import discover
     from .report import discovery_json, discovery_text, plot_discovery
 
@@ -73,15 +71,8 @@ def _run(args) -> int:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    model = get_model(args.model)
-    fix = parse_assignments(args.fix, "--fix")
-    init = parse_assignments(args.init, "--init")
-    vessel = load_vessel(args.vessel) if args.vessel else None
-    model, _ = require_particulars(model, vessel, fixed=fix, freed=args.free)
-    spec = model.spec()
-    for n in list(fix) + list(init) + list(args.free):
-        spec[n]
-    spec = spec.free(args.free).fix(fix).with_values(init)
+    model, spec, fix, init = model_spec(args.model, args.vessel, args.fix, args.init, args.free)
+    spec = spec.with_values(init)
     cols = dict(c.split("=", 1) for c in args.columns) or None
     kw = dict(columns=cols, degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit)
     train = load_runs(args.runs, **kw)
