@@ -8,6 +8,7 @@ same names, meanings, defaults and checks in every command:
 * **parameters**: ``--channels``, ``--fix``, ``--free``, ``--init``;
 * **priors**: ``--prior``, ``--prior-file``, ``--no-prior``, ``--prior-sd``;
 * **numerics**: ``--filter``, ``--solver``, ``--starts``;
+* **bootstrap**: ``--bootstrap``, ``--bootstrap-method`` (fit, discover);
 * **output**: ``--out``, ``--json``, ``--quiet``.
 
 Rules (issue 26): a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
@@ -27,6 +28,7 @@ from .particulars import bundled_vessels
 
 __all__ = [
     "INTEGRATOR_NAMES",
+    "add_bootstrap_options",
     "add_data_options",
     "add_numerics_options",
     "add_output_options",
@@ -41,6 +43,7 @@ __all__ = [
     "parameter_name",
     "positive_float",
     "positive_int",
+    "resamples",
     "prior_item",
     "RUDDER_SIGNS",
 ]
@@ -210,6 +213,27 @@ def add_numerics_options(p: argparse.ArgumentParser, *, filter_help: str | None 
     g.add_argument("--starts", type=positive_int, default=None, metavar="N",
                    help="output error from N starts (the model's values, the equation-error estimate, spread "
                         "starts); the lowest cost is kept and the report says how many reached it")
+
+
+def resamples(text: str) -> int:
+    """``--bootstrap N``: 0 (off) or at least 2 resamples."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--bootstrap needs a whole number of resamples, got {text!r}") from None
+    if n != 0 and n < 2:
+        raise argparse.ArgumentTypeError(f"--bootstrap needs at least 2 resamples, got {n}")
+    return n
+
+
+def add_bootstrap_options(p: argparse.ArgumentParser, *, what: str = "the output-error fit") -> None:
+    """``--bootstrap N`` and ``--bootstrap-method`` (issue 27): percentile intervals from N refits."""
+    g = p.add_argument_group("bootstrap")
+    g.add_argument("--bootstrap", type=resamples, default=0, metavar="N",
+                   help=f"refit {what} on N resamples (in one batch) and report 95 %% percentile intervals beside "
+                        "the covariance ones (text and JSON)")
+    g.add_argument("--bootstrap-method", default="blocks", choices=("blocks", "runs"),
+                   help="resampling: moving blocks of each run's residuals (default) or whole runs (needs >= 2)")
 
 
 def add_output_options(p: argparse.ArgumentParser, *, out_help: str, json_help: str | None = None) -> None:

@@ -98,9 +98,10 @@ def test_cli_contract_and_bad_input(tmp_path, capsys):
     out = tmp_path / "json" / "d.json"
     out.parent.mkdir()
     rc = main(paths[:3] + ["--validate"] + paths[3:] + ["--model", "nomoto1", "--effects", "input_delay,actuator_lag,damping_rr",
-                                                          "--json", str(out), "--quiet"])
+                                                          "--json", str(out), "--quiet", "--starts", "3"])
     assert rc == 0
     j = json.loads(out.read_text())
+    assert j["base_starts"]["n"] == 3 and j["base_starts"]["reached_best"] >= 1  # --starts reaches the base fit
     assert j["selected"][0] == "actuator_lag"
     assert {"effect", "params", "validation_gain", "verdict"} <= set(j["ranking"][0])
     assert set(j["validation_rmse_before"]) == {"psi", "r"}

@@ -69,9 +69,14 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     out = tmp_path / "d.json"
     fit = tmp_path / "fit.json"
     assert main([*train, "--validate", *held, "--vessel", "usv", "--no-prior", "--json", str(out), "--save",
-                 str(fit), "--quiet"]) == 0
+                 str(fit), "--quiet", "--bootstrap", "8"]) == 0
     doc = json.loads(out.read_text())
     assert doc["selected"]["terms"] and doc["selected"]["confirmed"]
+    # --bootstrap (issue 27): percentile intervals of the discovered model, the selected terms among them
+    boot = doc["selected"]["bootstrap"]
+    assert boot["n_converged"] >= 6
+    for t in doc["selected"]["terms"]:
+        assert boot["params"][t]["lo"] < boot["params"][t]["hi"]
     assert set(doc["selected"]["validation"]["per_run"]) == {"pullout", "fast_pulses"}
     assert "r" in doc["selected"]["validation"]["per_run"]["pullout"]["rmse"]
     # the fit file rebuilds the discovered structure: the held-out runs simulated from it score as discover said

@@ -41,6 +41,18 @@ def test_intervals_are_near_the_truth_and_match_the_covariance(short):
     assert doc["n_converged"] == 16 and doc["params"]["K"]["lo"] < 0.2 < doc["params"]["K"]["hi"]
 
 
+def test_the_fit_records_how_it_was_made_and_the_bootstrap_reads_it(short):
+    """A FitResult carries its spec and estimator: ``bootstrap_fit(result, runs)`` needs nothing else
+    (the discover CLI's --bootstrap relies on it) and gives the same intervals as the explicit call."""
+    res, boot = short
+    assert res.spec is not None and res.spec.free_names == res.free
+    assert res.estimator is not None and res.estimator.describe() == res.info["estimator"]
+    runs = nomoto_runs(TRUTH, n_runs=2, duration=60.0, dt=0.2, noise="realistic", seed=0)
+    again = bootstrap_fit(res, runs, n=16, seed=0)
+    np.testing.assert_allclose(again.lo, boot.lo, rtol=1e-9)
+    np.testing.assert_allclose(again.hi, boot.hi, rtol=1e-9)
+
+
 @pytest.mark.slow  # CI time budget (a 240-s fit and its bootstrap): python -m pytest -m slow
 def test_intervals_shrink_with_more_data(short):
     _, a = short

@@ -141,8 +141,6 @@ def _diagnose(args, say):
     train, val = _load(args, args.runs), _load(args, args.validate)
     if args.horizon:  # the first seconds of each training run (held-out runs whole)
         train = [r.slice(None, r.time[0] + args.horizon) for r in train]
-    if args.starts is not None:
-        raise DataError("--starts: multi-start base fits need the fit driver of issue 25, not in this build yet")
     check_channels(model, train + val, args.channels)
     if not args.skip_sign_check:
         check_rudder_sign(train + val, args.rudder_sign)
@@ -160,7 +158,7 @@ def _diagnose(args, say):
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
                               prior_rel_sd=args.prior_sd)
     say(f"fitting the base model {model.name} by output error on {len(train)} runs (channels {', '.join(chans)})...")
-    fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say)
+    fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say, n_starts=args.starts)
     v = verdict(fit, None, train)
     if not v.usable:
         return None, "; ".join(v.reasons) or v.label

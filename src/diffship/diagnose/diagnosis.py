@@ -125,6 +125,7 @@ class Diagnosis:
             "shrink_definition": SHRINK_DEFINITION,
             "shrink_total_error": self.shrink_total_error,
             "base_params": self.base_fit.params,
+            "base_starts": self.base_fit.starts.as_json() if self.base_fit.starts is not None else None,
             "final_params": self.final_model.param_values(),
             "not_applicable": self.skipped,
             "reference": self.reference,

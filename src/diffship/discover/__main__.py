@@ -9,8 +9,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli_options import (add_data_options, add_numerics_options, add_output_options, add_parameter_options,
-                           add_prior_options, add_vessel_option, positive_int)
+from ..cli_options import (add_bootstrap_options, add_data_options, add_numerics_options, add_output_options,
+                           add_parameter_options, add_prior_options, add_vessel_option, positive_int)
 from ..errors import DiffshipError
 
 __all__ = ["build_parser", "main"]
@@ -38,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--candidates", type=positive_int, default=6, metavar="N",
                    help="most structures refitted by output error, the base included (default 6)")
     p.add_argument("--criterion", default="bic", choices=("bic", "aic"))
+    add_bootstrap_options(p, what="the discovered model")
     return p
 
 
@@ -84,10 +85,12 @@ def _run(args) -> int:
     flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()
     d = discover(model.with_params(spec.values()), train, val, spec=spec, library=args.library,
                  max_terms=args.max_terms, max_candidates=args.candidates, criterion=args.criterion, options=opts,
-                 flt=flt, progress=say)
+                 flt=flt, n_starts=args.starts or 1, progress=say)
     text = discovery_text(d, model.name)
-    print(text)
     doc = discovery_json(d, model.name)
+    if args.bootstrap:  # issue 27: percentile intervals of the discovered model from refits of resamples
+        text, doc["selected"]["bootstrap"] = _bootstrap(args, d.selected.result, train, say, text)
+    print(text)
     dump = lambda obj, path: Path(path).write_text(json.dumps(obj, indent=2, default=float))  # noqa: E731
     extra = {"discover": {"terms": list(d.selected.terms), "confirmed": d.confirmed},
              "metrics": {"train": doc["selected"]["train"], "validation": doc["selected"]["validation"],
@@ -104,6 +107,18 @@ def _run(args) -> int:
     if args.json:
         dump(doc, args.json)
     return 0
+
+
+def _bootstrap(args, result, train, say, text: str) -> tuple[str, dict | None]:
+    """``--bootstrap N`` on the discovered model: the report text with the intervals, and the JSON entry."""
+    if not result.converged:
+        return text + "\nbootstrap: skipped (the discovered model's fit did not converge)", None
+    from ..fit.bootstrap import bootstrap_fit
+
+    say(f"bootstrap: refitting the discovered model on {args.bootstrap} resamples ({args.bootstrap_method})...")
+    boot = bootstrap_fit(result, train, n=args.bootstrap, method=args.bootstrap_method)
+    say(f"bootstrap: {boot.n_ok} of {boot.n} refits converged in {boot.seconds:.1f} s")
+    return text + "\n" + boot.text(), boot.as_json()
 
 
 if __name__ == "__main__":

@@ -122,7 +122,7 @@ def _score(ev: Evaluation | None, ref: Evaluation | None) -> float:
 def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] = (), *,
              spec: ParamSpec | None = None, library: str | Sequence[str] = "symmetric", max_terms: int = 4,
              max_candidates: int = 6, criterion: str = "bic", options: OutputError = OutputError(),
-             flt: Filter = Filter(), n_boot: int = 30, seed: int = 0,
+             flt: Filter = Filter(), n_boot: int = 30, seed: int = 0, n_starts: int = 1,
              progress: Callable[[str], None] | None = None) -> Discovery:
     """Discover the library terms ``base`` needs on ``train`` (module docstring).
 
@@ -134,6 +134,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         max_terms: the most terms a candidate has (≥ 1); max_candidates: the most structures refitted.
         criterion: ``"bic"`` or ``"aic"``.
         options: the output-error estimator (priors, integrator, ...).
+        n_starts: starts of the base fit (the driver's multi-start; ``--starts N``); the candidate
+            structures start from the base optimum with the screen's term values.
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
@@ -148,7 +150,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     priors, _ = fit_priors(base, spec, options)
     term_options = dataclasses.replace(options, priors=priors if len(priors) else None, reference_priors=False)
     say(f"base fit: {base.name} by output error on {len(train)} run(s)...")
-    res0 = fit(base, train, options, spec=spec, n_starts=1, progress=say)
+    res0 = fit(base, train, options, spec=spec, n_starts=n_starts, progress=say)
     say(f"screen: {len(terms)} library terms by equation error, forward selection, {n_boot} bootstrap resamples...")
     sc = screen(base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
     structures = [c for c in sc.candidates(max_terms) if c][: max(max_candidates - 1, 0)]

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 from ..cli_options import (
     INTEGRATOR_NAMES,
+    add_bootstrap_options,
     add_data_options,
     add_numerics_options,
     add_output_options,
@@ -71,11 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--admissibility", default="auto", choices=("auto", "off"),
                    help="after the fit, simulate standard manoeuvres (35° turns, 10/10 and 20/20 zigzags, pull-out) "
                         "and check damping over a wide envelope (auto: for models with a rudder input)")
-    p.add_argument("--bootstrap", type=_resamples, default=0, metavar="N",
-                   help="output error: refit N resamples and report 95 %% percentile intervals beside the "
-                        "covariance ones (text and JSON)")
-    p.add_argument("--bootstrap-method", default="blocks", choices=("blocks", "runs"),
-                   help="resampling: moving blocks of each run's residuals (default) or whole runs (needs >= 2)")
+    add_bootstrap_options(p)
     _add_vessel_arguments(p)
     add_log_options(p)  # --map (logs), --html (issue 30)
     # -- estimators for sea data (issue 13) --
@@ -96,15 +93,6 @@ def _add_vessel_arguments(p: argparse.ArgumentParser) -> None:
                         "'n' [1/s] through the vessel's open-water curve (propeller), or a constant [N]")
 
 
-def _resamples(text: str) -> int:
-    """``--bootstrap N``: 0 (off) or at least 2 resamples."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--bootstrap needs a whole number of resamples, got {text!r}") from None
-    if n != 0 and n < 2:
-        raise argparse.ArgumentTypeError(f"--bootstrap needs at least 2 resamples, got {n}")
-    return n
 
 
 def _names(items: Sequence[str]) -> list[str] | None:

@@ -222,7 +222,8 @@ def bootstrap_kernel(kernel: Kernel, data: KernelData, z_hat, n: int, *, method:
                            seconds=time.perf_counter() - t0)
 
 
-def bootstrap_fit(result, runs: Sequence, *, spec: ParamSpec, options, n: int, method: str = "blocks",
+def bootstrap_fit(result, runs: Sequence, *, spec: ParamSpec | None = None, options=None, n: int,
+                  method: str = "blocks",
                   block: int | None = None, seed: int = 0, level: float = 0.95, workers: int | None = None
                   ) -> BootstrapResult:
     """Bootstrap of an output-error :class:`~diffship.fit.result.FitResult` on its training ``runs``.
@@ -231,13 +232,18 @@ def bootstrap_fit(result, runs: Sequence, *, spec: ParamSpec, options, n: int, m
     :class:`~diffship.fit.output_error.OutputError`: its ``prepare`` gives the same kernel, channel
     scales, priors and initial-state prior rows; its compiled programs are the fit's), at the fit's
     channel scales, with the fit's estimated initial states as offsets from the measured ones, so
-    that the residuals at the estimate are the fit's."""
+    that the residuals at the estimate are the fit's. ``spec`` and ``options`` default to the ones
+    the driver recorded in the result (:attr:`FitResult.spec`, :attr:`FitResult.estimator`)."""
     import dataclasses
 
     from .driver import fit_priors
 
     if result.method != "output_error":
         raise FitError(f"bootstrap: needs an output-error fit, got {result.method}")
+    spec = result.spec if spec is None else spec
+    options = result.estimator if options is None else options
+    if spec is None or options is None:
+        raise FitError("bootstrap: give spec= and options= (this result does not record how it was fitted)")
     model: AbstractModel = result.model
     spec = spec.with_values({k: result.params[k] for k in spec.free_names})
     est = tuple(result.info.get("estimate_x0", options.estimate_x0))

@@ -273,7 +273,7 @@ def _assemble(model, spec, estimator, problem: Problem, s: Solved, priors, prior
         channels=tuple(s.channel_scales), channel_scales=dict(s.channel_scales), noise_std=dict(s.noise_std),
         initial_states=tuple(s.initial_states), run_names=tuple(s.run_names), covariance=cov,
         integrator=problem.state.get("integrator", getattr(estimator, "integrator", None)) or _default_integrator(),
-        messages=tuple(msgs), info=info, result=result, starts=report)
+        messages=tuple(msgs), info=info, result=result, starts=report, spec=spec, estimator=estimator)
 
 
 def _default_integrator():
@@ -290,4 +290,4 @@ def _failed(model, spec, estimator, problem, text, messages) -> FitResult:
         free=spec.free_names, converged=False, status=text, iterations=0, cost=math.inf, fit_seconds=0.0,
         compile_seconds=problem.compile_seconds, channels=problem.channels, run_names=tuple(r.name for r in problem.runs),
         covariance=np.full((n, n), np.inf), messages=tuple(messages) + (text,), info={"estimator": estimator.describe()},
-        result=RESULTS.all_starts_blew_up)
+        result=RESULTS.all_starts_blew_up, spec=spec, estimator=estimator)

@@ -87,6 +87,9 @@ class FitResult:
             ``converged``/``status`` for results built the older way); ``converged`` and ``status``
             are made consistent with it.
         starts: what the starts did (:class:`StartsReport`), where the driver tried several.
+        spec: the parameter specification the fit solved (free names, scales, bounds), where the
+            driver made it: with ``estimator`` it rebuilds the same problem (the bootstrap's refits).
+        estimator: the estimator settings object that made the fit (``OutputError(...)``, ...).
     """
 
     method: str
@@ -111,6 +114,8 @@ class FitResult:
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     result: RESULTS | None = None
     starts: StartsReport | None = None
+    spec: Any = None
+    estimator: Any = None
 
     def __post_init__(self):
         if self.result is None:
