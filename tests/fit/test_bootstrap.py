@@ -47,6 +47,9 @@ def test_the_fit_records_how_it_was_made_and_the_bootstrap_reads_it(short):
     res, boot = short
     assert res.spec is not None and res.spec.free_names == res.free
     assert res.estimator is not None and res.estimator.describe() == res.info["estimator"]
+    # the reported solve time is every start's first solve plus the rest from the best (not the last pass alone)
+    parts = res.info["solve_seconds"]
+    assert parts["first_solves"] > 0 and res.fit_seconds == pytest.approx(parts["first_solves"] + parts["from_the_best"])
     runs = nomoto_runs(TRUTH, n_runs=2, duration=60.0, dt=0.2, noise="realistic", seed=0)
     again = bootstrap_fit(res, runs, n=16, seed=0)
     np.testing.assert_allclose(again.lo, boot.lo, rtol=1e-9)

@@ -72,7 +72,8 @@ class FitResult:
         status: readable text of ``result`` (``"converged"``, ``"not converged: ..."``).
         iterations: solver steps (1 for linear least squares).
         cost: final ``½‖r‖²`` of the normalised residuals.
-        fit_seconds: wall time of the solve, compiled function warm.
+        fit_seconds: wall time of the solves (every start's first solve, then the rest from the best),
+            compiled programs warm (``info["solve_seconds"]`` splits it).
         compile_seconds: time spent compiling (0 when a cached compiled fit was reused).
         channels: fitted measured channels.
         channel_scales: the per-channel normalisation used for the residuals.
