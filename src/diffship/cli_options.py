@@ -7,7 +7,7 @@ same names, meanings, defaults and checks in every command:
 * **vessel**: ``--vessel`` (a JSON file or a bundled vessel);
 * **parameters**: ``--channels``, ``--fix``, ``--free``, ``--init``;
 * **priors**: ``--prior``, ``--prior-file``, ``--no-prior``, ``--prior-sd``;
-* **numerics**: ``--filter``, ``--solver``, ``--starts``;
+* **numerics**: ``--filter``, ``--solver``, ``--input-hold``, ``--starts``;
 * **bootstrap**: ``--bootstrap``, ``--bootstrap-method`` (fit, discover);
 * **output**: ``--out``, ``--json``, ``--quiet``.
 
@@ -199,7 +199,7 @@ def add_prior_options(p: argparse.ArgumentParser) -> argparse._ArgumentGroup:
 
 
 def add_numerics_options(p: argparse.ArgumentParser, *, filter_help: str | None = None) -> None:
-    """``--filter``, ``--solver``, ``--starts``."""
+    """``--filter``, ``--solver``, ``--input-hold``, ``--max-steps``, ``--starts``."""
     g = p.add_argument_group("numerics")
     g.add_argument("--filter", default="butter", metavar="butter[:Hz]|savgol[:s]|none|kalman",
                    help=filter_help or "differentiation / initial-state filter: butter[:Hz] (default), savgol[:s], "
@@ -208,6 +208,9 @@ def add_numerics_options(p: argparse.ArgumentParser, *, filter_help: str | None 
                    help="integrator: diffrax-rk4 (default: diffrax's RK4 tableau, one step per sample), diffrax-tsit5 "
                         "(diffrax Tsit5, one step per sample), rk4 (hand-written RK4, faster Jacobian) or tsit5 "
                         "(diffrax Tsit5, adaptive within each sample)")
+    g.add_argument("--input-hold", default="linear", choices=("linear", "zero"),
+                   help="what the logged inputs did between samples: linear (first-order hold, default: a sampled "
+                        "continuous signal) or zero (held until the next sample: a digital command)")
     g.add_argument("--max-steps", type=positive_int, default=None, metavar="N",
                    help="Levenberg–Marquardt steps per output-error pass (default 200)")
     g.add_argument("--starts", type=positive_int, default=None, metavar="N",

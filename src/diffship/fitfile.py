@@ -55,14 +55,16 @@ SCHEMA = "diffship.fit/1"
 
 def integrator_name(integ: AbstractIntegrator) -> dict[str, Any]:
     """``{"name": ..., "options": ...}`` such that ``get_integrator(name, **options)`` rebuilds ``integ``."""
+    hold = {"hold": integ.hold} if getattr(integ, "hold", "linear") != "linear" else {}
     if isinstance(integ, Diffrax):
         name = "diffrax-tsit5" if type(integ.solver).__name__ == "Tsit5" else "diffrax-rk4"
-        return {"name": name, "options": {"substeps": int(integ.substeps), **({} if integ.unroll else {"unroll": False})}}
+        return {"name": name, "options": {"substeps": int(integ.substeps), **({} if integ.unroll else {"unroll": False}),
+                                          **hold}}
     if isinstance(integ, Tsit5):
-        return {"name": "tsit5", "options": {"rtol": float(integ.rtol), "atol": float(integ.atol)}}
+        return {"name": "tsit5", "options": {"rtol": float(integ.rtol), "atol": float(integ.atol), **hold}}
     if isinstance(integ, RK4):
-        return {"name": "rk4", "options": {}}
-    return {"name": getattr(integ, "name", "unknown"), "options": {}}
+        return {"name": "rk4", "options": {"substeps": int(integ.substeps), **hold}}
+    return {"name": getattr(integ, "name", "unknown"), "options": hold}
 
 
 def registry_key(model: AbstractModel) -> str | None:

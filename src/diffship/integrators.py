@@ -38,15 +38,42 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-__all__ = ["AbstractIntegrator", "ClassicalRK4", "Diffrax", "RK4", "Tsit5", "get_integrator", "INTEGRATORS"]
+__all__ = ["AbstractIntegrator", "ClassicalRK4", "Diffrax", "HOLDS", "RK4", "Tsit5", "get_integrator", "INTEGRATORS"]
 
 VectorField = Callable[[Float[Array, ""], Float[Array, " n_x"], Float[Array, " n_u"]], Float[Array, " n_x"]]
 
 
+HOLDS = ("linear", "zero")
+
+
 class AbstractIntegrator(eqx.Module):
-    """Advance ``ẋ = f(t, x, u(t))`` over one sample interval with first-order-hold inputs."""
+    r"""Advance ``ẋ = f(t, x, u(t))`` over one sample interval, the input held between its samples.
+
+    ``hold`` is the convention that says what a logged input did between two samples
+    :math:`u_k = u(t_k)`, :math:`u_{k+1} = u(t_{k+1})`:
+
+    * ``"linear"`` (first-order hold, the default): :math:`u(t) = u_k + (t - t_k)/(t_{k+1} - t_k)\,(u_{k+1} - u_k)`,
+      right for a sampled continuous signal (a rudder angle, a measured force);
+    * ``"zero"`` (zero-order hold): :math:`u(t) = u_k` on :math:`[t_k, t_{k+1})`, right for a digital command
+      that a controller sets at each sample and holds (a thrust set-point at 10 Hz). Read under the
+      linear convention, such a log leads the true input by half a sample (Franklin, Powell & Workman,
+      *Digital Control of Dynamic Systems*, 3rd ed., 1998, §6.2): a structural error that a fit or a
+      discovery would try to explain otherwise.
+    """
 
     name: str = eqx.field(static=True, default="abstract")
+    hold: str = eqx.field(static=True, default="linear", kw_only=True)
+
+    def __check_init__(self):
+        if self.hold not in HOLDS:
+            raise ValueError(f"input hold {self.hold!r}: use one of {', '.join(HOLDS)}")
+
+    def held(self, u0, u1):
+        """The inputs at the interval's ends as the interpolation sees them (``hold``)."""
+        return (u0, u0) if self.hold == "zero" else (u0, u1)
+
+    def _hold_text(self) -> str:
+        return "; inputs held constant over each sample (zero-order hold)" if self.hold == "zero" else ""
 
     def interval(
         self,
@@ -84,6 +111,7 @@ class RK4(AbstractIntegrator):
             raise ValueError(f"RK4: substeps must be a positive integer, got {self.substeps!r}")
 
     def interval(self, f, t0, t1, x, u0, u1):
+        u0, u1 = self.held(u0, u1)
         n = self.substeps
         h = (t1 - t0) / n
         du = (u1 - u0) / n
@@ -100,7 +128,7 @@ class RK4(AbstractIntegrator):
         return y
 
     def describe(self) -> str:
-        return f"fixed-step RK4, {self.substeps} step(s) per sample"
+        return f"fixed-step RK4, {self.substeps} step(s) per sample" + self._hold_text()
 
 
 class ClassicalRK4(diffrax.AbstractERK):
@@ -172,6 +200,7 @@ class Diffrax(AbstractIntegrator):
         return tab
 
     def interval(self, f, t0, t1, x, u0, u1):
+        u0, u1 = self.held(u0, u1)
         span = t1 - t0
 
         def rhs(t, y, args):
@@ -191,7 +220,8 @@ class Diffrax(AbstractIntegrator):
         return y
 
     def describe(self) -> str:
-        return f"diffrax {type(self.solver).__name__} stepped on the sample grid, {self.substeps} step(s) per sample"
+        return (f"diffrax {type(self.solver).__name__} stepped on the sample grid, {self.substeps} step(s) per sample"
+                + self._hold_text())
 
 
 def _needed_stages(a_lower, b_sol) -> list[bool]:
@@ -248,6 +278,7 @@ class Tsit5(AbstractIntegrator):
     name: str = eqx.field(static=True, default="tsit5")
 
     def interval(self, f, t0, t1, x, u0, u1):
+        u0, u1 = self.held(u0, u1)
         span = t1 - t0
 
         def rhs(t, y, args):
@@ -270,7 +301,8 @@ class Tsit5(AbstractIntegrator):
         return jnp.where(ok, sol.ys[-1], jnp.nan)
 
     def describe(self) -> str:
-        return f"diffrax Tsit5, adaptive (rtol {self.rtol:g}, atol {self.atol:g}) within each sample interval"
+        return (f"diffrax Tsit5, adaptive (rtol {self.rtol:g}, atol {self.atol:g}) within each sample interval"
+                + self._hold_text())
 
 
 #: Integrators selectable by name (``--solver NAME``).

@@ -25,6 +25,12 @@ def test_tables_agree_with_the_models():
         assert (needs.name, dict(needs.particulars), needs.reference_vessel) == (
             m.name, dict(m.PARTICULARS), m.REFERENCE_VESSEL), key
     assert build_parser().parse_args(["--model", "mmg"]).solver == INTEGRATOR_NAMES[0]
+    from diffship.integrators import HOLDS
+
+    assert build_parser().parse_args(["--model", "mmg"]).input_hold == HOLDS[0] == "linear"
+    assert build_parser().parse_args(["--input-hold", "zero"]).input_hold == "zero"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["--input-hold", "cubic"])
 
 
 @pytest.mark.parametrize("key", NEEDY)

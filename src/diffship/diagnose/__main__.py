@@ -154,7 +154,7 @@ def _diagnose(args, say):
         priors = load_priors(args.prior_file).merged(priors)
     options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans)
     opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
-                              integrator=get_integrator(args.solver), flt=Filter.parse(args.filter),
+                              integrator=get_integrator(args.solver, hold=args.input_hold), flt=Filter.parse(args.filter),
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
                               prior_rel_sd=args.prior_sd)
     say(f"fitting the base model {model.name} by output error on {len(train)} runs (channels {', '.join(chans)})...")

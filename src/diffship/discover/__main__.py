@@ -80,7 +80,7 @@ def _run(args) -> int:
     val = load_runs(args.validate, **kw) if args.validate else []
     if args.resample:
         train, val = [r.resample(args.resample) for r in train], [r.resample(args.resample) for r in val]
-    opts = OutputError(integrator=get_integrator(args.solver), reference_priors=not args.no_prior,
+    opts = OutputError(integrator=get_integrator(args.solver, hold=args.input_hold), reference_priors=not args.no_prior,
                        prior_rel_sd=args.prior_sd, **({"max_steps": args.max_steps} if args.max_steps else {}))
     flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()
     d = discover(model.with_params(spec.values()), train, val, spec=spec, library=args.library,

@@ -141,6 +141,10 @@ def closed_loop(model: AbstractModel, law, ts: Float[Array, " N"], x0: Float[Arr
     """
     psi_i = model.state_names.index("psi")
     ts = jnp.asarray(ts, dtype=jnp.float64)
+    if getattr(integrator, "hold", "linear") != "linear":
+        # the simulated steering gear moves the rudder continuously (rate-limited): linear between samples,
+        # whatever convention the fit read its logged inputs with
+        integrator = dataclasses.replace(integrator, hold="linear")
 
     def inp(delta):
         return u_const.at[delta_index].set(delta)
