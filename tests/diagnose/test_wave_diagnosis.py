@@ -101,3 +101,32 @@ def test_a_null_stays_null_with_the_wave_candidate():
     d = diagnose(Fossen3(), mk(g["train"]), mk(g["val"]), options=DiagnoseOptions(effects=("wave", "current")))
     assert d.selected == ()
     assert "wave" in d.skipped and "no start for its parameter T_w" in d.skipped["wave"]
+
+
+@pytest.mark.slow
+def test_the_nomoto_form_is_attributed_on_independent_zigzags():
+    """The independent first-order Nomoto ship with a yaw disturbance F = 0.03 rad/s · sin(2πt/8 s)
+    in T ṙ + r = K(δ + δ0) + F: the wave (rudder-equivalent a_s = F/K) is the first selected effect,
+    with its period and amplitude."""
+    from diffship.diagnose import DiagnoseOptions, diagnose
+    from diffship.models import Nomoto1
+
+    sys.path.insert(0, str(GEN))
+    try:
+        import independent as I
+        from independent import effects as fx
+    finally:
+        sys.path.pop(0)
+    S = sys.modules["independent.scenarios"]
+    orig = S._ship_effect
+    S._ship_effect = lambda label, k: fx.Wave(N_osc=0.03, period=8.0)
+    try:
+        g = I.generate(I.Scenario("ship", "damping_rr", "in", "strong", 1))
+    finally:
+        S._ship_effect = orig
+    mk = lambda gs: [Run(x["name"], x["time"], x["channels"], {"source": "independent"}) for x in gs]  # noqa: E731
+    d = diagnose(Nomoto1(), mk(g["train"]), mk(g["val"]), options=DiagnoseOptions(effects=("wave", "actuator_lag")))
+    assert d.selected[:1] == ("wave",)
+    row = next(r for r in d.ranking if r.effect == "wave")
+    assert abs(row.params["T_w"] - 8.0) < max(3 * row.stderr["T_w"], 0.05), (row.params, row.stderr)
+    assert row.params["a_s"] == pytest.approx(0.03 / 0.11, rel=0.1)  # F/K, the generator's K = 0.11 1/s
