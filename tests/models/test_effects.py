@@ -43,8 +43,8 @@ def _sim(model, run):
 
 def test_every_fossen3_effect_is_exact_at_null_and_acts_at_probe(usv):
     base, run = usv
-    effs, skipped = library(base, [run])
-    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured here, so all 14 apply
+    effs, skipped = library(base, [run], starts={"wave": {"T_w": 6.0}})
+    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured and the wave has a period: all apply
     ref = _sim(base, run)
     # all twelve composed in one model (one compilation): identical at null ...
     everything = Augmented(base, effs)
@@ -67,9 +67,9 @@ def test_every_fossen3_effect_is_exact_at_null_and_acts_at_probe(usv):
 def test_nomoto_effects_exact_at_null(cls):
     base = cls()
     run = nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=20.0)[0]
-    effs, skipped = library(base, [run])
+    effs, skipped = library(base, [run], starts={"wave": {"T_w": 6.0}})
     assert {e.name for e in effs} == {"input_delay", "actuator_lag", "rate_limit", "rudder_offset", "damping_rr",
-                                      "lag_trend"}
+                                      "lag_trend", "wave"}
     assert "rudder_offset" not in skipped
     ref = _sim(base, run)
     everything = Augmented(base, effs)

@@ -28,6 +28,7 @@ from .start import StartRule
 from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, rank, verdict_lines
 from .floors import physical_position_floor
+from .periodic import training_period
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
@@ -217,9 +218,18 @@ def diagnose(
         gate = GapGate(float(o.gap_gate), float("nan"), float("nan"), 0.0, "fixed (DiagnoseOptions.gap_gate)")
     scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
 
+    # the wave's period starts at the periodic residual of the base fit's training residuals (:mod:`.periodic`)
+    t0 = time.perf_counter()
+    period = training_period(base, train, fit.initial_states, chans, fit.integrator, scales) \
+        if "wave" in o.effect_names else None
+    if period is not None:
+        say(f"periodic training residual at {period['period_s']:.4g} s in {', '.join(period['channels'])}: "
+            "the wave candidate starts there")
+    timings["period"] = time.perf_counter() - t0
+
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
-    effs, skipped = library(base, train, o.effect_names)
+    effs, skipped = library(base, train, o.effect_names, starts={"wave": {"T_w": period["period_s"]}} if period else None)
     if "delta0" in fit.free and not is_ship3(base) and any(e.name == "rudder_offset" for e in effs):
         effs = [e for e in effs if e.name != "rudder_offset"]
         skipped["rudder_offset"] = (f"the given base fit estimated the model's own rudder offset delta0 = "

@@ -13,9 +13,15 @@ is the model's response to the rudder, not a disturbance). Fisher's test assumes
 residuals; structural residuals are coloured, so the p-value is a screening number, not a
 calibrated one.
 
-This is a *where* finding: the period is reported with the channels that show it, as a hint
-(the library has no wave family with a period parameter; with random wave phases per run one
-would need per-run phase states).
+This is a *where* finding: the period is reported with the channels that show it. It is also
+the start of the ``wave`` effect's period (:mod:`diffship.models.effects.wave`):
+:func:`training_period` runs the same test on the base fit's **training** residuals (before the
+screen, so the candidate exists with a start) and refines the Fourier-bin period by a least-squares
+scan (:func:`refine_period`): the period whose cosine/sine pair, fitted per run and channel,
+explains the most residual power. The Fourier bin is :math:`1/t_{run}` wide in frequency, so its
+period can be off by :math:`T^2/(2 t_{run})` — on 40-s runs at 6 s, 0.45 s, which is 40 % of a
+cycle of phase drift over the run, outside a local fit's reach; the scan's resolution is a
+twentieth of a bin.
 """
 
 from __future__ import annotations
@@ -24,7 +30,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["periodic_residual"]
+from ..metrics import evaluate
+from ..models.effects import steering_inputs
+
+__all__ = ["periodic_residual", "refine_period", "training_period"]
 
 
 def _periodogram(x: np.ndarray) -> np.ndarray:
@@ -72,3 +81,59 @@ def periodic_residual(runs: Sequence, residuals: dict, steer: dict, channels: Se
     near = [c for c, T, _ in hits if abs(T - period) <= 0.1 * period]
     best = {"period_s": period, "p_value": p, "channels": near}
     return best
+
+
+def refine_period(runs: Sequence, residuals: dict, channels: Sequence[str], period: float,
+                  scales: dict | None = None, span_bins: float = 1.5, n_grid: int = 61) -> float:
+    r"""The period near ``period`` [s] whose harmonic explains the most residual power.
+
+    For each trial frequency :math:`f` within ``span_bins`` Fourier bins (:math:`1/t_{run}`) of
+    :math:`1/T`, regress every run's (mean-removed) residual of every channel on
+    :math:`(\cos 2\pi f t, \sin 2\pi f t)` and add the explained sums of squares, channels
+    normalised by ``scales`` (per-run amplitudes: the scan does not assume one phase for all runs);
+    the best frequency of a grid of ``n_grid`` is returned as a period."""
+    if not runs:
+        return float(period)
+    t_run = min(float(np.asarray(r.time)[-1] - np.asarray(r.time)[0]) for r in runs)
+    f0 = 1.0 / period
+    df = span_bins / max(t_run, 1e-9)
+    fs = np.linspace(max(f0 - df, 0.5 * f0), f0 + df, n_grid)
+    score = np.zeros(fs.size)
+    for r in runs:
+        t = np.asarray(r.time, dtype=float) - float(np.asarray(r.time)[0])
+        for c in channels:
+            e = np.asarray(residuals[r.name][c], dtype=float)
+            e = (e - e.mean()) / ((scales or {}).get(c, 1.0) or 1.0)
+            for k, f in enumerate(fs):
+                A = np.stack([np.cos(2 * np.pi * f * t), np.sin(2 * np.pi * f * t)], axis=1)
+                coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+                score[k] += float(np.sum((A @ coef) ** 2))
+    return float(1.0 / fs[int(np.argmax(score))])
+
+
+def training_period(model, runs: Sequence, initial_states: Sequence, channels: Sequence[str],
+                    integrator=None, scales: dict | None = None, p_max: float = 1e-3) -> dict | None:
+    """The periodic residual of ``model`` (a base fit) on its training ``runs`` from the fit's
+    ``initial_states``, with its period refined (:func:`refine_period`), or None.
+
+    Returns :func:`periodic_residual`'s dict plus ``"period_bin_s"`` (the Fourier-bin period)."""
+    kw = {} if integrator is None else {"integrator": integrator}
+    x0 = list(initial_states) if len(initial_states) == len(runs) else None
+    ev = evaluate(model, runs, x0, channels=channels, **kw)
+    if not ev.ok:
+        return None
+    chans = [c for c in channels if c in ev.rmse]
+    res = {}
+    for run in runs:
+        e = {}
+        for c in chans:
+            d = ev.simulated[run.name][c] - np.asarray(run[c])
+            e[c] = np.arctan2(np.sin(d), np.cos(d)) if c in model.angle_outputs else d
+        res[run.name] = e
+    i = steering_inputs(model)[-1]  # the steering input (rudder, nozzle, or yaw moment), as :mod:`.where`
+    steer = {r.name: np.asarray(r[model.input_names[i]], dtype=float) for r in runs}
+    found = periodic_residual(runs, res, steer, chans, p_max=p_max)
+    if found is None:
+        return None
+    T = refine_period(runs, res, found["channels"], found["period_s"], scales)
+    return {**found, "period_bin_s": found["period_s"], "period_s": T}

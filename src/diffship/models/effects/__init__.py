@@ -2,7 +2,7 @@
 
 * :mod:`._base` — the :class:`Effect` base and its null-value contract;
 * :mod:`.augmented` — :class:`Augmented`, a base model with effects, itself a model;
-* :mod:`.current`, :mod:`.sensor`, :mod:`.actuator`, :mod:`.damping`, :mod:`.wind` — the
+* :mod:`.current`, :mod:`.sensor`, :mod:`.actuator`, :mod:`.damping`, :mod:`.wind`, :mod:`.wave` — the
   effects by family;
 * :mod:`.registry` — names, families, applicability and factories (the library table).
 
@@ -39,11 +39,13 @@ from .sensor import HeadingBias as HeadingBias
 from .current import CurrentTrend as CurrentTrend
 from .actuator import LagTrend as LagTrend
 from .wind import Wind as Wind
+from .wave import Wave as Wave
+from .wave import NomotoWave as NomotoWave
 
 __all__ = [
     "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "POSSIBLE_ONLY", "applicability", "make_effect",
     "library", "augment", "is_ship3", "steering_inputs",
     "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset",
     "DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR", "Wind",
-    "CurrentTrend", "LagTrend",
+    "CurrentTrend", "LagTrend", "Wave", "NomotoWave",
 ]

@@ -28,6 +28,10 @@ current_trend      Vcx_0, Vcy_0 [m/s], dVcx, dVcy   a current changing linearly 
                    [m/s²]                           (possible only: :data:`POSSIBLE_ONLY`)
 lag_trend          T_act0 [s], dT_act [s/s]         an actuator lag changing along the run
                                                     (possible only)
+wave               A_Yc, A_Ys [N], A_Nc, A_Ns       sway force and yaw moment at encounter period
+                   [N m], T_w [s] (start: given)    T_w (cos/sin amplitudes; Nomoto: a rudder-
+                   a_c, a_s [rad] (Nomoto)          equivalent δ + a_c cos + a_s sin); a candidate
+                                                    only with a start period (``starts``)
 =================  ===============================  ==============================================
 
 Each name maps to its implementations (:data:`EFFECTS`); the first whose
@@ -38,7 +42,7 @@ family's module plus one entry here.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -51,6 +55,7 @@ from .augmented import Augmented
 from .current import Current, CurrentTrend
 from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
 from .sensor import HeadingBias
+from .wave import NomotoWave, Wave
 from .wind import Wind
 
 __all__ = ["EFFECTS", "EFFECT_NAMES", "POSSIBLE_ONLY", "FAMILY", "applicability", "make_effect", "library", "augment"]
@@ -71,6 +76,7 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "wind": (Wind,),
     "current_trend": (CurrentTrend,),
     "lag_trend": (LagTrend,),
+    "wave": (Wave, NomotoWave),
 }
 
 #: Effects that are only ever *possible* (never attributed), with the constant effect they vary:
@@ -117,17 +123,27 @@ def make_effect(base: AbstractModel, name: str, runs=None, **values: float) -> E
     return eff
 
 
-def library(base: AbstractModel, runs=None, names: Sequence[str] | str = "all") -> tuple[list[Effect], dict[str, str]]:
-    """Effects applicable to ``base`` and ``runs``, and ``{name: reason}`` for those skipped."""
+def library(base: AbstractModel, runs=None, names: Sequence[str] | str = "all",
+            starts: Mapping[str, Mapping[str, float]] | None = None) -> tuple[list[Effect], dict[str, str]]:
+    """Effects applicable to ``base`` and ``runs``, and ``{name: reason}`` for those skipped.
+
+    ``starts``: ``{effect name: {parameter: value}}`` found in the data, the values the effect is
+    built with (and its null for that parameter, e.g. the wave's period ``T_w`` from a periodic
+    residual). An effect whose class declares ``needs_start`` is skipped without one."""
     if names == "all":
         names = EFFECT_NAMES
+    starts = starts or {}
     out, skipped = [], {}
     for n in names:
         why = applicability(base, n, runs)
+        need = getattr(_implementation(base, n, runs)[0], "needs_start", "") if not why else ""
+        if not why and need and need not in starts.get(n, {}):
+            why = (f"no start for its parameter {need} from the data (for the wave: no periodic residual "
+                   "that the steering does not drive in the base fit's training residuals)")
         if why:
             skipped[n] = why
         else:
-            out.append(make_effect(base, n, runs))
+            out.append(make_effect(base, n, runs, **dict(starts.get(n, {}))))
     return out, skipped
 
 
