@@ -11,9 +11,12 @@ features this does not use (actors, a shared-memory object store, GPUs).
 
 Scheduling: jobs are grouped by (model, vessel file, channel map, run length rounded up to
 :data:`PAD` samples) — the grouping the batched solver pads by — and each group is cut into
-batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes with one
-thread each (``threads_per_worker=1``; BLAS threads set to one), so a compiled
-program is compiled once per worker and reused for every later fit of the same shape. A task
+batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes that run
+one task at a time (``threads_per_worker=1``; BLAS threads set to one), so a compiled
+program is compiled once per worker and reused for every later fit of the same shape. A fit's
+starts run in threads (:meth:`diffship.fit.kernel.Kernel.solve_many`); each local worker gets its
+share of the cores for them (``cores // workers``, at least one), so that the workers together do not
+oversubscribe the machine (the answers do not depend on it). A task
 writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
 skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
 A task lost with a killed worker (``--retries 0``) records its unfinished vessel-runs as failed
