@@ -114,8 +114,8 @@ def main(argv=None) -> int:
         for w in args.workers:
             t = pd.read_parquet(tmp / f"out{w}" / "results.parquet")
             if "cpu_seconds" in t:
-                notes.append(f"fleet {w} worker(s): CPU inside the fits (rows' cpu_seconds) {t.cpu_seconds.sum():.0f} s, "
-                             f"median {t.cpu_seconds.median():.2f} s per fit; wall inside the fits median "
+                notes.append(f"fleet {w} worker(s): CPU inside the fits (rows' cpu_seconds) "
+                             f"{t.cpu_seconds.sum():.0f} s, median {t.cpu_seconds.median():.2f} s per fit; wall inside the fits median "
                              f"{t.seconds.median():.2f} s")
     loop_rows = [r for r in rows if r[0].startswith("shell loop")]
     both = sum(r[2] for r in loop_rows) / sum(r[3] for r in loop_rows)
@@ -133,8 +133,8 @@ def main(argv=None) -> int:
     lines += [f"| {n} | {w} | {k} | {s:.1f} | {f:.3f} | {f / base:.1f} |" for n, w, k, s, f in rows]
     loop_cpu = sum(c for k, (c, n) in cpu.items() if not k.startswith("fleet")) / sum(
         n for k, (c, n) in cpu.items() if not k.startswith("fleet"))
-    lines += ["", "CPU time (user + system of every process: the shell loop's processes, the fleet's driver, nannies "
-              "and workers; less sensitive to the shared machine's load than wall time):", "",
+    lines += ["", ("CPU time (user + system of every process: the shell loop's processes, the fleet's driver, nannies "
+                   "and workers; less sensitive to the shared machine's load than wall time):"), "",
               "| how | CPU per vessel-run [s] | × shell loop |", "|---|---|---|",
               f"| shell loop of python -m diffship.fit | {loop_cpu:.2f} | 1.0 |"]
     lines += [f"| python -m diffship.fleet --workers {k.split()[1]} | {c / n:.2f} | {loop_cpu / (c / n):.1f} |"

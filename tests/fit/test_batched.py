@@ -195,7 +195,7 @@ def test_default_threads_from_the_environment(monkeypatch, nomoto_kernel):
         default_threads()
     kernel, data, spec, _ = nomoto_kernel
     Z = np.stack([spec.to_z(), spec.to_z()])
-    lm = dict(max_steps=5, rtol=1e-6, atol=1e-6)
+    lm = {"max_steps": 5, "rtol": 1e-6, "atol": 1e-6}
     monkeypatch.setenv("DIFFSHIP_THREADS", "1")
     a = kernel.solve_many(Z, data, **lm)
     monkeypatch.setenv("DIFFSHIP_THREADS", "2")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -105,7 +106,7 @@ def test_killed_worker_loses_only_its_own_fits_and_the_rerun_completes(tmp_path)
 
     assert fit_main([str(tmp_path / "v1.csv"), "--model", "fossen3", "--vessel", "usv", "--method", "output-error",
                      "--save", str(tmp_path / "cli.json"), "--quiet"]) in (0, 1)
-    cli, fleet = (json.loads(open(f).read()) for f in (tmp_path / "cli.json", df.loc["boat1__d1", "fit_file"]))
+    cli, fleet = (json.loads(Path(f).read_text()) for f in (tmp_path / "cli.json", df.loc["boat1__d1", "fit_file"]))
     assert cli["free"] == fleet["free"] and cli["cost"] == pytest.approx(fleet["cost"], rel=1e-9)
     for n in cli["free"]:
         assert abs(cli["params"][n] - fleet["params"][n]) <= 1e-6 * cli["stderr"][n], n

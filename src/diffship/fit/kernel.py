@@ -275,8 +275,8 @@ class Kernel(eqx.Module):
         * ``"batched"``: all starts in one compiled program (per-problem damping, acceptance and
           status; on a CPU in rounds that repack unfinished problems, ``repack``);
         * ``"threads"``: one problem per program call (the ``B = 1`` program :meth:`solve`, the one
-          ``fit_output_error`` compiles), spread over ``workers`` threads (default one per core or ``$DIFFSHIP_THREADS``,
-          :func:`default_threads`; XLA releases the interpreter while a program runs);
+          ``fit_output_error`` compiles), spread over ``workers`` threads (default one per core or
+          ``$DIFFSHIP_THREADS``, :func:`default_threads`; XLA releases the interpreter while a program runs);
         * ``"auto"`` (default): ``"threads"`` on a CPU, ``"batched"`` on a GPU/TPU. On a CPU the
           forward-mode Jacobian, most of a step, costs the same per problem in a batch as alone
           (measured in ``benchmarks/results/batched.md``), so a batch gains nothing there, and
