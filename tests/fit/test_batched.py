@@ -190,9 +190,10 @@ def test_default_threads_from_the_environment(monkeypatch, nomoto_kernel):
     assert default_threads() == (os.cpu_count() or 1)
     monkeypatch.setenv("DIFFSHIP_THREADS", "3")
     assert default_threads() == 3
-    monkeypatch.setenv("DIFFSHIP_THREADS", "two")
-    with pytest.raises(ValueError, match="DIFFSHIP_THREADS must be a positive integer, got 'two'"):
-        default_threads()
+    for bad in ("two", "0", "-1"):
+        monkeypatch.setenv("DIFFSHIP_THREADS", bad)
+        with pytest.raises(ValueError, match=f"DIFFSHIP_THREADS must be a positive integer, got '{bad}'"):
+            default_threads()
     kernel, data, spec, _ = nomoto_kernel
     Z = np.stack([spec.to_z(), spec.to_z()])
     lm = {"max_steps": 5, "rtol": 1e-6, "atol": 1e-6}

@@ -375,10 +375,10 @@ def default_threads() -> int:
     the answers do not depend on it (every start is its own program call)."""
     env = os.environ.get("DIFFSHIP_THREADS", "").strip()
     if env:
-        try:
-            return max(1, int(env))
-        except ValueError:
-            raise ValueError(f"DIFFSHIP_THREADS must be a positive integer, got {env!r}") from None
+        n = int(env) if env.isdigit() else 0
+        if n < 1:
+            raise ValueError(f"DIFFSHIP_THREADS must be a positive integer, got {env!r}")
+        return n
     return os.cpu_count() or 1
 
 
