@@ -3,6 +3,7 @@ B independent solves, finished problems stay frozen, each problem has its own st
 (padded) unknowns stay where they start."""
 
 import math
+import os
 
 import jax
 import jax.numpy as jnp
@@ -178,3 +179,28 @@ def test_solve_many_rejects_bad_input(nomoto_kernel):
         kernel.solve_many(z, data, method="gpu", max_steps=5, rtol=1e-6, atol=1e-6)
     with pytest.raises(ValueError, match="free mask shape"):
         kernel.solve_many(z, data, free=np.ones((1, z.shape[1] + 1), bool), max_steps=5, rtol=1e-6, atol=1e-6)
+
+
+def test_default_threads_from_the_environment(monkeypatch, nomoto_kernel):
+    """``$DIFFSHIP_THREADS`` (a fleet worker's share of the cores) sets solve_many's threads; a bad value
+    is a clear error naming the variable; the starts' answers do not depend on it."""
+    from diffship.fit.kernel import default_threads
+
+    monkeypatch.delenv("DIFFSHIP_THREADS", raising=False)
+    assert default_threads() == (os.cpu_count() or 1)
+    monkeypatch.setenv("DIFFSHIP_THREADS", "3")
+    assert default_threads() == 3
+    for bad in ("two", "0", "-1"):
+        monkeypatch.setenv("DIFFSHIP_THREADS", bad)
+        with pytest.raises(ValueError, match=f"DIFFSHIP_THREADS must be a positive integer, got '{bad}'"):
+            default_threads()
+    kernel, data, spec, _ = nomoto_kernel
+    Z = np.stack([spec.to_z(), spec.to_z()])
+    lm = {"max_steps": 5, "rtol": 1e-6, "atol": 1e-6}
+    monkeypatch.setenv("DIFFSHIP_THREADS", "1")
+    a = kernel.solve_many(Z, data, **lm)
+    monkeypatch.setenv("DIFFSHIP_THREADS", "2")
+    b = kernel.solve_many(Z, data, **lm)
+    for (za, _, sa, _), (zb, _, sb, _) in zip(a, b):
+        np.testing.assert_array_equal(np.asarray(za), np.asarray(zb))
+        assert int(sa) == int(sb) > 0

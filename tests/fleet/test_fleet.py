@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -99,3 +100,13 @@ def test_killed_worker_loses_only_its_own_fits_and_the_rerun_completes(tmp_path)
     ok = df[df["status"] == "ok"]
     assert len(ok) == 7 and all(os.path.isfile(f) for f in ok["fit_file"])
     assert ((ok["p_Xu"] - (-70.0)).abs() < 5 * ok["se_Xu"] + 10).all()  # truth Xu = -70 N s/m, within error
+    assert (ok["cpu_seconds"] > 0).all()
+    # one vessel-run, one answer: the fleet's fit is the command line's fit of the same run (same starts, same optimum)
+    from diffship.fit.cli import main as fit_main
+
+    assert fit_main([str(tmp_path / "v1.csv"), "--model", "fossen3", "--vessel", "usv", "--method", "output-error",
+                     "--save", str(tmp_path / "cli.json"), "--quiet"]) in (0, 1)
+    cli, fleet = (json.loads(Path(f).read_text()) for f in (tmp_path / "cli.json", df.loc["boat1__d1", "fit_file"]))
+    assert cli["free"] == fleet["free"] and cli["cost"] == pytest.approx(fleet["cost"], rel=1e-9)
+    for n in cli["free"]:
+        assert abs(cli["params"][n] - fleet["params"][n]) <= 1e-6 * cli["stderr"][n], n

@@ -275,8 +275,8 @@ class Kernel(eqx.Module):
         * ``"batched"``: all starts in one compiled program (per-problem damping, acceptance and
           status; on a CPU in rounds that repack unfinished problems, ``repack``);
         * ``"threads"``: one problem per program call (the ``B = 1`` program :meth:`solve`, the one
-          ``fit_output_error`` compiles), spread over ``workers`` threads (default one per core;
-          XLA releases the interpreter while a program runs);
+          ``fit_output_error`` compiles), spread over ``workers`` threads (default one per core or
+          ``$DIFFSHIP_THREADS``, :func:`default_threads`; XLA releases the interpreter while a program runs);
         * ``"auto"`` (default): ``"threads"`` on a CPU, ``"batched"`` on a GPU/TPU. On a CPU the
           forward-mode Jacobian, most of a step, costs the same per problem in a batch as alone
           (measured in ``benchmarks/results/batched.md``), so a batch gains nothing there, and
@@ -368,10 +368,24 @@ class Kernel(eqx.Module):
         return fn(jnp.asarray(z, dtype=jnp.float64), data)
 
 
+def default_threads() -> int:
+    """Threads of :meth:`Kernel.solve_many` (``"threads"``) when not given: ``$DIFFSHIP_THREADS``, else one
+    per core. A process that shares the cores with others of its kind (a fleet worker,
+    :mod:`diffship.fleet`) sets it to its share, so that the processes do not oversubscribe the cores;
+    the answers do not depend on it (every start is its own program call)."""
+    env = os.environ.get("DIFFSHIP_THREADS", "").strip()
+    if env:
+        n = int(env) if env.isdigit() else 0
+        if n < 1:
+            raise ValueError(f"DIFFSHIP_THREADS must be a positive integer, got {env!r}")
+        return n
+    return os.cpu_count() or 1
+
+
 def _pool(fn, items, workers):
-    """``[fn(i) for i in items]`` in ``workers`` threads (default one per core), in order."""
+    """``[fn(i) for i in items]`` in ``workers`` threads (default :func:`default_threads`), in order."""
     items = list(items)
-    workers = min(len(items), workers or os.cpu_count() or 1)
+    workers = min(len(items), workers or default_threads())
     if workers <= 1:
         return [fn(i) for i in items]
     with ThreadPoolExecutor(workers) as pool:

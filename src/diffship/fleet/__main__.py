@@ -27,20 +27,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--retries", type=int, default=0,
                    help="times a task whose worker died is retried elsewhere (default 0: recorded as failed, "
                         "left for the rerun)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="threads per worker for a fit's starts (default: the cores shared out among the local "
+                        "workers; with --address, one per core)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.workers < 1 or args.batch < 1 or args.retries < 0:
-        print("error: --workers and --batch must be at least 1, --retries at least 0", file=sys.stderr)
+    if args.workers < 1 or args.batch < 1 or args.retries < 0 or (args.threads is not None and args.threads < 1):
+        print("error: --workers, --batch and --threads must be at least 1, --retries at least 0", file=sys.stderr)
         return 2
     try:
         from .engine import run_fleet
 
         s = run_fleet(args.manifest, args.out, workers=args.workers, address=args.address, batch=args.batch,
-                      retries=args.retries, progress=not args.quiet)
+                      retries=args.retries, progress=not args.quiet, threads=args.threads)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

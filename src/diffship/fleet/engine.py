@@ -11,9 +11,12 @@ features this does not use (actors, a shared-memory object store, GPUs).
 
 Scheduling: jobs are grouped by (model, vessel file, channel map, run length rounded up to
 :data:`PAD` samples) — the grouping the batched solver pads by — and each group is cut into
-batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes with one
-thread each (``threads_per_worker=1``; BLAS threads set to one), so a compiled
-program is compiled once per worker and reused for every later fit of the same shape. A task
+batches of at most ``batch`` vessel-runs, one task each. Workers are long-lived processes that run
+one task at a time (``threads_per_worker=1``; BLAS threads set to one), so a compiled
+program is compiled once per worker and reused for every later fit of the same shape. A fit's
+starts run in threads (:meth:`diffship.fit.kernel.Kernel.solve_many`); each local worker gets its
+share of the cores for them (``cores // workers``, at least one), so that the workers together do not
+oversubscribe the machine (the answers do not depend on it). A task
 writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
 skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
 A task lost with a killed worker (``--retries 0``) records its unfinished vessel-runs as failed
@@ -98,13 +101,16 @@ def _write_table(out: Path) -> Path:
 
 
 def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, address: str | None = None,
-              batch: int = 8, retries: int = 0, progress: bool = True,
+              batch: int = 8, retries: int = 0, progress: bool = True, threads: int | None = None,
               on_result: Callable[[Any, list[dict]], None] | None = None) -> FleetSummary:
     """Fit every vessel-run of ``manifest`` into ``out`` (see the module docstring).
 
     ``workers``: local worker processes (ignored with ``address``, a running scheduler). ``retries``:
     how many times a task whose worker died is tried again elsewhere (0: its vessel-runs are recorded
-    as failed and left for the rerun). ``on_result(client, rows)`` is called after every finished task.
+    as failed and left for the rerun). ``threads``: threads per worker for a fit's starts (default: the
+    cores shared out among the local workers, ``max(1, cores // workers)``, so that the workers do not
+    oversubscribe the cores; with ``address``, one per core of the worker's machine). ``on_result(client,
+    rows)`` is called after every finished task.
     """
     from ..logs import require_extra
 
@@ -142,7 +148,9 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
         client = Client(address or cluster)
         try:
             groups = group_jobs(todo, batch)
-            futures = {client.submit(fit_group, g, str(out), pure=False, key=f"fleet-{i}-{g[0].key}"): g
+            if threads is None and address is None:
+                threads = max(1, (os.cpu_count() or 1) // workers)
+            futures = {client.submit(fit_group, g, str(out), threads, pure=False, key=f"fleet-{i}-{g[0].key}"): g
                        for i, g in enumerate(groups)}
             if progress:
                 _bar(0, 0, len(todo), t0, stream)
@@ -156,7 +164,7 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
                     started = (out / "started" / f"{group[0].key}.group").is_file()
                     if not started and group[0].key not in resubmitted:  # assigned to the dead worker, never run:
                         resubmitted.add(group[0].key)  # not its fits; once more, on the workers left
-                        new = client.submit(fit_group, group, str(out), pure=False,
+                        new = client.submit(fit_group, group, str(out), threads, pure=False,
                                             key=f"fleet-again-{group[0].key}")
                         futures[new] = group
                         pending.add(new)

@@ -41,7 +41,7 @@ def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
     from ..models import get_model
     from ..vessel import load_vessel, require_particulars
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     runs = load_runs(list(job.runs), channel_map=job.channel_map)
     model = get_model(job.model)
     vessel = load_vessel(job.vessel_file) if job.vessel_file else None
@@ -54,14 +54,21 @@ def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
     row = {"key": job.key, "vessel": job.vessel, "run": job.run, "model": job.model,
            "status": "ok" if res.converged else "not converged", "error": "", "solver_status": res.status,
            "converged": bool(res.converged), "cost": float(res.cost), "samples": int(sum(r.n for r in runs)),
-           "pieces": len(runs), "fit_file": str(fit_path), "seconds": time.perf_counter() - t0}
+           "pieces": len(runs), "fit_file": str(fit_path), "seconds": time.perf_counter() - t0,
+           "cpu_seconds": time.process_time() - c0}  # the worker process's CPU (one task at a time)
     row.update({f"p_{n}": float(res.params[n]) for n in res.free})
     row.update({f"se_{n}": float(res.stderr.get(n, math.nan)) for n in res.free})
     return row
 
 
-def fit_group(jobs: Sequence[FleetJob], out: str) -> list[dict[str, Any]]:
-    """Fit each job of a group; every job's failure is its own row. Returns the rows."""
+def fit_group(jobs: Sequence[FleetJob], out: str, threads: int | None = None) -> list[dict[str, Any]]:
+    """Fit each job of a group; every job's failure is its own row. Returns the rows.
+
+    ``threads``: this worker's threads for a fit's starts (``$DIFFSHIP_THREADS``,
+    :func:`diffship.fit.kernel.default_threads`): its share of the machine's cores; ``None`` leaves the
+    default (one per core). The answers do not depend on it."""
+    if threads:
+        os.environ["DIFFSHIP_THREADS"] = str(int(threads))  # this worker process only
     out = Path(out)
     (out / "rows").mkdir(parents=True, exist_ok=True)
     (out / "started").mkdir(exist_ok=True)
