@@ -238,7 +238,7 @@ def diagnose(
     # the reference every candidate is judged against: the base refitted by the same refit
     # procedure (same steps, continuation rounds, initial-state estimation) with no effect, so an
     # effect's validation gain is never the credit for extra iterations of the base parameters.
-    # It and the candidates' refits are independent: one pool of threads runs them (:func:`.which.parallel`).
+    # It and the candidates' refits are independent: one pool of threads runs them (:func:`.screen.parallel`).
     t0 = time.perf_counter()
     before = validation.base()
     say(f"gap gate {gate.value:.3f} ({gate.method})")

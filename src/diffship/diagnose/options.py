@@ -78,7 +78,7 @@ class DiagnoseOptions:
     max_pairs: int = 3
     max_iter: int = 30
     fit_steps: int = 200
-    stall: tuple[int, float] | None = (20, 1e-3)
+    stall: tuple[int, float] | None = (10, 1e-3)
     start_bound: float = 3.0
     gap_gate: float | None = None
     gate_z: float = 3.0

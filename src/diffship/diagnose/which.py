@@ -61,9 +61,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -71,7 +69,7 @@ from ..errors import FitError
 from ..models import AbstractModel
 from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
 from .options import DiagnoseOptions
-from .screen import P_MAX, RefitResult, ScreenResult, Workspace
+from .screen import P_MAX, RefitResult, ScreenResult, Workspace, parallel
 from .shrink import PathStep, Score, Validation, structural_shrink
 
 __all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search", "FALLBACK_GATE", "parallel"]
@@ -119,27 +117,6 @@ class Selection:
     def shrink(self, E0: float) -> float:
         """Share of the structural gap S(E0) closed by the selected effects (0 if none; :mod:`.shrink`)."""
         return structural_shrink(E0, E0, self.final.E) if self.selected else 0.0
-
-
-def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:
-    """``[fn(x) for x in items]``, in order, spread over ``workers`` threads (default one per core).
-
-    Independent refits (the candidates, the no-effect reference, greedy and pair trials) run
-    side by side: each refit is one compiled program at a time that keeps about one core busy
-    (XLA releases the interpreter while it runs), so on a CPU with ``k`` cores ``k`` refits take
-    about the time of one. An exception of ``fn`` is returned in place of its result (the
-    caller decides, as it would have in a loop)."""
-    def safe(x):
-        try:
-            return fn(x)
-        except Exception as exc:  # noqa: BLE001 - handed back to the caller in order
-            return exc
-    items = list(items)
-    workers = min(len(items), workers or os.cpu_count() or 1)
-    if workers <= 1:
-        return [safe(x) for x in items]
-    with ThreadPoolExecutor(workers) as pool:
-        return list(pool.map(safe, items))
 
 
 def refit_order(screen: Sequence[ScreenResult], options: DiagnoseOptions) -> list[str]:

@@ -29,7 +29,10 @@ axis so that a batch advances in lockstep *without* evaluating both branches of 
    :math:`c_{k-W} - c_k \le \rho\,c_k`, it stops with the status ``max_steps`` (not
    converged) before its step cap — a mis-specified model crawls along a curved valley
    for hundreds of steps whose sum moves its cost by a fraction of a percent, while its
-   Gauss–Newton step stays long. A caller tells such a stop from the step cap by its step count.
+   Gauss–Newton step stays long. It fires only while the Gauss–Newton model still promises
+   more than that, :math:`\tfrac12 r^\top J (J^\top J)^{+} J^\top r > \rho\,c_k` (the last
+   steps of a convergence, where the promise is small too, go on to the ordinary tests). A
+   caller tells such a stop from the step cap by its step count.
 
 Finished problems (converged, failed, out of steps) are frozen by masks: their trial point is
 their current point and nothing of theirs changes. On a CPU a frozen problem still costs its share
@@ -241,7 +244,12 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
         if stall_steps:
             win = new["win_steps"] + active.astype(jnp.int32)
             full = active & (win >= stall_steps)
-            crawl = full & ((new["win_cost"] - new["cost"]) <= stall_rtol * new["cost"])
+            # a crawl, not the last steps of a convergence: the Gauss–Newton model still promises a
+            # decrease above the threshold that the steps do not deliver
+            a, g = _masked(new["jtj"], new["jtr"], new["free"])
+            promise = 0.5 * jax.vmap(lambda ab, gb: gauss_newton_step(ab, gb)[1])(a, g)
+            crawl = full & ((new["win_cost"] - new["cost"]) <= stall_rtol * new["cost"]) \
+                & (promise > stall_rtol * new["cost"])
             new["win_cost"] = jnp.where(full, new["cost"], new["win_cost"])
             new["win_steps"] = jnp.where(full, 0, win)
         return _finish_step(new, (cauchy | stalled) & gn, jnp.zeros_like(accept), penalty=penalty,

@@ -258,6 +258,10 @@ class OutputError(AbstractEstimator):
         # whole runs: solved once (four starts of a USV fit all reached one optimum on the first quarter,
         # and each then ran 200 identical steps on the whole runs)
         rep = same_points(zs, [self.start_cost(problem, z) for z in zs]) if n_warm else list(range(len(zs)))
+        import os
+        if os.environ.get("DIFFSHIP_DEBUG_DEDUPE") and n_warm:
+            cs = [self.start_cost(problem, z) for z in zs]
+            say(f"DEBUG costs {[f'{c:.12g}' for c in cs]} dz_params {[float(np.max(np.abs(z[:problem.n_params] - zs[0][:problem.n_params]))) for z in zs]} dz_all {[float(np.max(np.abs(z - zs[0]))) for z in zs]}")
         uniq = sorted(set(rep))
         if len(uniq) < len(zs):
             say(f"output error: {len(zs) - len(uniq)} start(s) reached the same point as another on the first "
