@@ -14,6 +14,7 @@ Writes ``benchmarks/results/diagnose_current_case_<duration>s.md``.
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
@@ -29,6 +30,14 @@ from diffship.synthetic import simulate_run, usv_excitation, usv_truth
 
 OUT = Path(__file__).resolve().parent / "results"
 
+#: the same command before the speed work of issue 28 (item 3), for comparison
+BEFORE = {
+    120: "before (aaf83b2, load 4–8): wall 765 s, CPU 231 s; timings [s]: base_fit 138, screen 9, where 165, "
+         "refits 350, greedy 102",
+    240: "before (c53eb09, load 4–10): the base fit alone took 198 s (four identical whole-run solves of 200 steps "
+         "each, 364 steps in all; compile 20 s); the run was stopped in the screen",
+}
+
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -42,17 +51,22 @@ def main(argv=None):
         runs.append(simulate_run(truth, t, inp, np.asarray(truth.initial_state({"u": 2.0})), name=f"usv{i}",
                                  noise="realistic", seed=1000 + i))
     effects = "all" if a.effects == "all" else a.effects.split(",")
+    load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     d = diagnose(Fossen3(), runs[:3], runs[3:], options=DiagnoseOptions(effects=effects),
                  progress=lambda s: print(s, file=sys.stderr, flush=True))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    load1 = os.getloadavg()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
                             text=True).stdout.strip()
     fp = d.final_model.param_values()
     L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs)", "",
          f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g}"
          + (f" --effects {a.effects}" if a.effects != "all" else "") + f"` at {commit}; 2-core machine shared "
-         f"with other jobs (load 4–8): wall {wall:.0f} s, CPU {cpu:.0f} s.", "",
+         f"with other jobs (1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; 5-min "
+         f"{load1[1]:.1f}): diagnosis wall {wall:.0f} s, CPU {cpu:.0f} s (all threads; the data simulation "
+         f"before it not counted).", "",
+         *( [f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE else []),
          "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s; 3 training + 2 held-out runs at 10 Hz, "
          "realistic noise.", "",
          f"- selected: {list(d.selected)}; possible: {list(d.possible)}",
