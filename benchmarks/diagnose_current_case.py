@@ -7,8 +7,9 @@ freely (the base model started 15–30 m off the logged position). This runs the
 
     python benchmarks/diagnose_current_case.py --duration 240          # the issue's size
     python benchmarks/diagnose_current_case.py --duration 120 --effects current,heading_bias,actuator_lag,damping_vv
+    python benchmarks/diagnose_current_case.py --duration 240 --effects current,heading_bias,actuator_lag,damping_vv --null
 
-Writes ``benchmarks/results/diagnose_current_case_<duration>s.md``.
+Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null].md``.
 """
 
 from __future__ import annotations
@@ -43,8 +44,9 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=240.0, help="seconds per run")
     p.add_argument("--effects", default="all")
+    p.add_argument("--null", action="store_true", help="the same runs without the current (nothing to attribute)")
     a = p.parse_args(argv)
-    truth = augment(usv_truth(), "current", Vcx=0.125, Vcy=0.2165)
+    truth = usv_truth() if a.null else augment(usv_truth(), "current", Vcx=0.125, Vcy=0.2165)
     runs = []
     for i in range(5):
         t, inp = usv_excitation(a.duration, 0.1, seed=7100 + i)
@@ -60,22 +62,23 @@ def main(argv=None):
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
                             text=True).stdout.strip()
     fp = d.final_model.param_values()
-    L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs)", "",
+    L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs{', NULL: no current' if a.null else ''})", "",
          f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g}"
-         + (f" --effects {a.effects}" if a.effects != "all" else "") + f"` at {commit}; 2-core machine shared "
+         + (f" --effects {a.effects}" if a.effects != "all" else "") + (" --null" if a.null else "")
+         + f"` at {commit}; 2-core machine shared "
          f"with other jobs (1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; 5-min "
          f"{load1[1]:.1f}): diagnosis wall {wall:.0f} s, CPU {cpu:.0f} s (all threads; the data simulation "
          f"before it not counted).", "",
-         *( [f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE else []),
-         "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s; 3 training + 2 held-out runs at 10 Hz, "
-         "realistic noise.", "",
+         *([f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE and not a.null else []),
+         ("Truth: fossen3 test USV, no current" if a.null else "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s")
+         + "; 3 training + 2 held-out runs at 10 Hz, realistic noise.", "",
          f"- selected: {list(d.selected)}; possible: {list(d.possible)}",
          f"- fitted current: " + (f"Vcx {fp['Vcx']:.4f}, Vcy {fp['Vcy']:.4f} m/s" if "Vcx" in fp else "none"),
          f"- held-out E {d.E_before:.3g} → {d.E_after:.3g} (gate {d.gap_gate:.3f}), shrink {d.shrink:.2f}",
          f"- timings [s]: " + ", ".join(f"{k} {v:.0f}" for k, v in d.timings.items()), "", "Verdict:", ""]
     L += [f"> {x}  " for x in d.verdict]
     text = "\n".join(L) + "\n"
-    (OUT / f"diagnose_current_case_{int(a.duration)}s.md").write_text(text)
+    (OUT / f"diagnose_current_case_{int(a.duration)}s{'_null' if a.null else ''}.md").write_text(text)
     print(text)
 
 
