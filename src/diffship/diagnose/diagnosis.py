@@ -2,9 +2,18 @@
 
 ``diagnose`` sequences the steps: base fit (output error on the training runs, unless given)
 → noise floor (:func:`~.where.noise_floor`) → screen of the applicable effects
-(:class:`~.screen.Workspace`) → **where** on the validation runs (:mod:`.where`) → refits of
-the best candidates and the greedy path, judged on the validation runs only (:mod:`.which`,
+(:class:`~.screen.Workspace`) → the no-effect reference refit and the refits of the best
+candidates, side by side (:func:`~.screen.parallel`) → **where** on the validation runs
+(:mod:`.where`) → judgements and the greedy path, on the validation runs only (:mod:`.which`,
 :mod:`.shrink`) → ranking and verdicts (:mod:`.verdict`).
+
+**Effort.** The base fit and every refit stop a crawl early (``DiagnoseOptions.stall``: the cost
+falls by less than 0.1 % over 10 Levenberg–Marquardt steps while the Gauss–Newton model still
+promises more; the base fit then says "stopped early: the cost stalled", not converged). Measured
+on the issue-28 current case (3 + 2 USV runs of 240 s): the base fit's whole-run solve 91 steps
+instead of 4 × 200, the wrong candidates' refits 42 steps instead of up to 600, the result the same
+(``benchmarks/results/diagnose_current_case_240s.md``). ``timings`` gives ``refits`` (the reference
+and the single candidates together) and ``where`` (the analysis alone).
 """
 
 from __future__ import annotations
