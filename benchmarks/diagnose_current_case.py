@@ -7,13 +7,15 @@ freely (the base model started 15–30 m off the logged position). This runs the
 
     python benchmarks/diagnose_current_case.py --duration 240          # the issue's size
     python benchmarks/diagnose_current_case.py --duration 120 --effects current,heading_bias,actuator_lag,damping_vv
+    python benchmarks/diagnose_current_case.py --duration 240 --effects current,heading_bias,actuator_lag,damping_vv --null
 
-Writes ``benchmarks/results/diagnose_current_case_<duration>s.md``.
+Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null].md``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
@@ -29,39 +31,54 @@ from diffship.synthetic import simulate_run, usv_excitation, usv_truth
 
 OUT = Path(__file__).resolve().parent / "results"
 
+#: the same command before the speed work of issue 28 (item 3), for comparison
+BEFORE = {
+    120: "before (aaf83b2, load 4–8): wall 765 s, CPU 231 s; timings [s]: base_fit 138, screen 9, where 165, "
+         "refits 350, greedy 102",
+    240: "before (c53eb09, load 4–10): the base fit alone took 198 s (four identical whole-run solves of 200 steps "
+         "each, 364 steps in all; compile 20 s); the run was stopped in the screen",
+}
+
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=240.0, help="seconds per run")
     p.add_argument("--effects", default="all")
+    p.add_argument("--null", action="store_true", help="the same runs without the current (nothing to attribute)")
     a = p.parse_args(argv)
-    truth = augment(usv_truth(), "current", Vcx=0.125, Vcy=0.2165)
+    truth = usv_truth() if a.null else augment(usv_truth(), "current", Vcx=0.125, Vcy=0.2165)
     runs = []
     for i in range(5):
         t, inp = usv_excitation(a.duration, 0.1, seed=7100 + i)
         runs.append(simulate_run(truth, t, inp, np.asarray(truth.initial_state({"u": 2.0})), name=f"usv{i}",
                                  noise="realistic", seed=1000 + i))
     effects = "all" if a.effects == "all" else a.effects.split(",")
+    load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     d = diagnose(Fossen3(), runs[:3], runs[3:], options=DiagnoseOptions(effects=effects),
                  progress=lambda s: print(s, file=sys.stderr, flush=True))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    load1 = os.getloadavg()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
                             text=True).stdout.strip()
     fp = d.final_model.param_values()
-    L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs)", "",
+    L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs{', NULL: no current' if a.null else ''})", "",
          f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g}"
-         + (f" --effects {a.effects}" if a.effects != "all" else "") + f"` at {commit}; 2-core machine shared "
-         f"with other jobs (load 4–8): wall {wall:.0f} s, CPU {cpu:.0f} s.", "",
-         "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s; 3 training + 2 held-out runs at 10 Hz, "
-         "realistic noise.", "",
+         + (f" --effects {a.effects}" if a.effects != "all" else "") + (" --null" if a.null else "")
+         + f"` at {commit}; 2-core machine shared "
+         f"with other jobs (1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; 5-min "
+         f"{load1[1]:.1f}): diagnosis wall {wall:.0f} s, CPU {cpu:.0f} s (all threads; the data simulation "
+         f"before it not counted).", "",
+         *([f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE and not a.null else []),
+         ("Truth: fossen3 test USV, no current" if a.null else "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s")
+         + "; 3 training + 2 held-out runs at 10 Hz, realistic noise.", "",
          f"- selected: {list(d.selected)}; possible: {list(d.possible)}",
          f"- fitted current: " + (f"Vcx {fp['Vcx']:.4f}, Vcy {fp['Vcy']:.4f} m/s" if "Vcx" in fp else "none"),
          f"- held-out E {d.E_before:.3g} → {d.E_after:.3g} (gate {d.gap_gate:.3f}), shrink {d.shrink:.2f}",
          f"- timings [s]: " + ", ".join(f"{k} {v:.0f}" for k, v in d.timings.items()), "", "Verdict:", ""]
     L += [f"> {x}  " for x in d.verdict]
     text = "\n".join(L) + "\n"
-    (OUT / f"diagnose_current_case_{int(a.duration)}s.md").write_text(text)
+    (OUT / f"diagnose_current_case_{int(a.duration)}s{'_null' if a.null else ''}.md").write_text(text)
     print(text)
 
 

@@ -35,6 +35,7 @@ import dataclasses
 import hashlib
 import importlib.metadata
 import os
+import threading
 import time
 from collections.abc import Callable, Hashable
 from concurrent.futures import ThreadPoolExecutor
@@ -54,6 +55,7 @@ __all__ = ["cache_size", "clear", "compiled", "compiled_many", "exported", "load
 MAP_SHARE = 0.4
 
 _CACHE: dict[Hashable, Callable] = {}
+_COMPILING = threading.RLock()
 _LOADED: list[int] = [0]
 _EXPORTED = {"loaded": 0, "saved": 0}
 _SOURCE: list[str] = []
@@ -196,8 +198,17 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
     and the wall seconds spent (0.0 when all came from this process's cache).
     """
     t0 = time.perf_counter()
-    hits = cache.hits()
     keys = [_key(*r) for r in requests]
+    if all(k in _CACHE for k in keys):
+        return [_CACHE[k] for k in keys], 0.0
+    # one compiling caller at a time: threads that need the same program (refits run side by side)
+    # wait for the first to compile it instead of compiling it again each
+    with _COMPILING:
+        return _compile_missing(requests, keys, t0)
+
+
+def _compile_missing(requests, keys, t0) -> tuple[list[Callable], float]:
+    hits = cache.hits()
     if any(k not in _CACHE for k in keys):
         release_if_crowded()
     todo = {}

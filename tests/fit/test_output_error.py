@@ -1,6 +1,8 @@
 """Output error: parameter recovery (noise-free and noisy), honesty of standard errors,
 and the comparison with the equation-error baseline on the same data."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -158,3 +160,15 @@ def test_parameter_started_on_its_bound_is_not_left_there(usv_noisy):
     z = {n: (res.params[n] - TV[n]) / res.stderr[n] for n in res.free}
     assert max(abs(v) for v in z.values()) < 3.0, z
     assert any("Gauss–Newton step in the parameters" in m for m in res.messages)
+
+
+def test_starts_at_the_same_point_after_the_warm_up_are_solved_once():
+    """:func:`same_points`: starts whose warm-ups end at one point (unknowns equal to 1e-4 of a scale,
+    costs to 1e-4) share one whole-run solve; a different point or a blown-up start never merges."""
+    from diffship.fit.output_error import same_points
+    z = np.array([0.3, -1.2, 0.05])
+    zs = [z, z + 3e-6, z + np.array([0.0, 0.02, 0.0]), z + 1e-7, z]
+    costs = [845842.52, 845844.18, 845000.0, math.inf, 845842.60]
+    assert same_points(zs, costs) == [0, 0, 2, 3, 0]
+    # a cost that differs materially is another point even where the unknowns agree
+    assert same_points([z, z], [100.0, 101.0]) == [0, 1]

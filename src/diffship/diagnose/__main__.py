@@ -156,7 +156,7 @@ def _diagnose(args, say):
     opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
                               integrator=get_integrator(args.solver, hold=args.input_hold), flt=Filter.parse(args.filter),
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
-                              prior_rel_sd=args.prior_sd)
+                              prior_rel_sd=args.prior_sd, stall=options.stall)
     say(f"fitting the base model {model.name} by output error on {len(train)} runs (channels {', '.join(chans)})...")
     fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say, n_starts=args.starts)
     v = verdict(fit, None, train)

@@ -2,9 +2,18 @@
 
 ``diagnose`` sequences the steps: base fit (output error on the training runs, unless given)
 → noise floor (:func:`~.where.noise_floor`) → screen of the applicable effects
-(:class:`~.screen.Workspace`) → **where** on the validation runs (:mod:`.where`) → refits of
-the best candidates and the greedy path, judged on the validation runs only (:mod:`.which`,
+(:class:`~.screen.Workspace`) → the no-effect reference refit and the refits of the best
+candidates, side by side (:func:`~.screen.parallel`) → **where** on the validation runs
+(:mod:`.where`) → judgements and the greedy path, on the validation runs only (:mod:`.which`,
 :mod:`.shrink`) → ranking and verdicts (:mod:`.verdict`).
+
+**Effort.** The base fit and every refit stop a crawl early (``DiagnoseOptions.stall``: the cost
+falls by less than 0.1 % over 10 Levenberg–Marquardt steps while the Gauss–Newton model still
+promises more; the base fit then says "stopped early: the cost stalled", not converged). Measured
+on the issue-28 current case (3 + 2 USV runs of 240 s): the base fit's whole-run solve 91 steps
+instead of 4 × 200, the wrong candidates' refits 42 steps instead of up to 600, the result the same
+(``benchmarks/results/diagnose_current_case_240s.md``). ``timings`` gives ``refits`` (the reference
+and the single candidates together) and ``where`` (the analysis alone).
 """
 
 from __future__ import annotations
@@ -195,7 +204,7 @@ def diagnose(
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
         chans0 = o.channels or diagnosis_channels(model, train)
         fit = fit_output_error(model, train, spec=spec, channels=chans0, progress=say,
-                               options=OutputErrorOptions(max_steps=o.fit_steps,
+                               options=OutputErrorOptions(max_steps=o.fit_steps, stall=o.stall,
                                                           estimate_x0=model.states_for_channels(chans0)))
     timings["base_fit"] = time.perf_counter() - t0
     base = fit.model
@@ -245,38 +254,46 @@ def diagnose(
     start_rule = StartRule(bound=o.start_bound)
     validation = Validation(ws, val, floor, chans, start_rule)
 
-    # -- where ---------------------------------------------------------------------------------
-    t0 = time.perf_counter()
-    before = validation.base()
+    # -- the reference and the single candidates: refitted side by side ------------------------
     # the reference every candidate is judged against: the base refitted by the same refit
     # procedure (same steps, continuation rounds, initial-state estimation) with no effect, so an
-    # effect's validation gain is never the credit for extra iterations of the base parameters
+    # effect's validation gain is never the credit for extra iterations of the base parameters.
+    # It and the candidates' refits are independent: one pool of threads runs them (:func:`.screen.parallel`).
+    t0 = time.perf_counter()
+    before = validation.base()
+    say(f"gap gate {gate.value:.3f} ({gate.method})")
+    search = Search(ws, validation, before, o, say, gate=gate.value)
+
+    def reference():
+        rf = ws.refit([], [{}], max_iter=o.max_iter, progress=say, finish=True, stall=o.stall)
+        return rf, (validation.refit(rf) if rf.ok and rf.train_cost < sinfo["train_cost"] else None)
+    refits, (ref,) = search.refit_singles(refit_order(scr, o), extra=[reference])
+    timings["refits"] = time.perf_counter() - t0
     null_base, reference = None, "the base fit (the no-effect refit did not lower its training cost)"
-    try:
-        rf0 = ws.refit([], [{}], max_iter=o.max_iter, progress=say, finish=True)
-        if rf0.ok and rf0.train_cost < sinfo["train_cost"]:
-            say(f"the no-effect refit lowers the training cost {sinfo['train_cost']:.6g} → {rf0.train_cost:.6g}: "
-                "candidates are judged against it")
-            reference = (f"the base refitted by the refit procedure, no effect (training cost {sinfo['train_cost']:.6g} "
-                         f"→ {rf0.train_cost:.6g}; base fit {'converged' if fit.converged else 'stopped: ' + str(fit.status)})")
-            before = validation.refit(rf0)
-            sinfo["train_cost"] = rf0.train_cost
-            null_base = rf0.base_values
-    except FitError as exc:
-        say(f"  the no-effect refit failed: {exc}")
-        reference = f"the base fit (the no-effect refit failed: {exc})"
+    if isinstance(ref, FitError):
+        say(f"  the no-effect refit failed: {ref}")
+        reference = f"the base fit (the no-effect refit failed: {ref})"
+    elif isinstance(ref, Exception):
+        raise ref
+    elif ref[1] is not None:
+        rf0 = ref[0]
+        say(f"the no-effect refit lowers the training cost {sinfo['train_cost']:.6g} → {rf0.train_cost:.6g}: "
+            "candidates are judged against it")
+        reference = (f"the base refitted by the refit procedure, no effect (training cost {sinfo['train_cost']:.6g} "
+                     f"→ {rf0.train_cost:.6g}; base fit {'converged' if fit.converged else 'stopped: ' + str(fit.status)})")
+        before = ref[1]
+        sinfo["train_cost"] = rf0.train_cost
+        null_base = rf0.base_values
+        search.set_base(before)
+    t0 = time.perf_counter()
     where = where_analysis(base, val, before.evaluation, floor, chans)
     timings["where"] = time.perf_counter() - t0
     gap = gap_budget(fit, before.E)
     say(f"validation error {before.E:.3g} × noise floor; screen took {timings['screen']:.1f} s")
 
-    # -- which: refit, validate, select --------------------------------------------------------
-    say(f"gap gate {gate.value:.3f} ({gate.method})")
-    search = Search(ws, validation, before, o, say, gate=gate.value)
+    # -- which: judge, select --------------------------------------------------------------------
     search.null_base = null_base
-    t0 = time.perf_counter()
-    singles = search.singles(refit_order(scr, o))
-    timings["refits"] = time.perf_counter() - t0
+    singles = search.judge_singles(refits)
     t0 = time.perf_counter()
     sel = search.select(singles)
     timings["greedy"] = time.perf_counter() - t0

@@ -34,6 +34,12 @@ class DiagnoseOptions:
         max_pairs: when no single effect passes, refit up to this many pairs of the best single
             candidates jointly (two effects that compensate each other alone).
         max_iter: Levenberg–Marquardt iterations per refit; fit_steps: of the base fit.
+        stall: ``(W, ρ)``: the base fit and every refit stop early when their cost falls by less
+            than ρ·cost over W Levenberg–Marquardt steps (a mis-specified model crawls for
+            hundreds of steps that move its cost by a fraction of a percent; its verdict does not
+            hang on them). The base fit then reports "stopped early: the cost stalled" (not
+            converged) and candidates are judged against the no-effect refit, stopped by the same
+            rule. ``None``: off (the step caps alone).
 
     Held-out start (:mod:`.start`):
         start_bound: every compared model starts each held-out run at the logged state, its
@@ -72,6 +78,7 @@ class DiagnoseOptions:
     max_pairs: int = 3
     max_iter: int = 30
     fit_steps: int = 200
+    stall: tuple[int, float] | None = (10, 1e-3)
     start_bound: float = 3.0
     gap_gate: float | None = None
     gate_z: float = 3.0
@@ -94,6 +101,16 @@ class DiagnoseOptions:
             raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
         if self.channels is not None:
             object.__setattr__(self, "channels", tuple(self.channels))
+        if self.stall is not None:
+            w, rho = self.stall
+            if not (int(w) == w and w >= 2 and 0 < rho < 1):
+                raise DataError(f"stall: (steps >= 2, relative cost decrease in (0, 1)) or None, got {self.stall!r}")
+            object.__setattr__(self, "stall", (int(w), float(rho)))
+
+    @property
+    def stall_lm(self) -> dict:
+        """The stall rule as the Levenberg–Marquardt keywords (:meth:`diffship.fit.kernel.Kernel.solve`)."""
+        return {} if self.stall is None else {"stall_steps": self.stall[0], "stall_rtol": self.stall[1]}
 
     @property
     def effect_names(self) -> tuple[str, ...]:

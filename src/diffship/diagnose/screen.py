@@ -36,8 +36,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import jax.numpy as jnp
 import numpy as np
@@ -45,7 +47,7 @@ from scipy import stats
 
 from ..errors import FitError
 from ..fit.covariance import covariance
-from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data
+from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data, stalled
 from ..fit.output_error import x0_scales
 from ..fit.problem import make_batch
 from ..integrators import AbstractIntegrator, Diffrax
@@ -53,7 +55,7 @@ from ..models import AbstractModel
 from ..models.effects import Augmented, Effect
 from ..params import ParamSpec
 
-__all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX"]
+__all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX", "parallel"]
 
 #: Largest number of effect parameters refitted at once (one or two effects).
 P_MAX = 5
@@ -276,7 +278,8 @@ class Workspace:
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3,
-              finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
+              finish: bool | None = None, base_start: dict[str, float] | None = None,
+              stall: tuple[int, float] | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
@@ -289,7 +292,13 @@ class Workspace:
         ``finish=True`` continues it whatever its cost (the no-effect reference refit of
         :func:`~.diagnosis.diagnose`, so that it gets at least the effort of any candidate). Standard errors come from :func:`diffship.fit.covariance.covariance`
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
+        ``stall`` ``(W, ρ)``: every solve stops early when its cost falls by less than ρ·cost over W
+        steps (:mod:`diffship.fit.batched`, item 6); such a refit is not ``converged`` and is not
+        continued (its cost has stalled).
         """
+        lm = dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
+        if stall is not None:
+            lm.update(stall_steps=int(stall[0]), stall_rtol=float(stall[1]))
         t0 = time.perf_counter()
         pn = [n for e in self.effects if e.name in names for n in e.param_names]
         if len(pn) > P_MAX:
@@ -301,46 +310,49 @@ class Workspace:
             list(range(nk, nk + self.n_x0()))
         z_start = self.z0(base_values=base_start)  # the base fit's values unless given
         best = None
-        for st in starts:  # LM from every start (non-smooth effects have flat regions)
+        def one(st):  # LM from one start (non-smooth effects have flat regions: several starts)
             phi0 = base_phi.copy()
             for n in pn:
                 phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
             kd = self._kd(None, S, phi0)
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
-                continue
-            z1, warm_steps = self._warmup(z_start, kd, max_iter)
-            z, _, steps, r = self.kernel.call("solve", z1, kd, max_steps=4 * max_iter, rtol=1e-8, atol=1e-8,
-                                              ftol=1e-12)
+                return None
+            z1, warm_steps = self._warmup(z_start, kd, max_iter, lm)
+            z, res, steps, r = self.kernel.call("solve", z1, kd, max_steps=4 * max_iter, **lm)
             r = np.asarray(r)
-            steps = int(steps) + warm_steps
-            cost = 0.5 * float(r @ r)
-            if math.isfinite(cost) and (best is None or cost < best[2]):
-                best = (np.asarray(z), r, cost, int(steps), phi0, warm_steps)
+            return np.asarray(z), r, 0.5 * float(r @ r), int(steps) + warm_steps, phi0, warm_steps, \
+                stalled(res, steps, 4 * max_iter)
+        for got in parallel(one, starts):  # the starts side by side, the lowest cost wins
+            if isinstance(got, Exception):
+                raise got
+            if got is not None and math.isfinite(got[2]) and (best is None or got[2] < best[2]):
+                best = got
         if best is None:
             raise FitError(f"refit with {names}: every start blows up")
-        z, r, cost, it, phi0, warm_steps = best
+        z, r, cost, it, phi0, warm_steps, crawl = best
         it_whole = it - warm_steps
         # a refit that stops at the step cap has not converged: continue the best start (same
-        # compiled program) while it still lowers the cost, up to ``rounds`` more times
-        converged = it_whole < 4 * max_iter
+        # compiled program) while it still lowers the cost, up to ``rounds`` more times (not one
+        # whose cost stalled: the stall rule already says further steps buy nothing)
+        converged = it_whole < 4 * max_iter and not crawl
         # only a refit that already explains most of the training cost is worth finishing (a
         # wrong candidate far from the data crawls; its verdict does not depend on the last digits)
         promising = cost < 0.5 * self.base_cost if finish is None else finish
-        for _ in range(rounds if promising else 0):
+        for _ in range(rounds if promising and not crawl else 0):
             if converged:
                 break
-            z1, _, steps, r1 = self.kernel.call("solve", z, self._kd(None, S, phi0), max_steps=4 * max_iter,
-                                                rtol=1e-8, atol=1e-8, ftol=1e-12)
+            z1, res1, steps, r1 = self.kernel.call("solve", z, self._kd(None, S, phi0), max_steps=4 * max_iter, **lm)
             r1 = np.asarray(r1)
             c1 = 0.5 * float(r1 @ r1)
             if not (math.isfinite(c1) and c1 < cost):
                 break
-            converged = int(steps) < 4 * max_iter or (cost - c1) < 1e-9 * cost
-            stalled = (cost - c1) < STALL * cost
+            crawl = stalled(res1, steps, 4 * max_iter)
+            converged = (int(steps) < 4 * max_iter and not crawl) or (cost - c1) < 1e-9 * cost
+            slow = (cost - c1) < STALL * cost
             z, r, it = np.asarray(z1), r1, it + int(steps)
             cost = c1
-            if stalled:  # a mis-specified model crawls: its verdict does not hang on the last 0.1 %
+            if slow or crawl:  # a mis-specified model crawls: its verdict does not hang on the last 0.1 %
                 break
         J = self.jacobian(z, S, phi0)[:, active]
         cov = covariance(J, r, dof=self.train["batch"].n_residuals - len(active)).matrix
@@ -354,13 +366,14 @@ class Workspace:
         fixed_out = {n: float(base_phi[self.phi_names.index(n)]) for n in (fixed or {}) if n not in pn}
         ok = bool(np.all(np.abs(r) < PENALTY))
         if progress:
-            progress(f"  refit {'+'.join(names)}: {it} iterations{'' if converged else ' (NOT converged)'}, cost {cost:.6g}, "
+            progress(f"  refit {'+'.join(names) or 'no effect'}: {it} iterations"
+                     f"{'' if converged else (' (stopped: the cost stalled)' if crawl else ' (NOT converged)')}, cost {cost:.6g}, "
                      + ", ".join(f"{n}={v:.4g}±{stderr[n]:.2g}" for n, v in values.items()))
         return RefitResult(tuple(names), {**fixed_out, **values}, stderr, base_values, cost, it,
                            time.perf_counter() - t0, ok, converged)
 
 
-    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int) -> tuple[np.ndarray, int]:
+    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int, lm: dict | None = None) -> tuple[np.ndarray, int]:
         """Growing horizon, as the base fit (:func:`~diffship.fit.fit_output_error`, ``warmup``):
         the refit first converges on the first quarter of every run (when that is at least 200
         samples), then continues on the whole runs. From a base fit distorted by an unmodelled
@@ -373,8 +386,8 @@ class Workspace:
         n_warm = int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
         if not n_warm:
             return z_start, 0
-        zw, _, steps, _ = self.kernel.call("solve", z_start, kd.head(n_warm), max_steps=4 * max_iter, rtol=1e-8,
-                                           atol=1e-8, ftol=1e-12)
+        lm = lm or dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
+        zw, _, steps, _ = self.kernel.call("solve", z_start, kd.head(n_warm), max_steps=4 * max_iter, **lm)
         rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
             return z_start, int(steps)
@@ -384,6 +397,27 @@ class Workspace:
         if float(rw @ rw) >= float(r0 @ r0):
             return z_start, int(steps)
         return np.asarray(zw), int(steps)
+
+
+def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:
+    """``[fn(x) for x in items]``, in order, spread over ``workers`` threads (default one per core).
+
+    Independent refits (the starts of one refit, the candidates, the no-effect reference, greedy
+    and pair trials) run side by side: each is one compiled program at a time that keeps about
+    one core busy (XLA releases the interpreter while it runs), so on a CPU with ``k`` cores ``k``
+    refits take about the time of one. An exception of ``fn`` is returned in place of its result
+    (the caller decides, as it would have in a loop)."""
+    def safe(x):
+        try:
+            return fn(x)
+        except Exception as exc:  # noqa: BLE001 - handed back to the caller in order
+            return exc
+    items = list(items)
+    workers = min(len(items), workers or os.cpu_count() or 1)
+    if workers <= 1:
+        return [safe(x) for x in items]
+    with ThreadPoolExecutor(workers) as pool:
+        return list(pool.map(safe, items))
 
 
 def _inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:

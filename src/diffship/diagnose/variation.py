@@ -75,7 +75,7 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
     start.update({k: 0.0 for k in TREND_PARAMS[var]})
     try:
         rf = search.ws.refit([var], [start], max_iter=search.options.max_iter, progress=say,
-                             base_start=const.refit.base_values)
+                             base_start=const.refit.base_values, stall=search.options.stall)
     except FitError as exc:
         say(f"  refit {var} failed: {exc}")
         return None

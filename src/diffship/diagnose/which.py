@@ -69,10 +69,10 @@ from ..errors import FitError
 from ..models import AbstractModel
 from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
 from .options import DiagnoseOptions
-from .screen import P_MAX, RefitResult, ScreenResult, Workspace
+from .screen import P_MAX, RefitResult, ScreenResult, Workspace, parallel
 from .shrink import PathStep, Score, Validation, structural_shrink
 
-__all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search", "FALLBACK_GATE"]
+__all__ = ["Judgement", "Candidate", "Selection", "refit_order", "Search", "FALLBACK_GATE", "parallel"]
 
 #: gap gate of a :class:`Search` built without the data's sample counts (the former fixed rule)
 FALLBACK_GATE = 1.1
@@ -161,7 +161,8 @@ class Search:
         return sum(len(e.param_names) for e in self.ws.effects if e.name in names)
 
     def _refit(self, names: Sequence[str], starts: list[dict[str, float]]) -> tuple[RefitResult, Score]:
-        rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say)
+        rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say,
+                           stall=self.options.stall)
         return rf, self.validation.refit(rf)
 
     def joint_starts(self, a: Candidate, b: Candidate) -> list[dict[str, float]]:
@@ -227,18 +228,42 @@ class Search:
     # -- single candidates -------------------------------------------------------------------
     def singles(self, names: Sequence[str]) -> dict[str, Candidate]:
         """Each candidate refitted alone and judged against the base."""
+        return self.judge_singles(self.refit_singles(names)[0])
+
+    def single_starts(self, name: str) -> list[dict[str, float]]:
+        """Starts of a single candidate's refit: smooth effects from the null (the score test's
+        point); non-smooth ones have a flat null, so at the probe magnitude and around it."""
+        e = self.effect(name)
+        return [e.null()] if e.smooth_null else [{k: f * v for k, v in e.PROBE.items()} for f in (1.0, 0.3, 3.0)]
+
+    def refit_singles(self, names: Sequence[str], extra: Sequence[Callable] = ()) -> tuple[dict, list]:
+        """Each candidate refitted alone (side by side, :func:`parallel`), with further
+        independent jobs ``extra`` (callables) run in the same pool: ``({name: (rf, score) or
+        exception}, [results of extra])``."""
+        jobs = [("extra", f) for f in extra] + [("single", n) for n in names]  # the long reference refit first
+
+        def run(job):
+            kind, x = job
+            return self._refit([x], self.single_starts(x)) if kind == "single" else x()
+        out = parallel(run, jobs)
+        return dict(zip(names, out[len(extra):])), out[:len(extra)]
+
+    def set_base(self, base: Score) -> None:
+        """Judge against ``base`` from now on (the no-effect refit, when it lowers the training cost)."""
+        self.base = base
+        self.has_gap = base.E >= self.gate
+
+    def judge_singles(self, refits: dict) -> dict[str, Candidate]:
+        """The singles' judgements against the base (``refits``: from :meth:`refit_singles`)."""
         E0 = self.base.E
         out = {}
-        for name in names:
-            e = self.effect(name)
-            # smooth effects: LM from the null (the score test's point); non-smooth ones have a flat
-            # null, so start them at the probe magnitude and around it
-            starts = [e.null()] if e.smooth_null else [{k: f * v for k, v in e.PROBE.items()} for f in (1.0, 0.3, 3.0)]
-            try:
-                rf, sc = self._refit([name], starts)
-            except FitError as exc:
-                self.say(f"  refit {name} failed: {exc}")
+        for name, got in refits.items():
+            if isinstance(got, FitError):
+                self.say(f"  refit {name} failed: {got}")
                 continue
+            if isinstance(got, Exception):
+                raise got
+            rf, sc = got
             j = self.judge(rf, self.base, sc, [name])
             out[name] = Candidate((name,), rf, sc, j)
             self.say(f"  {name}: validation E {E0:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %), shrink {j.shrink:.2f}"
@@ -333,13 +358,14 @@ class Search:
         top = by_E[:3]
         pairs = [(a, b) for i, a in enumerate(top) for b in top[i + 1:]][:o.max_pairs]
         best = None
-        for a, b in pairs:
-            if self.n_params((a, b)) > P_MAX:
+        pairs = [(a, b) for a, b in pairs if self.n_params((a, b)) <= P_MAX]
+        got = parallel(lambda ab: self._refit(list(ab), self.joint_starts(singles[ab[0]], singles[ab[1]])), pairs)
+        for (a, b), g in zip(pairs, got):
+            if isinstance(g, FitError):
                 continue
-            try:
-                rf, sc = self._refit([a, b], self.joint_starts(singles[a], singles[b]))
-            except FitError:
-                continue
+            if isinstance(g, Exception):
+                raise g
+            rf, sc = g
             j = self.judge(rf, self.base, sc, [a, b])
             self.say(f"  pair {a}+{b}: validation E {E0:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %)"
                      + ("" if j.ok else f" — not accepted: {j.why}"))
@@ -355,6 +381,7 @@ class Search:
     def _greedy_step(self, cur: Selection, cands: list[str]) -> Selection | None:
         """The best next effect, refitted jointly with those in and judged against ``cur``."""
         best = None
+        trials = []
         for n in cands:
             if n in cur.selected:
                 continue
@@ -365,10 +392,14 @@ class Search:
             # the nested start (the new effect at its null) cannot end above the current step's cost
             starts = [{**cur.values, **e.null()}] if e.smooth_null else [
                 {**cur.values, **{k: f * v for k, v in e.PROBE.items()}} for f in (1.0, 3.0)] + [{**cur.values, **e.null()}]
-            try:
-                rf, sc = self._refit(effs_now, starts)
-            except FitError:
+            trials.append((n, effs_now, starts))
+        got = parallel(lambda t: self._refit(t[1], t[2]), trials)  # the trials side by side
+        for (n, _, _), g in zip(trials, got):
+            if isinstance(g, FitError):
                 continue
+            if isinstance(g, Exception):
+                raise g
+            rf, sc = g
             j = self.judge(rf, cur.final, sc, [n])
             self.say(f"  + {n}: validation E {cur.final.E:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %)"
                      + ("" if j.ok else f" — not accepted: {j.why}"))

@@ -23,7 +23,16 @@ axis so that a batch advances in lockstep *without* evaluating both branches of 
    batched predicate would be a select that runs both sides);
 5. per-problem termination, exactly :class:`~diffship.fit._lm.MaterialisedLM`'s: optimistix's
    Cauchy test (small step and small residual change) or a stalled cost, each counting only when the
-   Gauss–Newton step is shorter than ``gntol`` standard errors (or negligible in ``z``).
+   Gauss–Newton step is shorter than ``gntol`` standard errors (or negligible in ``z``);
+6. optionally (``stall_steps`` > 0) an **early stop of a crawl**: when the cost of a problem
+   falls by less than ``stall_rtol``·cost over ``stall_steps`` consecutive steps,
+   :math:`c_{k-W} - c_k \le \rho\,c_k`, it stops with the status ``max_steps`` (not
+   converged) before its step cap — a mis-specified model crawls along a curved valley
+   for hundreds of steps whose sum moves its cost by a fraction of a percent, while its
+   Gauss–Newton step stays long. It fires only while the Gauss–Newton model still promises
+   more than that, :math:`\tfrac12 r^\top J (J^\top J)^{+} J^\top r > \rho\,c_k` (the last
+   steps of a convergence, where the promise is small too, go on to the ordinary tests). A
+   caller tells such a stop from the step cap by its step count.
 
 Finished problems (converged, failed, out of steps) are frozen by masks: their trial point is
 their current point and nothing of theirs changes. On a CPU a frozen problem still costs its share
@@ -123,7 +132,8 @@ def _step(jtj, jtr, step_size):
 
 
 def lm_start(res: Callable, z0: Float[Array, "B n"], data, free: Bool[Array, "B n"], *, data_axis=None,
-             keep_jacobian: bool = False, penalty: float | None = None, **tol) -> dict:
+             keep_jacobian: bool = False, penalty: float | None = None, stall_steps: int = 0, stall_rtol: float = 0.0,
+             **tol) -> dict:
     """State of the batched LM after its first step (residuals and Jacobian at the starts)."""
     jac, r = _jacobian(res, z0, data, data_axis)
     return _accept_all(res, z0, r, jac, free, keep_jacobian=keep_jacobian, penalty=penalty, **tol)
@@ -147,15 +157,17 @@ def _accept_all(res, z, r, jac, free, *, keep_jacobian, penalty, rtol, atol, fto
     st = dict(z=z, r=r, cost=cost, prev_cost=jnp.full((B,), jnp.inf, z.dtype), jtj=jtj, jtr=jtr, rows=rows,
               n_free=n_free, free=free, step_size=jnp.ones((B,), z.dtype), accepted=jnp.ones((B,), jnp.int32),
               steps=jnp.ones((B,), jnp.int32), done=jnp.zeros((B,), bool),
-              status=jnp.full((B,), CODES["successful"], jnp.int32))
+              status=jnp.full((B,), CODES["successful"], jnp.int32),
+              win_cost=cost, win_steps=jnp.zeros((B,), jnp.int32))
     if keep_jacobian:
         st["jac"] = jac
     st = _finish_step(st, cauchy & gn, bad, penalty=penalty, max_steps=max_steps)
     return st
 
 
-def _finish_step(st, converged, diverged, *, penalty, max_steps):
-    """Mark newly finished problems and form the next trial step of the others."""
+def _finish_step(st, converged, diverged, *, penalty, max_steps, stalled=None):
+    """Mark newly finished problems and form the next trial step of the others (``stalled``:
+    problems whose cost crawls, stopped as not converged)."""
     active = ~st["done"]
     a, g = _masked(st["jtj"], st["jtr"], st["free"])
     diff, ok = _step(a, g, st["step_size"])
@@ -169,6 +181,8 @@ def _finish_step(st, converged, diverged, *, penalty, max_steps):
     status = jnp.where(sing, CODES["singular"], status)
     done = st["done"] | newly | fail | sing
     out = active & ~done & (st["steps"] >= max_steps)
+    if stalled is not None:
+        out = out | (active & ~done & stalled)
     status = jnp.where(out, jnp.where(blown, CODES["divergence"], CODES["max_steps"]), status)
     done = done | out
     st = dict(st, done=done, status=status)
@@ -177,9 +191,12 @@ def _finish_step(st, converged, diverged, *, penalty, max_steps):
 
 
 def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=None, keep_jacobian: bool = False,
-               penalty: float | None = None, rtol, atol, ftol, gntol, variance, gn_params, max_steps) -> dict:
+               penalty: float | None = None, rtol, atol, ftol, gntol, variance, gn_params, max_steps,
+               stall_steps: int = 0, stall_rtol: float = 0.0) -> dict:
     """Advance every unfinished problem until all are done or no more than ``stop_below`` remain
-    unfinished (a dynamic scalar: the host repacks then; ``0`` runs to the end)."""
+    unfinished (a dynamic scalar: the host repacks then; ``0`` runs to the end); with
+    ``stall_steps`` > 0 a problem whose cost falls by less than ``stall_rtol``·cost over that many
+    steps stops, not converged (module docstring, item 6)."""
     tol = dict(rtol=rtol, atol=atol, gntol=gntol, variance=variance, gn_params=gn_params)
 
     def body(st):
@@ -223,8 +240,20 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
         stalled = (new["accepted"] >= 3) & ((new["prev_cost"] - new["cost"]) <= ftol * new["cost"])
         gn = _gn_short(new["z"], *_masked(new["jtj"], new["jtr"], new["free"]), new["cost"], new["rows"],
                        new["n_free"], **tol)
+        crawl = None
+        if stall_steps:
+            win = new["win_steps"] + active.astype(jnp.int32)
+            full = active & (win >= stall_steps)
+            # a crawl, not the last steps of a convergence: the Gauss–Newton model still promises a
+            # decrease above the threshold that the steps do not deliver
+            a, g = _masked(new["jtj"], new["jtr"], new["free"])
+            promise = 0.5 * jax.vmap(lambda ab, gb: gauss_newton_step(ab, gb)[1])(a, g)
+            crawl = full & ((new["win_cost"] - new["cost"]) <= stall_rtol * new["cost"]) \
+                & (promise > stall_rtol * new["cost"])
+            new["win_cost"] = jnp.where(full, new["cost"], new["win_cost"])
+            new["win_steps"] = jnp.where(full, 0, win)
         return _finish_step(new, (cauchy | stalled) & gn, jnp.zeros_like(accept), penalty=penalty,
-                            max_steps=max_steps)
+                            max_steps=max_steps, stalled=crawl)
 
     def cond(st):
         left = jnp.sum(~st["done"])

@@ -61,13 +61,20 @@ from ..progress import heartbeat, per_start
 from ..simulate import Solution, simulate
 from .batched import lm_advance, lm_start, solve_batch
 
-__all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "wrap_angle"]
+__all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "stalled", "wrap_angle"]
 
 #: Normalised residual assigned to every sample after a simulation blew up.
 PENALTY = 1e3
 
 #: Tree structure of an optimistix result (to rebuild one from its integer code).
 _RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)
+
+def stalled(result, steps, max_steps: int) -> bool:
+    """Whether a solve that reports the step cap stopped before it: the early stop of a crawling
+    cost (``stall_steps``; :mod:`diffship.fit.batched`, item 6) — not converged either way."""
+    return (int(jax.tree_util.tree_leaves(result)[0]) == int(jax.tree_util.tree_leaves(
+        optx.RESULTS.nonlinear_max_steps_reached)[0]) and int(steps) < int(max_steps))
+
 
 def wrap_angle(e):
     """Angle difference wrapped to (−π, π]."""
@@ -213,28 +220,33 @@ class Kernel(eqx.Module):
         return jax.jacfwd(self.residuals)(z, data)
 
     def _lm_static(self, *, max_steps: int, rtol: float, atol: float, ftol: float = 1e-9, jacobian: bool = False,
-                   gntol: float = 0.05, variance: float | None = None, gn_params: int | None = -1) -> dict:
+                   gntol: float = 0.05, variance: float | None = None, gn_params: int | None = -1,
+                   stall_steps: int = 0, stall_rtol: float = 0.0) -> dict:
         """The batched LM's static options from :meth:`solve`'s keywords."""
         k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
         return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol),
                     keep_jacobian=bool(jacobian), gntol=float(gntol),
-                    variance=None if variance is None else float(variance), gn_params=k)
+                    variance=None if variance is None else float(variance), gn_params=k,
+                    stall_steps=int(stall_steps), stall_rtol=float(stall_rtol))
 
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
               ftol: float = 1e-9, jacobian: bool = False, gntol: float = 0.05, variance: float | None = None,
-              gn_params: int | None = -1):
+              gn_params: int | None = -1, stall_steps: int = 0, stall_rtol: float = 0.0):
         """Levenberg–Marquardt from ``z0``: ``(z, result, steps, residuals)``, and with
         ``jacobian=True`` also the Jacobian :meth:`jacobian` at ``z`` (the one the last accepted
         step formed: no second forward-mode pass, no second compiled program). A small step or a
         stalled cost stops it only when the Gauss–Newton step is shorter than ``gntol`` standard
         errors (residual variance ``variance``, estimated when ``None``; :mod:`diffship.fit._lm`), judged
         on the first ``gn_params`` unknowns (default ``-1``: the parameters ``(z_θ, w)``, not the
-        nuisance unknowns after them; ``None``: all).
+        nuisance unknowns after them; ``None``: all). With ``stall_steps`` > 0 a crawl stops early: a
+        cost falling by less than ``stall_rtol``·cost over ``stall_steps`` steps ends the solve with
+        the status ``nonlinear_max_steps_reached`` after fewer than ``max_steps`` steps
+        (:mod:`diffship.fit.batched`, item 6; :func:`stalled` tells the two apart).
 
         The solve is the batched LM (:mod:`diffship.fit.batched`) at ``B = 1``; a final point whose
         simulation still blows up has the status ``nonlinear_divergence``."""
         lm = self._lm_static(max_steps=max_steps, rtol=rtol, atol=atol, ftol=ftol, jacobian=jacobian, gntol=gntol,
-                             variance=variance, gn_params=gn_params)
+                             variance=variance, gn_params=gn_params, stall_steps=stall_steps, stall_rtol=stall_rtol)
         z0 = jnp.asarray(z0)[None]
         free = jnp.ones(z0.shape, bool)
         st = self.batch_start(z0, data, free, **lm)

@@ -57,7 +57,7 @@ from .equation_error import equation_error_start
 from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import per_scale_columns
 from .input_noise import input_noise_levels, meat_request, measured_input_meat
-from .kernel import PENALTY, Kernel, kernel_data
+from .kernel import PENALTY, Kernel, kernel_data, stalled
 from .priors import Priors, prior_arrays
 from .problem import make_batch
 from .result import FitResult
@@ -96,6 +96,10 @@ class OutputError(AbstractEstimator):
             information than their count says, and must not outvote a prior. No effect without priors.
         ee_start: the equation-error estimate is one of the starts, where the model has an
             equation-error form (:func:`~diffship.fit.equation_error.equation_error_start`).
+        stall: ``(W, ρ)``: stop a solve early when its cost falls by less than ρ·cost over W
+            steps while the Gauss–Newton step is still long (a mis-specified model crawls along a
+            curved valley for hundreds of steps; :mod:`diffship.fit.batched`, item 6). The fit then
+            reports ``RESULTS.cost_stalled`` (not converged) and says so. ``None`` (default): off.
         x0_prior: an estimated initial state moves from the measured (filtered) one only within its
             noise: a Gaussian prior row on each offset with the standard deviation of the channel's
             sample noise (robust second-difference estimate, at least 1 % of its spread) where the state
@@ -123,6 +127,7 @@ class OutputError(AbstractEstimator):
     effective_samples: bool = True
     x0_prior: bool = False
     ee_start: bool = True
+    stall: tuple[int, float] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
@@ -132,13 +137,21 @@ class OutputError(AbstractEstimator):
             raise FitError(f"gntol must be a positive number of standard errors, got {self.gntol!r}")
         if self.choose not in ("best", "first"):
             raise FitError(f"choose must be 'best' or 'first', got {self.choose!r}")
+        if self.stall is not None:
+            w, rho = self.stall
+            if not (int(w) == w and w >= 2 and 0 < rho < 1):
+                raise FitError(f"stall must be (steps >= 2, relative cost decrease in (0, 1)), got {self.stall!r}")
+            object.__setattr__(self, "stall", (int(w), float(rho)))
 
     def describe(self) -> str:
         return "output error"
 
     @property
     def lm(self) -> dict:
-        return dict(max_steps=self.max_steps, rtol=self.rtol, atol=self.atol, gntol=float(self.gntol))
+        lm = dict(max_steps=self.max_steps, rtol=self.rtol, atol=self.atol, gntol=float(self.gntol))
+        if self.stall is not None:
+            lm.update(stall_steps=self.stall[0], stall_rtol=self.stall[1])
+        return lm
 
     # -- prepare -----------------------------------------------------------------------------------
     def prepare(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, priors: Priors,
@@ -241,7 +254,17 @@ class OutputError(AbstractEstimator):
                 st_["data"], st_["noise_done"] = data, True
             say(f"output error: first {n_warm} samples of each run fitted ({', '.join(map(str, steps))} steps); "
                 "now the whole runs")
-        outs = kernel.solve_many(np.stack(zs), data, jacobian=True, progress=say, label="output error", **self.lm)
+        # starts the warm-up brought to the same point (same cost, same unknowns) are one problem on the
+        # whole runs: solved once (four starts of a USV fit all reached one optimum on the first quarter,
+        # and each then ran 200 identical steps on the whole runs)
+        rep = same_points(zs, [self.start_cost(problem, z) for z in zs]) if n_warm else list(range(len(zs)))
+        uniq = sorted(set(rep))
+        if len(uniq) < len(zs):
+            say(f"output error: {len(zs) - len(uniq)} start(s) reached the same point as another on the first "
+                f"{n_warm} samples: {len(uniq)} whole-run solve(s)")
+        solved = kernel.solve_many(np.stack([zs[i] for i in uniq]), data, jacobian=True, progress=say,
+                                   label="output error", **self.lm)
+        outs = [solved[uniq.index(rep[i])] for i in range(len(zs))]
         res = []
         for i, (z, _, k, r, *_) in enumerate(outs):
             r = np.asarray(r)
@@ -327,6 +350,10 @@ class OutputError(AbstractEstimator):
         # noise on measured inputs is propagated (errors in variables)
         meat, sigma_u, c = measured_input_meat(kernel, z, data, J, batch.mask, model.input_names)
         result = st.as_diffship(passes[-1])
+        if o.stall is not None and stalled(passes[-1], steps_per_pass[-1], o.max_steps):
+            result = st.RESULTS.cost_stalled
+            messages.append(f"stopped early: the cost fell by less than {o.stall[1]:.0e} of itself over "
+                            f"{o.stall[0]} steps (a crawl; not converged)")
         if np.any(np.abs(r) >= PENALTY):
             result = st.RESULTS.simulation_blew_up
         noise = channel_rms(r, batch.mask, scales)
@@ -406,3 +433,18 @@ def fit_output_error(
     estimator (see there for ``starts``, ``init``, ``n_starts``, ``throw``)."""
     return fit(model, runs, options, spec=spec, init=init, starts=starts, n_starts=n_starts, channels=channels,
                progress=progress, throw=throw)
+
+
+def same_points(zs: Sequence[np.ndarray], costs: Sequence[float], rtol: float = 1e-4, ztol: float = 1e-4) -> list[int]:
+    """For each start, the index of the first start at the same point: every unknown equal to
+    ``ztol`` in the scaled fit space (parameters' scales and initial-state scales: 10⁻⁴ of a scale
+    is far inside a standard error) and whole-run costs equal to ``rtol`` (relative: a long
+    simulation amplifies the last digits — four warm-ups of a USV fit 3·10⁻⁶ apart in ``z`` differed
+    by 2·10⁻⁶ of the cost). Non-finite costs are never merged."""
+    rep = []
+    for i, (z, c) in enumerate(zip(zs, costs)):
+        j = next((j for j in range(i) if rep[j] == j and math.isfinite(c) and math.isfinite(costs[j])
+                  and abs(c - costs[j]) <= rtol * max(abs(c), abs(costs[j]))
+                  and np.all(np.abs(np.asarray(z) - np.asarray(zs[j])) <= ztol)), i)
+        rep.append(j)
+    return rep

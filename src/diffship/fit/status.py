@@ -31,12 +31,14 @@ class RESULTS(optx.RESULTS):  # pyright: ignore[reportGeneralTypeIssues]
                         "standard errors)")
     did_not_settle = "the equation-error Gauss–Newton iteration did not settle"
     all_starts_blew_up = "the model diverges from every start"
+    cost_stalled = ("not converged: stopped early, the cost stalled (it fell by less than the stall tolerance over "
+                    "the last steps while the Gauss–Newton step was still long: a crawl, typical of a mis-specified model)")
 
 
 _TREE = jax.tree_util.tree_structure(RESULTS.successful)
 
 #: Usable estimates: converged, or stopped at a limit (reported, but the values are finite and simulate).
-_USABLE = ("successful", "max_steps_reached", "did_not_settle", "not_identifiable")
+_USABLE = ("successful", "max_steps_reached", "did_not_settle", "not_identifiable", "cost_stalled")
 
 
 def code(result) -> int:
