@@ -7,7 +7,8 @@ plus ``terms`` (value, standard error, inclusion probability of the output-error
 screen's inclusion, readable form), ``confirmed``, ``possible`` (terms not selected: inclusion probability
 and readable form), ``not_selected`` (why better-ranked structures were passed over) and ``tradeoffs``;
 ``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
-win frequency and whether it is the selected one); ``screen`` the equation-error screen.
+win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
+the output-error screen's forward path (score statistics, linearised values).
 """
 
 from __future__ import annotations
@@ -58,7 +59,12 @@ def discovery_json(d: Discovery, model_name: str) -> dict:
             "candidates": table,
             "screen": {"library": list(sc.terms), "inclusion": sc.inclusion, "coefficients": sc.coefficients,
                        "forward_path": [list(v) for v in sc.path.values()], "min_gain": sc.threshold,
-                       "n_boot": sc.n_boot, "block_s": sc.block_s}}
+                       "n_boot": sc.n_boot, "block_s": sc.block_s},
+            "oe_screen": None if d.oe_screen is None else {
+                "path": list(d.oe_screen.path), "statistic": list(d.oe_screen.statistic),
+                "supported": list(d.oe_screen.supported), "linearised_values": d.oe_screen.values,
+                "cost_fraction": list(d.oe_screen.fraction), "inflation": d.oe_screen.inflation,
+                "seconds": d.oe_screen.seconds}}
 
 
 def discovery_text(d: Discovery, model_name: str) -> str:
@@ -81,6 +87,10 @@ def discovery_text(d: Discovery, model_name: str) -> str:
                      f"{d.inclusion.get(t, 0.0):.2f}")
     for label, why in d.reasons.items():
         lines.append(f"not selected: {label}: {why}")
+    if d.oe_screen is not None and d.oe_screen.path:
+        lines.append("output-error screen (score statistic T of each forward step, * above the BIC cut): "
+                     + ", ".join(f"{t} {T:.1f}{'*' if s else ''}" for t, T, s in
+                                 zip(d.oe_screen.path, d.oe_screen.statistic, d.oe_screen.supported)))
     for a, b, c in d.tradeoffs:
         lines.append(f"warning: {a} and {b} trade off (estimates correlated {c:+.2f}); runs that separate them "
                      "would be needed to tell them apart")
