@@ -113,8 +113,9 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
 @pytest.mark.slow
 def test_null_check_adds_no_supported_term(tmp_path):
     """Plain fossen3 data: no term is selected; whatever the screens proposed is reported as possible with
-    inclusion probability < 0.5 (before the truth's inputs were read under the same hold convention as
-    diffship's, X_v_v was selected with inclusion 1.00)."""
+    inclusion probability < 0.5. Failed before: with the truth's inputs held between samples (X_v_v selected,
+    screen inclusion 1.00), and with candidates ranked from the metrics' start rule instead of their fitted
+    initial states (three terms within one standard error of zero selected)."""
     train = _csvs(tmp_path, ["steps", "sines", "chirp", "zigzag"], extra={})
     out = tmp_path / "d.json"
     assert main([*train, "--vessel", "usv", "--no-prior", "--json", str(out), "--quiet"]) == 0
