@@ -1,10 +1,12 @@
-"""Structure discovery on the done-when scenario of issue 29 (``python benchmarks/discover.py OUTDIR``).
+"""Structure discovery on the done-when scenario of issue 29 (``python benchmarks/discover.py OUTDIR [--null]``).
 
 Truth: :mod:`benchmarks.independent.usv_terms` (NumPy, its own RK4; the seed-002 USV with added masses and
 the withheld terms ``EXTRA``), noise at real-log levels. Training: steps, sines, chirp, zigzag (120 s,
 10 Hz); held out: a pull-out and a fast run with sway-force pulses. Runs ``python -m diffship.discover``
 and prints the held-out heading and yaw-rate RMSE of the base and selected structures beside the noise
-floor and 1.5× the floor, and the model error sqrt(RMSE² − noise²) relative to the base's.
+floor and 1.5× the floor, the model error sqrt(RMSE² − noise²) relative to the base's, and the terms
+found beside the truth's. ``--null``: the same runs from plain fossen3 (no extra terms): what is selected
+and every term's inclusion probability.
 """
 
 from __future__ import annotations
@@ -24,12 +26,13 @@ from independent.usv_terms import EXTRA, NOISE, run_table  # noqa: E402
 TRAIN, HELD = ("steps", "sines", "chirp", "zigzag"), ("pullout", "fast_pulses")
 
 
-def main(out: Path) -> None:
+def main(out: Path, null: bool = False) -> None:
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
+    truth = {} if null else EXTRA
     for i, k in enumerate(TRAIN + HELD):
         paths[k] = out / f"{k}.csv"
-        pd.DataFrame(run_table(k, 120.0, 0.1, i)).to_csv(paths[k], index=False)
+        pd.DataFrame(run_table(k, 120.0, 0.1, i, extra=truth)).to_csv(paths[k], index=False)
     cmd = [sys.executable, "-m", "diffship.discover", *(str(paths[k]) for k in TRAIN), "--validate",
            *(str(paths[k]) for k in HELD), "--model", "fossen3", "--vessel", "usv", "--no-prior", "--solver", "rk4",
            "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet"]
@@ -38,7 +41,22 @@ def main(out: Path) -> None:
     wall = time.perf_counter() - t0
     doc = json.loads((out / "discover.json").read_text())
     print("command:", " ".join(cmd))
-    print(f"truth terms: {EXTRA}; selected: {doc['selected']['terms']}; wall {wall:.0f} s")
+    sel = doc["selected"]
+    print(f"truth terms: {truth or 'none (plain fossen3)'}; wall {wall:.0f} s (discover itself {doc['seconds']:.0f} s)")
+    for t, v in sel["terms"].items():
+        print(f"selected {t:8s} {v['value']:10.1f} ± {v['stderr']:.1f} (truth {truth.get(t, 0.0):g}); inclusion "
+              f"{v['inclusion_probability']:.2f}, equation-error screen {v['screen_inclusion']:.2f}")
+    for t, v in sel["possible"].items():
+        print(f"possible {t:8s} inclusion {v['inclusion_probability']:.2f} (truth {truth.get(t, 0.0):g})")
+    for label, why in sel["not_selected"].items():
+        print(f"not selected: {label}: {why}")
+    oe = doc.get("oe_screen") or {}
+    if oe:
+        print("output-error screen path: " + ", ".join(f"{t} (T {T:.1f})" for t, T in zip(oe["path"], oe["statistic"])))
+    for c in doc["candidates"]:
+        print(f"  {' + '.join(c['terms']) or '(base)':40s} BIC {c['bic']:10.1f}  held-out/base "
+              f"{c['held_out_relative_rmse']:.3f}  bootstrap wins {c['bootstrap_wins']:.2f}"
+              + ("  <- selected" if c["selected"] else ""))
     for run in HELD:
         for c in ("psi", "r"):
             b = doc["base"]["validation"]["per_run"][run]["rmse"][c]
@@ -50,4 +68,5 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/diffship-discover"))
+    args = [a for a in sys.argv[1:] if a != "--null"]
+    main(Path(args[0] if args else "/tmp/diffship-discover"), null="--null" in sys.argv[1:])

@@ -55,7 +55,7 @@ from ..models import AbstractModel
 from ..models.effects import Augmented, Effect
 from ..params import ParamSpec
 
-__all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX", "parallel"]
+__all__ = ["Workspace", "ScreenResult", "RefitResult", "P_MAX", "inflation", "parallel"]
 
 #: Largest number of effect parameters refitted at once (one or two effects).
 P_MAX = 5
@@ -211,10 +211,10 @@ class Workspace:
         return m.with_params({n: float(v) for n, v in values.items()})
 
     # -- screen ----------------------------------------------------------------------------
-    def screen(self) -> tuple[list[ScreenResult], dict]:
-        """Score test of every candidate at the base fit (one Jacobian pass, then one or two
-        simulations per further effect parameter)."""
-        t0 = time.perf_counter()
+    def columns(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """``(r0, J_theta, {effect parameter: ∂e/∂(scaled φ)})`` at the base fit: the normalised
+        residuals, the Jacobian of the base parameters and initial states, and each candidate
+        parameter's fingerprint (a probe secant for non-smooth nulls)."""
         z0 = self.z0()
         phi0 = self.phi_null
         r0 = self.residuals(z0, self.selection([]), phi0)
@@ -249,11 +249,18 @@ class Workspace:
             probe = self.owner[n].PROBE[n]
             r1 = self.residuals(z0, self.selection([]), self.phi_vector({n: probe}))
             cols[n] = np.where(np.abs(r1) >= PENALTY, 0.0, r1 - r0)
+        return r0, J_theta, cols
+
+    def screen(self) -> tuple[list[ScreenResult], dict]:
+        """Score test of every candidate at the base fit (one Jacobian pass, then one or two
+        simulations per further effect parameter)."""
+        t0 = time.perf_counter()
+        r0, J_theta, cols = self.columns()
         u, sv, _ = np.linalg.svd(J_theta, full_matrices=False)
         Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
         m = self.train["batch"].n_residuals  # padded samples are not data
         s2 = float(r0 @ r0) / max(m - J_theta.shape[1], 1)
-        kappa = _inflation(r0, self.train["batch"], len(self.channels))
+        kappa = inflation(r0, self.train["batch"], len(self.channels))
         out = []
         for e in self.effects:
             G = np.stack([cols[n] for n in e.param_names], axis=1)
@@ -420,7 +427,7 @@ def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:
         return list(pool.map(safe, items))
 
 
-def _inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:
+def inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:
     """1 + 2 Σ ρ_l (Bartlett-weighted) of the residuals, averaged over channels; ≥ 1."""
     e = r.reshape(batch.mask.shape + (n_ch,))
     vals = []

@@ -1,12 +1,15 @@
 """Structure discovery (issue 29): the terms a vessel's equations need beyond its base model.
 
-``discover(base, train, validate)`` (or ``python -m diffship.discover``): a fast equation-error screen of
-a term library (:mod:`diffship.models.terms`, :mod:`.screen`), an output-error refit of every candidate
-structure through the one driver, ranking by information criteria on output residuals (:mod:`.rank`),
-confirmation on held-out runs (:mod:`.discovery`); text, JSON and figure in :mod:`.report`.
+``discover(base, train, validate)`` (or ``python -m diffship.discover``): two screens of a term library
+(:mod:`diffship.models.terms`) — greedy forward selection on the output-error Jacobian at the base fit
+(:mod:`.oescreen`) and on equation error (:mod:`.screen`) —, an output-error refit of every proposed
+structure through the one driver, ranking by information criteria on output residuals with bootstrap
+inclusion probabilities (:mod:`.rank`), selection with a margin, inclusion ≥ 0.5 and held-out confirmation
+(:mod:`.discovery`); text, JSON and figure in :mod:`.report`.
 """
 
 from .discovery import Candidate as Candidate, Discovery as Discovery, discover as discover
+from .oescreen import OEScreen as OEScreen, oe_screen as oe_screen
 from .screen import Screen as Screen, screen as screen
 
-__all__ = ["discover", "Discovery", "Candidate", "Screen", "screen"]
+__all__ = ["discover", "Discovery", "Candidate", "Screen", "screen", "OEScreen", "oe_screen"]

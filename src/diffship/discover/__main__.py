@@ -38,6 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--candidates", type=positive_int, default=6, metavar="N",
                    help="most structures refitted by output error, the base included (default 6)")
     p.add_argument("--criterion", default="bic", choices=("bic", "aic"))
+    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
+                   help="initial states in every fit: estimated per run within each channel's noise (default: an "
+                        "initial-state error of a slow mode lasts for much of a run and candidate terms absorb "
+                        "it) or taken from the data (the filtered first samples)")
     add_bootstrap_options(p, what="the discovered model")
     return p
 
@@ -85,7 +89,7 @@ def _run(args) -> int:
     flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()
     d = discover(model.with_params(spec.values()), train, val, spec=spec, library=args.library,
                  max_terms=args.max_terms, max_candidates=args.candidates, criterion=args.criterion, options=opts,
-                 flt=flt, n_starts=args.starts or 1, progress=say)
+                 flt=flt, n_starts=args.starts or 1, x0=args.x0, progress=say)
     text = discovery_text(d, model.name)
     doc = discovery_json(d, model.name)
     if args.bootstrap:  # issue 27: percentile intervals of the discovered model from refits of resamples

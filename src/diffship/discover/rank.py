@@ -28,8 +28,9 @@ import numpy as np
 from ..data import Run
 from ..fit.weights import correlation_time
 from ..metrics import Evaluation
+from ..stats import block_indices
 
-__all__ = ["residuals", "effective_samples", "criteria"]
+__all__ = ["residuals", "effective_samples", "criteria", "selection_frequency"]
 
 
 def residuals(model_outputs: Sequence[str], angles: Sequence[str], ev: Evaluation, runs: Sequence[Run],
@@ -76,3 +77,47 @@ def criteria(res: Mapping[str, list[np.ndarray]], n_eff: Mapping[str, float], k:
         ll += n_eff[c] * math.log(max(rss / e.size, 1e-300))
         n_tot += n_eff[c]
     return {"aic": ll + 2 * k, "bic": ll + k * math.log(max(n_tot, 2.0)), "loglik_eff": -0.5 * ll, "n_eff": n_tot}
+
+
+def selection_frequency(resids: Sequence[Mapping[str, list[np.ndarray]]], n_eff: Mapping[str, float],
+                        ks: Sequence[int], n_terms: Sequence[int], criterion: str = "bic", *, n_boot: int = 200,
+                        block: int = 50, seed: int = 0) -> np.ndarray:
+    r"""How often each candidate wins the ranking over a paired moving-block bootstrap of the training
+    samples: ``(n_candidates,)`` fractions summing to 1.
+
+    Every resample draws blocks of ``block`` samples per run (the same rows for every candidate and
+    channel: the comparison is paired) and recomputes each candidate's criterion
+    (:func:`criteria`, the same effective sample sizes ``n_eff``) from its output residuals at those
+    rows; the lowest wins (ties: fewer terms). A term's **inclusion probability** is the summed
+    frequency of the candidates that contain it (Buckland, Burnham & Augustin, Biometrics 53, 1997,
+    bootstrap selection frequencies). The candidates are not refitted per resample, so the spread
+    is that of the comparison of the fitted structures; the in-sample optimism of a refit is what
+    the criterion's penalty is for. ``resids[i]``: candidate ``i``'s ``{channel: [residual per run]}``
+    (:func:`residuals`), all on the same runs.
+    """
+    n_c = len(resids)
+    chans = [c for c in resids[0] if resids[0][c] and c in n_eff]
+    sq = {c: [np.stack([np.asarray(r[c][j]) ** 2 for r in resids]) for j in range(len(resids[0][c]))] for c in chans}
+    n_runs = max((len(v) for v in sq.values()), default=0)
+    n_tot = sum(n_eff[c] for c in chans)
+    pen = np.asarray(ks, dtype=float) * (math.log(max(n_tot, 2.0)) if criterion == "bic" else 2.0)
+    tie = 1e-9 * np.asarray(n_terms, dtype=float)
+    rng = np.random.default_rng(seed)
+    wins = np.zeros(n_c)
+    for _ in range(n_boot):
+        drawn: dict[tuple[int, int], np.ndarray] = {}  # (run, length) -> rows: channels of a run share them
+
+        def rows(j, n):
+            if (j, n) not in drawn:
+                drawn[(j, n)] = block_indices(n, 1, block, rng)[0]
+            return drawn[(j, n)]
+
+        crit = pen + tie
+        for c in chans:
+            parts = sq[c]
+            key = (lambda j: j) if len(parts) == n_runs else (lambda j: (c, j))
+            rss = sum(parts[j][:, rows(key(j), parts[j].shape[1])].sum(axis=1) for j in range(len(parts)))
+            cnt = sum(parts[j].shape[1] for j in range(len(parts)))
+            crit = crit + n_eff[c] * np.log(np.maximum(rss / cnt, 1e-300))
+        wins[int(np.argmin(crit))] += 1
+    return wins / max(n_boot, 1)

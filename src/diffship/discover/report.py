@@ -3,9 +3,12 @@
 JSON (``"schema": "diffship.discover/1"``): ``selected`` has the layout of one method of
 ``python -m diffship.fit``'s JSON — ``params``, ``stderr``, ``train`` and ``validation`` metrics
 (``validation.per_run.<run>.rmse.<channel>``, SI, rad, as ``methods.output_error.validation.per_run``) —
-plus ``terms`` (value, standard error, inclusion probability, readable form), ``confirmed``, ``weak`` and
-``tradeoffs``; ``base`` the same for the base model; ``candidates`` the ranked table; ``screen`` the
-equation-error screen.
+plus ``terms`` (value, standard error, inclusion probability of the output-error ranking bootstrap, the
+screen's inclusion, readable form), ``confirmed``, ``possible`` (terms not selected: inclusion probability
+and readable form), ``not_selected`` (why better-ranked structures were passed over) and ``tradeoffs``;
+``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
+win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
+the output-error screen's forward path (score statistics, linearised values).
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ def _metrics(ev) -> dict:
 def _method(c: Candidate, d: Discovery) -> dict:
     r = c.result
     return {"terms": {t: {"value": r.params[t], "stderr": r.stderr.get(t, math.nan),
-                          "inclusion_probability": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
+                          "inclusion_probability": d.inclusion.get(t, math.nan),
+                          "screen_inclusion": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
                       for t in c.terms},
             "params": dict(r.params), "stderr": dict(r.stderr), "free": list(r.free), "status": r.status,
             "converged": bool(r.converged), "criteria": dict(c.criteria), "n_params": c.n_params,
@@ -39,18 +43,28 @@ def _method(c: Candidate, d: Discovery) -> dict:
 
 def discovery_json(d: Discovery, model_name: str) -> dict:
     """The ``--json`` document (module docstring)."""
-    sel = {**_method(d.selected, d), "confirmed": d.confirmed, "weak": list(d.weak),
+    sel = {**_method(d.selected, d), "confirmed": d.confirmed,
+           "possible": {t: {"inclusion_probability": d.inclusion.get(t, 0.0),
+                            "screen_inclusion": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
+                        for t in d.possible},
+           "not_selected": dict(d.reasons),
            "tradeoffs": [{"a": a, "b": b, "correlation": c} for a, b, c in d.tradeoffs]}
     table = [{"rank": i + 1, "terms": list(c.terms), "n_params": c.n_params, "aic": c.criteria["aic"],
-              "bic": c.criteria["bic"], "held_out_relative_rmse": c.held_out, "status": c.result.status}
+              "bic": c.criteria["bic"], "held_out_relative_rmse": c.held_out, "bootstrap_wins": c.wins,
+              "selected": i == d.chosen, "status": c.result.status}
              for i, c in enumerate(d.candidates)]
     sc = d.screen
     return {"schema": "diffship.discover/1", "model": model_name, "criterion": d.criterion,
-            "effective_samples": d.n_eff, "seconds": d.seconds, "selected": sel, "base": _method(d.base, d),
+            "effective_samples": d.n_eff, "seconds": d.seconds, "ranking_bootstrap": d.n_boot, "selected": sel, "base": _method(d.base, d),
             "candidates": table,
             "screen": {"library": list(sc.terms), "inclusion": sc.inclusion, "coefficients": sc.coefficients,
                        "forward_path": [list(v) for v in sc.path.values()], "min_gain": sc.threshold,
-                       "n_boot": sc.n_boot, "block_s": sc.block_s}}
+                       "n_boot": sc.n_boot, "block_s": sc.block_s},
+            "oe_screen": None if d.oe_screen is None else {
+                "path": list(d.oe_screen.path), "statistic": list(d.oe_screen.statistic),
+                "supported": list(d.oe_screen.supported), "linearised_values": d.oe_screen.values,
+                "cost_fraction": list(d.oe_screen.fraction), "inflation": d.oe_screen.inflation,
+                "seconds": d.oe_screen.seconds}}
 
 
 def discovery_text(d: Discovery, model_name: str) -> str:
@@ -60,22 +74,31 @@ def discovery_text(d: Discovery, model_name: str) -> str:
              f"{len(d.candidates)} structures refitted by output error, ranked by {d.criterion.upper()} on output "
              f"residuals ({d.seconds:.0f} s)"]
     if sel.terms:
-        lines.append("selected terms (value ± standard error, bootstrap inclusion probability of the screen):")
+        lines.append("selected terms (value ± standard error, inclusion probability: bootstrap of the output-error "
+                     "ranking; screen: of the equation-error screen):")
         for t in sel.terms:
             lines.append(f"  {t:>10s}  {term_label(t):<12s} {sel.result.params[t]: .5g} ± "
-                         f"{sel.result.stderr.get(t, math.nan):.2g}   inclusion {d.screen.inclusion.get(t, math.nan):.2f}")
+                         f"{sel.result.stderr.get(t, math.nan):.2g}   inclusion {d.inclusion.get(t, math.nan):.2f}"
+                         f"   screen {d.screen.inclusion.get(t, math.nan):.2f}")
     else:
         lines.append(f"selected: no term beyond {model_name}")
-    for t in d.weak:
-        lines.append(f"note: {t} is weakly supported (inclusion probability {d.screen.inclusion[t]:.2f} < 0.5)")
+    for t in d.possible:
+        lines.append(f"possible (not selected): {t} ({term_label(t)}), inclusion probability "
+                     f"{d.inclusion.get(t, 0.0):.2f}")
+    for label, why in d.reasons.items():
+        lines.append(f"not selected: {label}: {why}")
+    if d.oe_screen is not None and d.oe_screen.path:
+        lines.append("output-error screen (score statistic T of each forward step, * above the BIC cut): "
+                     + ", ".join(f"{t} {T:.1f}{'*' if s else ''}" for t, T, s in
+                                 zip(d.oe_screen.path, d.oe_screen.statistic, d.oe_screen.supported)))
     for a, b, c in d.tradeoffs:
         lines.append(f"warning: {a} and {b} trade off (estimates correlated {c:+.2f}); runs that separate them "
                      "would be needed to tell them apart")
     lines.append("")
-    lines.append(f"  rank  {d.criterion.upper():>10s}  held-out RMSE/base  terms")
+    lines.append(f"  rank  {d.criterion.upper():>10s}  held-out RMSE/base  bootstrap wins  terms")
     for i, c in enumerate(d.candidates):
-        lines.append(f"  {i + 1:>4d}  {c.criteria[d.criterion]:>10.1f}  {c.held_out:>18.3f}  "
-                     + (" + ".join(c.terms) or "(base)"))
+        lines.append(f"  {i + 1:>4d}  {c.criteria[d.criterion]:>10.1f}  {c.held_out:>18.3f}  {c.wins:>14.2f}  "
+                     + (" + ".join(c.terms) or "(base)") + ("   <- selected" if i == d.chosen else ""))
     if sel.validation is not None:
         lines.append("")
         lines.append("held-out runs, RMSE base → selected:")

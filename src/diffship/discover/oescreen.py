@@ -1,0 +1,131 @@
+r"""The output-error screen of structure discovery: greedy forward selection on the simulation Jacobian.
+
+At the base model's output-error fit, with normalised simulation residuals :math:`e` (length m), the
+Jacobian :math:`J_\theta` of the base parameters and initial states (orthonormal basis Q) and each
+library term's fingerprint :math:`g_k = \partial e/\partial c_k` (the change of the *simulated*
+outputs when the term is switched on; :meth:`diffship.diagnose.screen.Workspace.columns`, one compiled
+all-terms model), the linearised refit with the terms S is the least squares
+
+.. math:: \min_{\delta}\ \|e + J_\theta\delta_\theta + G_S\delta_S\|^2 .
+
+Greedy forward selection adds, at each step, the term whose part orthogonal to the base columns and
+to the terms already chosen, :math:`g_\perp`, removes most of the residual,
+:math:`\Delta_k = (g_\perp^\top e_S)^2/\|g_\perp\|^2`, and its score statistic
+:math:`T_k = \Delta_k/(\hat\sigma^2\kappa)` (Lagrange multiplier, χ²₁ under "no such term"; κ ≥ 1 the
+variance inflation of autocorrelated residuals, :func:`diffship.diagnose.screen.inflation`).
+The path continues to ``max_terms`` terms whatever :math:`T_k` (it only proposes structures, which are
+refitted and ranked on output residuals, :mod:`.rank`); ``supported`` marks the steps with
+:math:`T_k > \ln(m/\kappa)`, the BIC penalty of one parameter on the effective sample count.
+
+Unlike the equation-error screen (:mod:`.screen`), the regressors here are simulated, not measured:
+noise in the measured velocities and their numerical derivatives does not bias it (no errors in
+variables), and a term is judged by what it does to the outputs being fitted (Söderström & Stoica,
+*System identification*, Prentice Hall 1989, §7.6 on the bias of equation error; Rao, *Linear
+statistical inference*, 1973, §6e for the score test).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..data import Run
+from ..diagnose.screen import Workspace, inflation
+from ..fit import FitResult
+from ..models.terms import term_class
+from ..params import ParamSpec
+
+__all__ = ["OEScreen", "oe_screen"]
+
+
+@dataclasses.dataclass(frozen=True)
+class OEScreen:
+    """The forward path of the output-error screen.
+
+    Attributes:
+        path: terms in the order chosen.
+        statistic: each step's score statistic :math:`T_k` (module docstring).
+        supported: each step's :math:`T_k > \\ln(m/\\kappa)`.
+        values: ``{term: linearised estimate}`` of the last step's least squares (model units).
+        fraction: each step's share of the base fit's training cost removed (linearised).
+        inflation: κ; seconds: wall time (compilation included).
+    """
+
+    path: tuple[str, ...]
+    statistic: tuple[float, ...]
+    supported: tuple[bool, ...]
+    values: dict[str, float]
+    fraction: tuple[float, ...]
+    inflation: float
+    seconds: float
+
+    def candidates(self, max_terms: int) -> list[tuple[str, ...]]:
+        """The path's prefixes, at most ``max_terms`` long."""
+        return [tuple(self.path[:k]) for k in range(1, min(max_terms, len(self.path)) + 1)]
+
+
+def forward_path(r0: np.ndarray, J_theta: np.ndarray, G: np.ndarray, max_terms: int, s2: float, kappa: float):
+    """``(order, T, fraction, delta)``: greedy forward selection of the columns of ``G`` (m × q) on the
+    residual ``r0`` beyond the span of ``J_theta`` (module docstring); ``delta`` the linearised least-squares
+    coefficients of the chosen columns (the step that lowers ``‖r0 + J δ‖``)."""
+    u, sv, _ = np.linalg.svd(J_theta, full_matrices=False)
+    Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
+    Gp = G - Q @ (Q.T @ G)
+    e = r0 - Q @ (Q.T @ r0)
+    total = float(r0 @ r0)
+    B = np.zeros((r0.size, 0))
+    order: list[int] = []
+    T: list[float] = []
+    frac: list[float] = []
+    for _ in range(min(max_terms, G.shape[1])):
+        H = Gp - B @ (B.T @ Gp)
+        nn = np.sum(H * H, axis=0)
+        gain = np.where(nn > 1e-12 * np.maximum(np.sum(Gp * Gp, axis=0), 1e-300), (H.T @ e) ** 2 / np.maximum(nn, 1e-300),
+                        -1.0)
+        gain[order] = -1.0
+        k = int(np.argmax(gain))
+        if gain[k] <= 0:
+            break
+        order.append(k)
+        T.append(float(gain[k]) / (s2 * kappa))
+        frac.append(float(gain[k]) / max(total, 1e-300))
+        h = H[:, k] / math.sqrt(nn[k])
+        B = np.concatenate([B, h[:, None]], axis=1)
+        e = e - h * float(h @ e)
+    delta = np.zeros(len(order))
+    if order:
+        A = np.concatenate([J_theta, G[:, order]], axis=1)
+        sol, *_ = np.linalg.lstsq(A, -r0, rcond=None)
+        delta = sol[J_theta.shape[1]:]
+    return order, T, frac, delta
+
+
+def oe_screen(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], *,
+              max_terms: int = 4) -> OEScreen:
+    """Screen the library ``terms`` at the base fit ``res0`` (its model, channels, noise scales and
+    integrator; ``spec``: the base's free/fixed parameters) on the training ``runs``."""
+    import time
+
+    t0 = time.perf_counter()
+    base = res0.model
+    chans = tuple(res0.channels)
+    base_spec = spec.with_values({n: res0.params[n] for n in spec.names})
+    scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
+    x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None
+    ws = Workspace(base, base_spec, [term_class(t)() for t in terms], runs, chans, scales, x0_train=x0,
+                   integrator=res0.integrator, warmup=0.0)
+    r0, J_theta, cols = ws.columns()
+    names = list(ws.phi_names)  # one coefficient per term, in the workspace's order
+    G = np.stack([cols[n] for n in names], axis=1)
+    m = ws.train["batch"].n_residuals
+    s2 = float(r0 @ r0) / max(m - J_theta.shape[1], 1)
+    kappa = inflation(r0, ws.train["batch"], len(chans))
+    order, T, frac, delta = forward_path(r0, J_theta, G, max_terms, s2, kappa)
+    path = tuple(names[k] for k in order)
+    values = {n: float(ws.phi_null[names.index(n)] + ws.phi_scale[names.index(n)] * d) for n, d in zip(path, delta)}
+    cut = math.log(max(m / kappa, 2.0))
+    return OEScreen(path=path, statistic=tuple(T), supported=tuple(t > cut for t in T), values=values,
+                    fraction=tuple(frac), inflation=kappa, seconds=time.perf_counter() - t0)
