@@ -87,7 +87,9 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     out = tmp_path / "d.json"
     fit = tmp_path / "fit.json"
     assert main([*train, "--validate", *held, "--vessel", "usv", "--no-prior", "--json", str(out), "--save",
-                 str(fit), "--quiet", "--bootstrap", "8"]) == 0
+                 str(fit), "--quiet", "--bootstrap", "8", "--html", str(tmp_path / "d.html")]) == 0
+    page = (tmp_path / "d.html").read_text()
+    assert "data:image/png;base64," in page and "discover" in page  # --html: one file, the figure embedded
     doc = json.loads(out.read_text())
     assert "N_v_ar" in doc["selected"]["terms"] and doc["selected"]["confirmed"]
     assert all(v["inclusion_probability"] >= 0.5 for v in doc["selected"]["terms"].values())
@@ -129,3 +131,15 @@ def test_null_check_adds_no_supported_term(tmp_path):
     assert all(v["inclusion_probability"] < 0.5 for v in doc["selected"]["possible"].values())
     assert [c for c in doc["candidates"] if c["selected"]][0]["terms"] == []
     assert len(doc["candidates"]) >= 2  # the screens did propose structures, and they were refitted and rejected
+
+
+def test_discover_shares_the_fit_commands_options():
+    """discover takes the options fit takes for the same things (one set of options for every CLI)."""
+    from diffship.discover.__main__ import build_parser as discover_parser
+    from diffship.fit.args import build_parser as fit_parser
+
+    shared = ("--map", "--html", "--bootstrap", "--bootstrap-method", "--input-hold", "--starts", "--solver", "--filter",
+              "--fix", "--init", "--validate", "--json", "--x0")
+    for p in (discover_parser(), fit_parser()):
+        opts = {o for a in p._actions for o in a.option_strings}
+        assert set(shared) <= opts, set(shared) - opts

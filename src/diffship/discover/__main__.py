@@ -12,6 +12,7 @@ from pathlib import Path
 from ..cli_options import (add_bootstrap_options, add_data_options, add_numerics_options, add_output_options,
                            add_parameter_options, add_prior_options, add_vessel_option, positive_int)
 from ..errors import DiffshipError
+from ..log_options import add_log_options, log_kwargs
 
 __all__ = ["build_parser", "main"]
 
@@ -43,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "initial-state error of a slow mode lasts for much of a run and candidate terms absorb "
                         "it) or taken from the data (the filtered first samples)")
     add_bootstrap_options(p, what="the discovered model")
+    add_log_options(p)  # --map (logs), --html (issue 30), as in fit, diagnose and predict
     return p
 
 
@@ -79,7 +81,8 @@ def _run(args) -> int:
     model, spec, fix, init = model_spec(args.model, args.vessel, args.fix, args.init, args.free)
     spec = spec.with_values(init)
     cols = dict(c.split("=", 1) for c in args.columns) or None
-    kw = dict(columns=cols, degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit)
+    kw = dict(columns=cols, degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit,
+              **log_kwargs(args))
     train = load_runs(args.runs, **kw)
     val = load_runs(args.validate, **kw) if args.validate else []
     if args.resample:
@@ -110,6 +113,13 @@ def _run(args) -> int:
         save_fit(d.selected.result, args.save, train, registry=args.model, extra=extra)
     if args.json:
         dump(doc, args.json)
+    if args.html:  # one self-contained file with the figure --out writes
+        from ..html import write_html_report
+
+        def figures(folder):
+            plot_discovery(d, model.name, train, val, folder / "discover.png")
+            return [folder / "discover.png"]
+        say(f"wrote {write_html_report(args.html, f'diffship discover: {model.name}', text, figures)}")
     return 0
 
 
