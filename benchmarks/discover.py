@@ -6,7 +6,9 @@ the withheld terms ``EXTRA``), noise at real-log levels. Training: steps, sines,
 and prints the held-out heading and yaw-rate RMSE of the base and selected structures beside the noise
 floor and 1.5× the floor, the model error sqrt(RMSE² − noise²) relative to the base's, and the terms
 found beside the truth's. ``--null``: the same runs from plain fossen3 (no extra terms): what is selected
-and every term's inclusion probability.
+and every term's inclusion probability. ``--hold zero``: the truth holds each input sample until the next
+(a digital command) and discover is told so (``--input-hold zero``); without telling it, such a log reads half a
+sample early (see :mod:`independent.usv_terms`).
 """
 
 from __future__ import annotations
@@ -26,16 +28,16 @@ from independent.usv_terms import EXTRA, NOISE, run_table  # noqa: E402
 TRAIN, HELD = ("steps", "sines", "chirp", "zigzag"), ("pullout", "fast_pulses")
 
 
-def main(out: Path, null: bool = False) -> None:
+def main(out: Path, null: bool = False, hold: str = "linear") -> None:
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     truth = {} if null else EXTRA
     for i, k in enumerate(TRAIN + HELD):
         paths[k] = out / f"{k}.csv"
-        pd.DataFrame(run_table(k, 120.0, 0.1, i, extra=truth)).to_csv(paths[k], index=False)
+        pd.DataFrame(run_table(k, 120.0, 0.1, i, extra=truth, hold=hold)).to_csv(paths[k], index=False)
     cmd = [sys.executable, "-m", "diffship.discover", *(str(paths[k]) for k in TRAIN), "--validate",
            *(str(paths[k]) for k in HELD), "--model", "fossen3", "--vessel", "usv", "--no-prior", "--solver", "rk4",
-           "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet"]
+           "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet", "--input-hold", hold]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
     wall = time.perf_counter() - t0
@@ -68,5 +70,11 @@ def main(out: Path, null: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--null"]
-    main(Path(args[0] if args else "/tmp/diffship-discover"), null="--null" in sys.argv[1:])
+    argv = sys.argv[1:]
+    hold = "linear"
+    if "--hold" in argv:
+        i = argv.index("--hold")
+        hold = argv[i + 1]
+        del argv[i:i + 2]
+    args = [a for a in argv if a != "--null"]
+    main(Path(args[0] if args else "/tmp/diffship-discover"), null="--null" in argv, hold=hold)
