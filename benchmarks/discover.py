@@ -8,7 +8,7 @@ floor and 1.5× the floor, the model error sqrt(RMSE² − noise²) relative to 
 found beside the truth's. ``--null``: the same runs from plain fossen3 (no extra terms): what is selected
 and every term's inclusion probability. ``--hold zero``: the truth holds each input sample until the next
 (a digital command) and discover is told so (``--input-hold zero``); without telling it, such a log reads half a
-sample early (see :mod:`independent.usv_terms`).
+sample early (see :mod:`independent.usv_terms`); ``--hold zero-untold`` shows that case.
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ TRAIN, HELD = ("steps", "sines", "chirp", "zigzag"), ("pullout", "fast_pulses")
 
 
 def main(out: Path, null: bool = False, hold: str = "linear") -> None:
+    told = hold != "zero-untold"
+    hold = "zero" if hold == "zero-untold" else hold
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     truth = {} if null else EXTRA
@@ -37,7 +39,7 @@ def main(out: Path, null: bool = False, hold: str = "linear") -> None:
         pd.DataFrame(run_table(k, 120.0, 0.1, i, extra=truth, hold=hold)).to_csv(paths[k], index=False)
     cmd = [sys.executable, "-m", "diffship.discover", *(str(paths[k]) for k in TRAIN), "--validate",
            *(str(paths[k]) for k in HELD), "--model", "fossen3", "--vessel", "usv", "--no-prior", "--solver", "rk4",
-           "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet", "--input-hold", hold]
+           "--json", str(out / "discover.json"), "--save", str(out / "fit.json"), "--quiet", "--input-hold", hold if told else "linear"]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
     wall = time.perf_counter() - t0
