@@ -96,7 +96,11 @@ def _run(args) -> int:
     text = discovery_text(d, model.name)
     doc = discovery_json(d, model.name)
     if args.bootstrap:  # issue 27: percentile intervals of the discovered model from refits of resamples
-        text, doc["selected"]["bootstrap"] = _bootstrap(args, d.selected.result, train, say, text)
+        from ..fit.bootstrap import bootstrap_report
+
+        block, doc["selected"]["bootstrap"] = bootstrap_report(d.selected.result, train, args.bootstrap,
+                                                               args.bootstrap_method, say)
+        text += "\n" + block
     print(text)
     dump = lambda obj, path: Path(path).write_text(json.dumps(obj, indent=2, default=float))  # noqa: E731
     extra = {"discover": {"terms": list(d.selected.terms), "confirmed": d.confirmed},
@@ -121,18 +125,6 @@ def _run(args) -> int:
             return [folder / "discover.png"]
         say(f"wrote {write_html_report(args.html, f'diffship discover: {model.name}', text, figures)}")
     return 0
-
-
-def _bootstrap(args, result, train, say, text: str) -> tuple[str, dict | None]:
-    """``--bootstrap N`` on the discovered model: the report text with the intervals, and the JSON entry."""
-    if not result.converged:
-        return text + "\nbootstrap: skipped (the discovered model's fit did not converge)", None
-    from ..fit.bootstrap import bootstrap_fit
-
-    say(f"bootstrap: refitting the discovered model on {args.bootstrap} resamples ({args.bootstrap_method})...")
-    boot = bootstrap_fit(result, train, n=args.bootstrap, method=args.bootstrap_method)
-    say(f"bootstrap: {boot.n_ok} of {boot.n} refits converged in {boot.seconds:.1f} s")
-    return text + "\n" + boot.text(), boot.as_json()
 
 
 if __name__ == "__main__":

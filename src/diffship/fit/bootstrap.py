@@ -49,7 +49,7 @@ from ..params import ParamSpec
 from .input_noise import input_noise
 from .kernel import PENALTY, Kernel, KernelData
 
-__all__ = ["BootstrapResult", "block_length", "bootstrap_fit", "bootstrap_kernel", "resample"]
+__all__ = ["BootstrapResult", "block_length", "bootstrap_fit", "bootstrap_kernel", "bootstrap_report", "resample"]
 
 _OK = int(jax.tree_util.tree_leaves(optx.RESULTS.successful)[0])
 
@@ -266,3 +266,16 @@ def bootstrap_fit(result, runs: Sequence, *, spec: ParamSpec | None = None, opti
     cse = [result.stderr.get(n_, math.nan) for n_ in spec.free_names]
     return bootstrap_kernel(kernel, data, z_hat, n, method=method, block=block, seed=seed, level=level,
                             cov_stderr=cse, workers=workers, **lm)
+
+
+def bootstrap_report(result, runs: Sequence, n: int, method: str = "blocks", say=lambda s: None, *,
+                     spec: ParamSpec | None = None, options=None) -> tuple[str, dict | None]:
+    """``--bootstrap N`` for a command line: the report block and the JSON entry (``None`` when skipped:
+    a fit that did not converge is not resampled, and the block says so)."""
+    if not result.converged:
+        return "bootstrap: skipped (the output-error fit did not converge)", None
+    say(f"bootstrap: refitting {n} resamples ({method})...")
+    boot = bootstrap_fit(result, runs, spec=spec, options=options, n=n, method=method)
+    say(f"bootstrap: {boot.n_ok} of {boot.n} refits converged in {boot.seconds:.1f} s")
+    return boot.text(), boot.as_json()
+

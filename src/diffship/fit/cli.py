@@ -245,7 +245,10 @@ def _fit(args, say) -> int:
             report += "\n\n" + adm.summary()
             per_method["output_error"]["admissibility"] = adm.as_json()
     if args.bootstrap and oe is not None:  # issue 27: percentile intervals from refits of resamples
-        text, boot = _bootstrap(args, oe, fit_runs, spec, dataclasses.replace(options, flt=flt), say)
+        from .bootstrap import bootstrap_report
+
+        text, boot = bootstrap_report(oe, fit_runs, args.bootstrap, args.bootstrap_method, say, spec=spec,
+                                      options=dataclasses.replace(options, flt=flt))
         report += "\n\n" + text
         per_method["output_error"]["bootstrap"] = boot
     cross = _cross_manoeuvre(oe, train, val, say)
@@ -275,26 +278,7 @@ def _fit(args, say) -> int:
 
 def _starts(args) -> dict:
     """``--starts N`` for the fit driver (issue 25); ``{}`` when not given."""
-    if args.starts is None:
-        return {}
-    import inspect
-
-    params = inspect.signature(fit_both).parameters
-    for name in ("n_starts", "starts"):
-        if name in params:
-            return {name: args.starts}
-    raise DiffshipError("--starts: multi-start fits need the fit driver of issue 25, not in this build yet")
-
-
-def _bootstrap(args, oe, runs, spec, options, say) -> tuple[str, dict | None]:
-    """``--bootstrap N``: the text block and the JSON entry ``bootstrap`` (``None`` when skipped)."""
-    from .bootstrap import bootstrap_fit
-    if not oe.converged:
-        return "bootstrap: skipped (the output-error fit did not converge)", None
-    say(f"bootstrap: refitting {args.bootstrap} resamples ({args.bootstrap_method})...")
-    boot = bootstrap_fit(oe, runs, spec=spec, options=options, n=args.bootstrap, method=args.bootstrap_method)
-    say(f"bootstrap: {boot.n_ok} of {boot.n} refits converged in {boot.seconds:.1f} s")
-    return boot.text(), boot.as_json()
+    return {} if args.starts is None else {"n_starts": args.starts}
 
 
 # -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --

@@ -38,6 +38,16 @@ def is_ship3(model: AbstractModel) -> bool:
     return isinstance(model, AbstractShip3)
 
 
+def rudder_only_applicability(base: AbstractModel, ship3_form: str) -> str:
+    """``""`` when ``base`` is a rudder-steered model that is not 3-DOF (a Nomoto model: the effect acts on its
+    input ``delta``), else why not; ``ship3_form`` says what the effect is on a 3-DOF model instead."""
+    if is_ship3(base):
+        return f"{base.name} is a 3-DOF model ({ship3_form})"
+    if "delta" not in base.input_names:
+        return f"{base.name} has no rudder input 'delta'"
+    return ""
+
+
 def steering_inputs(model: AbstractModel) -> tuple[int, ...]:
     """Indices of the steering inputs that actuator effects act on."""
     names = model.input_names

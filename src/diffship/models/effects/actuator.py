@@ -36,7 +36,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._base import DataFacts, Effect, is_ship3, param, scalar
+from ._base import DataFacts, Effect, is_ship3, param, rudder_only_applicability, scalar
 
 __all__ = ["InputDelay", "ActuatorLag", "LagTrend", "RateLimit", "RudderOffset", "NomotoRudderOffset"]
 
@@ -226,11 +226,7 @@ class NomotoRudderOffset(Effect):
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:
-        if is_ship3(base):
-            return f"{base.name} is a 3-DOF model (the offset is a sway force and yaw moment there)"
-        if "delta" not in base.input_names:
-            return f"{base.name} has no rudder input 'delta'"
-        return ""
+        return rudder_only_applicability(base, "the offset is a sway force and yaw moment there")
 
     @classmethod
     def for_data(cls, base, facts: DataFacts) -> Effect:

@@ -50,7 +50,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._base import DataFacts, Effect, is_ship3, param
+from ._base import DataFacts, Effect, is_ship3, param, rudder_only_applicability
 
 __all__ = ["Wave", "NomotoWave", "DEFAULT_PERIOD"]
 
@@ -123,11 +123,7 @@ class NomotoWave(_WaveBase):
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:
-        if is_ship3(base):
-            return f"{base.name} is a 3-DOF model (the wave is a sway force and yaw moment there)"
-        if "delta" not in base.input_names:
-            return f"{base.name} has no rudder input 'delta'"
-        return ""
+        return rudder_only_applicability(base, "the wave is a sway force and yaw moment there")
 
     @classmethod
     def for_data(cls, base, facts: DataFacts) -> Effect:
