@@ -172,3 +172,51 @@ def test_starts_at_the_same_point_after_the_warm_up_are_solved_once():
     assert same_points(zs, costs) == [0, 0, 2, 3, 0]
     # a cost that differs materially is another point even where the unknowns agree
     assert same_points([z, z], [100.0, 101.0]) == [0, 1]
+
+
+def test_an_initial_heading_a_whole_turn_away_is_the_same_start():
+    """An estimated initial angle 2π apart (in its scaled units, the ``period``) is the same point:
+    the warm-ups of a USV fit reached one optimum, one of them with ψ(0) one turn from the others."""
+    from diffship.fit.output_error import same_points
+    z = np.array([0.3, -1.2, 0.05, 0.01])
+    per = np.array([0.0, 0.0, 2 * math.pi / 16.2, 0.0])  # ψ(0) scaled by a 16.2 rad heading spread
+    turned = z + np.array([0.0, 0.0, per[2], 0.0])
+    assert same_points([z, turned], [16.6481731, 16.6481741]) == [0, 1]  # without the period: two points
+    assert same_points([z, turned], [16.6481731, 16.6481741], period=per) == [0, 0]
+    # half a turn is a different start; a parameter never wraps
+    assert same_points([z, z + np.array([0.0, 0.0, per[2] / 2, 0.0])], [1.0, 1.0], period=per) == [0, 1]
+    assert same_points([z, z + np.array([per[2], 0.0, 0.0, 0.0])], [1.0, 1.0], period=per) == [0, 1]
+
+
+def test_the_warm_up_stops_a_start_that_still_crawls_above_a_converged_one():
+    """The warm-up runs in rounds of ``warmup_round`` steps: after a round, a start still running
+    above the cost of a converged start is stopped (dominated); one still running below it goes on;
+    a start that stalled before the cap is not continued (scripted solver: the rule alone)."""
+    import optimistix as optx
+    from diffship.fit.output_error import OutputError
+
+    R = optx.RESULTS
+    # per start: (cost per round, status per round, steps per round)
+    script = {0: [(1.0, R.successful, 4)],                                   # converges in round 1
+              1: [(3.0, R.nonlinear_max_steps_reached, 5), (2.0, R.successful, 5)],  # crawls above: stopped
+              2: [(0.8, R.nonlinear_max_steps_reached, 5), (0.5, R.successful, 4)],  # below the best: goes on
+              3: [(2.5, R.nonlinear_max_steps_reached, 3)]}                  # stalled before the cap
+    calls = []
+
+    class Fake:
+        def solve_many(self, z0s, data, **kw):
+            assert kw["max_steps"] == 5
+            out = []
+            for z in np.asarray(z0s):
+                i, k = int(z[0]), int(z[1])
+                calls.append(i)
+                c, res, n = script[i][k]
+                out.append((np.array([i, k + 1.0]), res, n, np.array([math.sqrt(2 * c)])))
+            return out
+
+    o = OutputError(max_steps=200, warmup_round=5)
+    out, dominated = o._warm_rounds(Fake(), [np.array([i, 0.0]) for i in range(4)], None, lambda s: None, "warm")
+    assert dominated == [1]
+    assert [int(o_[2]) for o_ in out] == [4, 5, 9, 3]
+    assert calls.count(2) == 2 and calls.count(1) == 1 and calls.count(3) == 1
+    assert 0.5 * float(np.asarray(out[2][3]) @ np.asarray(out[2][3])) == pytest.approx(0.5)

@@ -196,7 +196,8 @@ def fit(
     report = StartsReport(labels=labels, costs=tuple(float(c) for c in costs), best=best,
                           reached=int(sum(1 for c in costs if math.isfinite(c) and c <= costs[best] + tol)),
                           tolerance=float(tol), user=(labels.index(first) if user is not None and first in labels
-                                                      else None))
+                                                      else None),
+                          stopped=tuple(int(i) for i in problem.state.get("dominated", ())))
     label, z_best, steps0 = finite[best][0], outs[best][0], int(outs[best][2])
     messages.append(f"started from {label}")
     messages.append(report.describe())

@@ -28,6 +28,9 @@ class StartsReport:
             variance: about one standard error in one parameter direction).
         tolerance: that tolerance, in cost units.
         user: index of the user's own start (``--init``), or ``None``.
+        stopped: indices of starts stopped on the warm-up while still running, above the cost of
+            a start that had converged there (dominated: not run to their end; their cost is the
+            whole runs' where they stopped).
     """
 
     labels: tuple[str, ...]
@@ -36,6 +39,7 @@ class StartsReport:
     reached: int
     tolerance: float
     user: int | None = None
+    stopped: tuple[int, ...] = ()
 
     @property
     def user_higher(self) -> bool:
@@ -47,6 +51,9 @@ class StartsReport:
         n = len(self.labels)
         text = (f"starts: {n} tried, {self.reached} of them reached the best cost {self.costs[self.best]:.6g} "
                 f"(within {self.tolerance:.2g}); the result continued from {self.labels[self.best]}")
+        if self.stopped:
+            text += (f"; {len(self.stopped)} stopped on the warm-up, still running above a converged start's cost "
+                     f"({', '.join(self.labels[i] for i in self.stopped)})")
         if self.user_higher:
             text += (f"; WARNING: your start ({self.labels[self.user]}) ended higher, at "
                      f"{self.costs[self.user]:.6g}")
@@ -55,7 +62,7 @@ class StartsReport:
     def as_json(self) -> dict:
         return {"n": len(self.labels), "labels": list(self.labels), "costs": [float(c) for c in self.costs],
                 "best": self.labels[self.best], "reached_best": self.reached, "tolerance": self.tolerance,
-                "user_start_higher": self.user_higher}
+                "user_start_higher": self.user_higher, "stopped_on_warmup": [self.labels[i] for i in self.stopped]}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
