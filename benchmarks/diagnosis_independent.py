@@ -248,6 +248,15 @@ def _by_code(rows) -> list[str]:
     return out
 
 
+GENERATOR_NOTE = (
+    "Generator definition (since 2026-11-25): the truth ship has **no built-in rudder offset** (δ0 = 0), and "
+    "`rudder_offset` is one of the ship's in-family effects (the hull sees the logged rudder + δ_off; strong 1.0°, "
+    "weak 0.25°). Before, the truth ship carried δ0 = 0.004 rad in every scenario, nulls included; diffship holds a "
+    "Nomoto model's own δ0 at 0 in the base fit so that its `rudder_offset` candidate stands for it, so those ship "
+    "\"nulls\" held a rudder offset (a wrong label, not a wrong diagnosis) and ship scenarios reported "
+    "\"…+rudder_offset\". Results from before that date are not comparable on the ship rows.")
+
+
 def write_md(rows, stem: str, command: str, wall: float):
     summ = summarise(rows)
     figure(rows, OUT / f"{stem}_confusion.png")
@@ -257,7 +266,7 @@ def write_md(rows, stem: str, command: str, wall: float):
            + " on a shared 2-core CPU (timings disturbed by other jobs)."), "",
           ("Truths from `benchmarks/independent` (NumPy-only, own RK4, physics-level effects; no diffship code). "
            "Base models: `Nomoto1` (ship zigzags, channels ψ, r) and `Fossen3` (USV, x, y, ψ, u, v, r), "
-           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", *summ, "", *_by_code(rows),
+           "fitted from their defaults on 4 training runs; selection on 2 held-out runs."), "", GENERATOR_NOTE, "", *summ, "", *_by_code(rows),
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",

@@ -3,7 +3,7 @@ r"""Hidden effects, implemented at the physics level (independently of diffship'
 Every effect acts where the physics puts it, through one of four hooks that
 :mod:`.vessels` calls:
 
-* **actuator** (:class:`Lag`, :class:`Delay`, :class:`RateLimit`): between the *logged*
+* **actuator** (:class:`Lag`, :class:`Delay`, :class:`RateLimit`, :class:`RudderOffset`): between the *logged*
   command (what the data file holds) and the *actual* actuator output that drives the hull.
   ``actual(t, z, cmd)`` returns the actual actuator vector from the effect's own states ``z``
   and the command history ``cmd(t)``; ``dz`` their derivatives.
@@ -13,10 +13,12 @@ Every effect acts where the physics puts it, through one of four hooks that
   - pure delay :math:`a(t) = c(t - \tau)`, the logged command history interpolated linearly
     (no rational approximation);
   - rate limit :math:`\dot a = \mathrm{clip}((c - a)/\varepsilon, \pm\dot a_{max})`, a stiff
-    servo (ε = 0.05 s) whose slew rate saturates.
+    servo (ε = 0.05 s) whose slew rate saturates;
+  - rudder offset :math:`a = c + \delta_{off}`: the hull sees the logged rudder angle plus a
+    constant offset (an indicator zero error, or the neutral helm of an asymmetric hull/propeller).
 * **force** (:class:`ConstantForce`, :class:`Damping`, :class:`Wave`): an added generalised
   force on the hull [N, N, N·m] for the USV, or an added term in the Nomoto yaw equation
-  :math:`T\dot r + r = K(\delta + \delta_0) + F` [rad/s]. Hydrodynamic terms see the velocity
+  :math:`T\dot r + r = K\delta + F` [rad/s]. Hydrodynamic terms see the velocity
   through the water :math:`\nu_r` that the vessel passes in.
 * **current** (:class:`Current`): the water velocity :math:`v_c(t)` in NED and its rate;
   the vessel applies it in the relative-velocity form.
@@ -34,7 +36,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["ConstantForce", "Current", "Damping", "Delay", "Effect", "Lag", "RateLimit", "SensorBias", "Wave"]
+__all__ = ["ConstantForce", "Current", "Damping", "Delay", "Effect", "Lag", "RateLimit", "RudderOffset", "SensorBias", "Wave"]
 
 
 @dataclasses.dataclass
@@ -133,6 +135,33 @@ class RateLimit(Effect):
         a[list(self.channels)] = z
         dz = np.clip((c[list(self.channels)] - z) / self.eps, -self.rate, self.rate)
         return a, dz
+
+
+@dataclasses.dataclass
+class RudderOffset(Effect):
+    r"""Constant rudder-angle offset: the hull sees :math:`a = c + \delta_{off}` on ``channels``
+    (``delta_off`` in rad; the logged rudder angle is the command :math:`c`).
+
+    This is what the ship's "rudder offset" means in this generator (and in the library's
+    ``rudder_offset`` effect for a Nomoto model): a zero error between the logged rudder angle and
+    the angle the flow sees, so that the rudder which holds a straight course reads
+    :math:`-\delta_{off}`. The truth ship itself has none (``Ship.delta0 = 0``), so a null
+    scenario carries no offset.
+    """
+
+    delta_off: float = 0.0
+    channels: tuple[int, ...] = (0,)
+
+    def __post_init__(self):
+        self.hook = "actuator"
+
+    def init(self, c0):
+        return np.zeros(0)
+
+    def actual(self, t, z, cmd):
+        a = cmd(t).copy()
+        a[list(self.channels)] = a[list(self.channels)] + self.delta_off
+        return a, np.zeros(0)
 
 
 # -- forces ------------------------------------------------------------------------------------

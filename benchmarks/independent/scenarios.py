@@ -9,6 +9,11 @@ Runs: the USV gets 4 training and 2 validation runs (40 s at 10 Hz) of open-loop
 (:func:`~.vessels.usv_commands`, different seeds, so validation manoeuvres differ from training);
 the ship gets 4 training and 2 validation zigzags (70 s) of different amplitudes (closed loop). Noise
 is white Gaussian with this generator's own sensor levels (:data:`NOISE`).
+
+The ship's null truth has no rudder offset, and ``rudder_offset`` is one of the ship's in-family
+effects (an injected rudder-angle offset, :class:`~.effects.RudderOffset`); before 2026-11-25 the
+truth ship carried a built-in offset in every scenario, so its nulls were not null under
+diffship's effect definitions (see :mod:`.vessels`).
 """
 
 from __future__ import annotations
@@ -52,10 +57,19 @@ def _usv_effect(label: str, k: float) -> fx.Effect | None:
 
 
 def _ship_effect(label: str, k: float) -> fx.Effect | None:
+    """The ship's hidden effect ``label`` at ``k`` × its strong size.
+
+    ``rudder_offset``: the hull sees the logged rudder plus δ_off, strong 1.0° (weak 0.25°). That
+    is the size met in practice: the neutral helm of a single-screw ship (the rudder angle that
+    holds a straight course, from the propeller's asymmetric inflow) found in straight-run sea
+    trials and basin runs is of the order of 0.5–2°, and a rudder-angle indicator's zero error of
+    about a degree passes unnoticed in service; 0.25° is at the resolution of a logged rudder angle.
+    """
     return {
         "actuator_lag": lambda: fx.Lag(T=3.0 * k, channels=(0,)),
         "input_delay": lambda: fx.Delay(tau=2.0 * k, channels=(0,)),
         "rate_limit": lambda: fx.RateLimit(rate=2.5 * DEG / np.sqrt(k), channels=(0,)),
+        "rudder_offset": lambda: fx.RudderOffset(delta_off=1.0 * DEG * k, channels=(0,)),
         "damping_rr": lambda: fx.Damping(Nrr=-250.0 * k),
         # out of family
         "varying_lag": lambda: fx.Lag(T=0.5 * k, T_end=5.0 * k, t_end=70.0, channels=(0,)),
@@ -73,7 +87,7 @@ FAMILY = {"actuator_lag": "actuator", "input_delay": "actuator", "rate_limit": "
 
 IN_FAMILY = {"usv": ("actuator_lag", "input_delay", "rudder_offset", "heading_bias", "current", "damping_vv",
                      "damping_vr", "damping_rr"),
-             "ship": ("actuator_lag", "input_delay", "rate_limit", "damping_rr")}
+             "ship": ("actuator_lag", "input_delay", "rate_limit", "rudder_offset", "damping_rr")}
 OUT_OF_FAMILY = {"usv": ("rotating_current", "ramped_current", "varying_lag", "wave", "cubic_damping"),
                  "ship": ("varying_lag", "cubic_damping")}
 

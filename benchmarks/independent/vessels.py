@@ -19,7 +19,14 @@ generator's test checks this), :math:`D(\nu)\nu = -(X_u u + X_{|u|u}|u|u,\ Y_v v
 N_{|r|r}|r|r)`.
 
 **Ship** (first-order Nomoto, states ψ, r; rudder δ [rad], starboard positive):
-:math:`\dot\psi = r,\ T\dot r + r = K(\delta + \delta_0) + F` with F from force effects.
+:math:`\dot\psi = r,\ T\dot r + r = K(\delta + \delta_0) + F` with F from force effects and
+δ the rudder angle the hull sees (the logged one after the actuator effects). The truth ship has
+**no built-in rudder offset** (δ0 = 0): a rudder offset is a hidden effect of its own
+(:class:`~.effects.RudderOffset`, scenario label ``rudder_offset``). Until 2026-11-25 the base
+ship carried δ0 = 0.004 rad (0.23°) in every scenario, nulls included; diffship's diagnosis holds
+a Nomoto model's own δ0 at 0 in the base fit so that its ``rudder_offset`` candidate stands for
+it, so those "null" data did hold a rudder offset and the diagnosis rightly named it — the label
+was wrong, not the diagnosis.
 
 The simulation (:func:`simulate`) advances sample by sample with :func:`~.integrate.rk4_interval`;
 the logged command either is given (open loop) or comes from a :class:`Zigzag` helmsman that
@@ -90,11 +97,12 @@ class USV:
 
 @dataclasses.dataclass
 class Ship:
-    """First-order Nomoto ship: K [1/s], T [s], rudder offset δ0 [rad]."""
+    """First-order Nomoto ship: K [1/s], T [s], built-in rudder offset δ0 [rad] (0: none; the
+    scenarios inject an offset as the ``rudder_offset`` effect instead)."""
 
     K: float = 0.11
     T: float = 12.0
-    delta0: float = 0.004
+    delta0: float = 0.0
 
     states = ("psi", "r")
     inputs = ("delta",)

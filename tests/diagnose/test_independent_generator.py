@@ -138,3 +138,39 @@ def test_usv_added_mass_terms_match_the_textbook_component_form():
     np.testing.assert_allclose(d[3:], [(m - Ya) * v * r / (m - Xa), -(m - Xa) * u * r / (m - Ya),
                                        (Ya - Xa) * u * v / (usv.Iz - Na)], rtol=1e-12)
     assert d[5] < 0
+
+
+def test_ship_null_has_no_rudder_offset_and_the_rudder_offset_effect_shifts_the_rudder():
+    """The truth ship holds a straight course at zero rudder (no built-in offset, so a null
+    scenario is null under diffship's effect definitions), and the injected ``RudderOffset`` is the
+    same truth as a ship whose logged rudder is shifted by δ_off (open loop, to integration
+    accuracy); from rest (30 s pre-roll) it turns the ship towards the Nomoto steady rate K·δ_off,
+    r(t) = K·δ_off·(1 − exp(−(t + 30 s)/T))."""
+    fx, vs = _gen()
+    t = np.arange(0.0, 60.0, 0.1)
+    zero = np.zeros((t.size, 1))
+    null = vs.simulate(vs.Ship(), [], t, commands=zero)
+    assert np.max(np.abs(null["clean"]["psi"])) < 1e-12
+    off = 1.0 * np.pi / 180
+    cmd = np.where(t > 5.0, 10 * np.pi / 180, 0.0)[:, None]
+    injected = vs.simulate(vs.Ship(), [fx.RudderOffset(delta_off=off)], t, commands=cmd)
+    shifted = vs.simulate(vs.Ship(), [], t, commands=cmd + off)
+    np.testing.assert_allclose(injected["clean"]["r"], shifted["clean"]["r"], atol=1e-10)
+    np.testing.assert_allclose(injected["commands"], cmd)  # the log holds the command, not what the hull sees
+    steady = vs.simulate(vs.Ship(), [fx.RudderOffset(delta_off=off)], t, commands=zero)
+    K, T = vs.Ship().K, vs.Ship().T
+    np.testing.assert_allclose(steady["clean"]["r"], K * off * (1 - np.exp(-(t + 30.0) / T)), rtol=1e-6)
+
+
+def test_ship_in_family_effects_include_rudder_offset_at_sea_trial_size():
+    sys.path.insert(0, str(GEN.parent))
+    try:
+        import independent as ind
+    finally:
+        sys.path.pop(0)
+    strong = ind.Scenario("ship", "rudder_offset", "in", "strong", 1).effect()
+    weak = ind.Scenario("ship", "rudder_offset", "in", "weak", 1).effect()
+    assert strong.delta_off == pytest.approx(np.pi / 180) and weak.delta_off == pytest.approx(0.25 * np.pi / 180)
+    assert ind.Scenario("ship", "none", "none", "strong", 100).effect() is None
+    names = [s.name for s in ind.scenarios(("ship",), sizes=("weak", "strong"), seeds=(1,), nulls=1)]
+    assert "ship-rudder_offset-weak-s1" in names and "ship-rudder_offset-strong-s1" in names
