@@ -86,6 +86,7 @@ def test_study_predicts_validation_first_overshoots_within_2deg(runs):
     assert st.fit.info["identifiability"]["weak_directions"]
 
 
+@pytest.mark.slow
 def test_study_fit_moves_the_rudder_neutral_angle_by_an_injected_zero_error(runs):
     """``study_fit`` on given runs (as ``benchmarks/withheld_real.py --base study`` calls it): a
     rudder indicator zero error of 1° (δ_log = δ − 1°) is exactly a shift of MMG's rudder neutral
