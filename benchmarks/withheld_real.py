@@ -303,6 +303,9 @@ def run_scenario(sc: str, prep: dict, a) -> dict:
            "params": {k: round(v, 5) for k, v in d.final_model.param_values().items()
                       if k not in get_model(a.model).param_names},
            "estimates": estimates(d, None), "base": base_note,
+           "ranking": {r.effect: {"validation_gain": round(float(r.validation_gain), 4), "verdict": r.verdict,
+                                  "params": {k: float(v) for k, v in (r.params or {}).items()}}
+                       for r in d.ranking},
            "seconds": round(secs, 1), "seconds_study_fit": round(t_base, 1),
            "verdict_where": d.verdict[0], "verdict_which": d.verdict[1]}
     print(f"{sc}: expected {exp}, selected {d.selected}, E {d.E_before:.3g} → {d.E_after:.3g}, {secs:.0f} s",
@@ -370,6 +373,13 @@ def write(rows, a):
                  f"{_fmt(j.get('delta_in_base'))} | {j.get('rel_error_in_base', '')} | "
                  f"{'' if gain_ceiling(r) is None else f'{gain_ceiling(r):.1%}'} | {'yes' if j['found'] else 'no'} | "
                  f"{'yes' if j['found_in_base'] else ('no' if 'delta_in_base' in j else '—')} |")
+    L += ["", "The injected effect's own candidate in each scenario (its single refit against the no-effect refit; "
+          "the verdict as the diagnosis states it):", "",
+          "| scenario | candidate | validation gain | verdict |", "|---|---|---|---|"]
+    for r in inj_all:
+        k = r.get("ranking", {}).get(r["expected"])
+        if k:
+            L.append(f"| {r['scenario']} | {r['expected']} | {100 * k['validation_gain']:.1f} % | {k['verdict']} |")
     L += ["", "*Largest E gain possible*: for effects that change only some channels (a heading bias: the track; a "
           "current: the track and the speeds over ground), the relative drop of the validation error E if the whole "
           "error of those channels went (`gain_ceiling`): below the acceptance rule's 5 % minimum gain such an effect "
