@@ -335,7 +335,11 @@ def write(rows, a):
     found = sum(r["judge"]["found"] for r in inj)
     in_base = sum(r["judge"]["found_in_base"] and not r["judge"]["found"] for r in inj)
     cmd = (f"python benchmarks/withheld_real.py --model {a.model} --base {a.base} --horizon {a.horizon:g} --dt {a.dt:g}"
-           + (f" --greedy-steps {a.greedy_steps}" if a.greedy_steps else "") + (f" --only {a.only}" if a.only else ""))
+           + (f" --greedy-steps {a.greedy_steps}" if a.greedy_steps else ""))
+    default = [n for n in SCENARIOS if n not in EXTRA]
+    present = [r["scenario"] for r in rows]
+    if present != default:  # the rows in the .jsonl (extra rows are run with --only NAME --resume)
+        cmd += f" --only {','.join(present)}"
     base = rows[0].get("base", "") if rows else ""
     L = [f"# Real logs with withheld effects ({a.model}, HSVA KVLCC2 zigzags, {a.horizon:g} s at {a.dt:g} s)", "",
          f"Command: `{cmd}` (timings under load: a 2-core machine shared with two other jobs). Base: {base}.", "",
