@@ -39,13 +39,15 @@ scenario's own (injected) training logs as a user would make it, its ten core co
 - *selected*: the injected effect is among the diagnosis' selected effects — first, or at a
   greedy step after what the real gap needs (the none row's selections); first-selected hits
   are counted on their own;
-- *magnitude*: its fitted size minus what the **none** row estimates for the same effect (the
+- *magnitude*: its fitted size (the one the verdict attributes: its single refit when selected
+  first, the joint refit of its step when selected later; else its single refit) minus what the **none** row estimates for the same effect (the
   real logs may carry some already: the none row's value when it selects or refits it and its
   standard error is finite; else 0 — an undetermined none-row value, such as a delay at the
   Padé realisation's floor of 1.5 sample intervals, where every smaller delay is the same
   model, says nothing about what the logs carry; the raw and none-row values are reported)
   lies within ±30 % of the injected size (for the current: the vector difference within 30 % of
-  the injected speed). The 95 % interval of the scenario's estimate is reported beside it;
+  the injected speed). The 95 % interval of the scenario's estimate, and the final model's value
+  (all selected effects refitted jointly), are reported beside it;
 - **found** = selected and magnitude right. A selection with the wrong size is reported as
   "selected, wrong size", never as found.
 - *in the base*: where the base model itself has the injected effect as a free coefficient —
@@ -178,10 +180,20 @@ def judge(row: dict, none_row: dict | None) -> dict:
     s, u = UNIT[exp]
     res = {"selected_first": row["first_selected"] == exp,
            "selected_any": exp in row["selected"].split("+")}
+    sel = row["selected"].split("+") if row["selected"] else []
+    names = MEASURE.get(exp, ())
+    single = (row.get("ranking", {}).get(exp) or {}).get("params", {})
+    final = [row["params"][n] for n in names] if names and all(n in row["params"] for n in names) else None
     for key, tag in ((exp, ""), ("base:" + exp, "_in_base")):
         est = row["estimates"].get(key)
         if est is None:
             continue
+        if key == exp and exp in sel and sel.index(exp) == 0 and all(n in single for n in names):
+            # selected first: the size the verdict attributes is its single refit's (the first step);
+            # the final model (later effects refitted jointly) is reported beside it
+            est = {**est, "value": [single[n] for n in names], "source": "single refit (its selection step, the first)"}
+        elif key == exp and exp in sel:
+            est = {**est, "source": "final model" + (" (its selection step, the last)" if sel[-1] == exp else "")}
         ref = (none_row or {}).get("estimates", {}).get(key)
         determined = bool(ref) and bool(np.all(np.isfinite(ref["half95"])))
         v0 = np.array(ref["value"]) if determined else np.zeros_like(inj)
@@ -198,15 +210,21 @@ def judge(row: dict, none_row: dict | None) -> dict:
         res[f"source{tag}"] = est["source"] + (
             "" if determined else "; none row: 0 (" + ("its estimate is undetermined (infinite standard error)"
                                                       if ref else "not refitted there") + ")")
+        if key == exp and exp in sel and final is not None:
+            df = np.array(final) - v0
+            res["final"] = [float(x) / s for x in df]
+            res["rel_error_final"] = round(float(np.linalg.norm(df - inj) / np.linalg.norm(inj)), 3)
     res["unit"] = u
     res["found"] = bool(res["selected_any"] and res.get("size_ok", False))
     res["found_in_base"] = bool(res.get("size_ok_in_base", False))
     return res
 
 
-#: the channels an injected effect changes in the model (the rest of the validation error is out of its reach)
-REACH = {"heading_bias": ("track north (x)", "track east (y)"),
-         "current": ("track north (x)", "track east (y)", "surge speed", "sway velocity")}
+#: the channels an injected effect changes in the model (the rest of the validation error is out of its
+#: reach): a heading bias only turns the track (ψ_t = ψ − b in the position kinematics; the hull's
+#: dynamics do not depend on ψ). A current is not here: the hydrodynamics see the through-water
+#: velocity ν_g − Rᵀv_c, so it changes every channel.
+REACH = {"heading_bias": ("track north (x)", "track east (y)")}
 _RMS = re.compile(r"([a-z() ]+?) [0-9.e+-]+ \S+ RMS \(([0-9.e+]+)× its floor")
 
 
@@ -366,14 +384,15 @@ def write(rows, a):
                  f"{r['possible']} | {r['E_before']} | {r['E_after']} | {r['shrink']} | {r.get('seconds_study_fit', 0)} | "
                  f"{r['seconds']} |")
     L += ["", "Fitted against injected (fitted minus the none row's estimate; units as shown):", "",
-          "| scenario | injected | fitted (raw) | none row | fitted Δ (diagnosis) | rel. error | 95 % covers | source | base Δ (own coefficient) | rel. error | largest E gain possible | found | found in base |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "| scenario | injected | fitted (raw) | none row | fitted Δ (diagnosis) | rel. error | 95 % covers | source | final model Δ (rel. error) | base Δ (own coefficient) | rel. error | largest E gain possible | found | found in base |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in inj_all:
         j = r["judge"]
         s, u = UNIT[r["expected"]]
         injv = [x / s for x in injected_vector(r["scenario"])]
         L.append(f"| {r['scenario']} | {_fmt(injv)} {u} | {_fmt(j.get('raw'))} | {_fmt(j.get('none'))} | {_fmt(j.get('delta'))} | {j.get('rel_error', '')} | "
                  f"{j.get('ci_covers', '')} | {j.get('source', 'not refitted (screen negligible or not applicable)')} | "
+                 f"{_fmt(j.get('final'))}{'' if 'final' not in j else ' (' + str(j['rel_error_final']) + ')'} | "
                  f"{_fmt(j.get('delta_in_base'))} | {j.get('rel_error_in_base', '')} | "
                  f"{'' if gain_ceiling(r) is None else f'{gain_ceiling(r):.1%}'} | {'yes' if j['found'] else 'no'} | "
                  f"{'yes' if j['found_in_base'] else ('no' if 'delta_in_base' in j else '—')} |")
@@ -384,8 +403,8 @@ def write(rows, a):
         k = r.get("ranking", {}).get(r["expected"])
         if k:
             L.append(f"| {r['scenario']} | {r['expected']} | {100 * k['validation_gain']:.1f} % | {k['verdict']} |")
-    L += ["", "*Largest E gain possible*: for effects that change only some channels (a heading bias: the track; a "
-          "current: the track and the speeds over ground), the relative drop of the validation error E if the whole "
+    L += ["", "*Largest E gain possible*: for an effect that changes only some channels (a heading bias: the track "
+          "only), the relative drop of the validation error E if the whole "
           "error of those channels went (`gain_ceiling`): below the acceptance rule's 5 % minimum gain such an effect "
           "cannot be selected on these data however exactly it is fitted — the real heading gap dominates E."]
     cols = sorted({r["first_selected"] for r in rows})
