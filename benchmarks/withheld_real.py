@@ -403,6 +403,28 @@ def write(rows, a):
         k = r.get("ranking", {}).get(r["expected"])
         if k:
             L.append(f"| {r['scenario']} | {r['expected']} | {100 * k['validation_gain']:.1f} % | {k['verdict']} |")
+    L += ["", "Why an injection is not found (from the numbers above):", ""]
+    for r in inj_all:
+        j, k = r["judge"], r.get("ranking", {}).get(r["expected"]) or {}
+        if j["found"]:
+            continue
+        sel = r["selected"].split("+") if r["selected"] else []
+        c = gain_ceiling(r)
+        if j["found_in_base"]:
+            why = (f"the base model's own coefficient is the effect: it moved by {_fmt(j['delta_in_base'])} {j['unit']} "
+                   f"(injected {_fmt([x / UNIT[r['expected']][0] for x in injected_vector(r['scenario'])])}); "
+                   "the diagnosis' own candidate of that name has nothing left to find")
+        elif r["expected"] in sel:
+            one = [v / UNIT[r["expected"]][0] for v in k.get("params", {}).values()]
+            why = (f"selected at greedy step {sel.index(r['expected']) + 1}, after {', '.join(sel[:sel.index(r['expected'])])}, "
+                   f"with size {_fmt(j.get('delta'))} {j['unit']} ({100 * j['rel_error']:.0f} % off): refitted jointly "
+                   f"with the real-gap effects it trades against them (its single refit: {_fmt(one)} {j['unit']})")
+        elif c is not None and c < 0.05:
+            why = (f"not selectable on these data: the channels it changes carry at most {c:.1%} of E, below the 5 % "
+                   f"minimum gain, whatever its fitted size ({_fmt(j.get('delta'))} {j['unit']}); its refit: {k.get('verdict', '')}")
+        else:
+            why = f"its refit: {k.get('verdict', 'not refitted')}"
+        L.append(f"- {r['scenario']}: {why}.")
     L += ["", "*Largest E gain possible*: for an effect that changes only some channels (a heading bias: the track "
           "only), the relative drop of the validation error E if the whole "
           "error of those channels went (`gain_ceiling`): below the acceptance rule's 5 % minimum gain such an effect "
