@@ -412,7 +412,7 @@ def write(rows, a):
         c = gain_ceiling(r)
         if j["found_in_base"]:
             why = (f"the base model's own coefficient is the effect: it moved by {_fmt(j['delta_in_base'])} {j['unit']} "
-                   f"(injected {_fmt([x / UNIT[r['expected']][0] for x in injected_vector(r['scenario'])])}); "
+                   f"(injected {_fmt([x / UNIT[r['expected']][0] for x in injected_vector(r['scenario'])])} {j['unit']}); "
                    "the diagnosis' own candidate of that name has nothing left to find")
         elif r["expected"] in sel:
             one = [v / UNIT[r["expected"]][0] for v in k.get("params", {}).values()]
@@ -420,15 +420,20 @@ def write(rows, a):
                    f"with size {_fmt(j.get('delta'))} {j['unit']} ({100 * j['rel_error']:.0f} % off): refitted jointly "
                    f"with the real-gap effects it trades against them (its single refit: {_fmt(one)} {j['unit']})")
         elif c is not None and c < 0.05:
-            why = (f"not selectable on these data: the channels it changes carry at most {c:.1%} of E, below the 5 % "
-                   f"minimum gain, whatever its fitted size ({_fmt(j.get('delta'))} {j['unit']}); its refit: {k.get('verdict', '')}")
+            why = (f"the channels it changes carry at most {c:.1%} of E, below the 5 % minimum gain: it can pass only "
+                   f"through the base coefficients refitted with it, and here they cost more than it gained "
+                   f"(fitted size {_fmt(j.get('delta'))} {j['unit']}; its refit: {k.get('verdict', '')})")
         else:
             why = f"its refit: {k.get('verdict', 'not refitted')}"
         L.append(f"- {r['scenario']}: {why}.")
     L += ["", "*Largest E gain possible*: for an effect that changes only some channels (a heading bias: the track "
           "only), the relative drop of the validation error E if the whole "
-          "error of those channels went (`gain_ceiling`): below the acceptance rule's 5 % minimum gain such an effect "
-          "cannot be selected on these data however exactly it is fitted — the real heading gap dominates E."]
+          "error of those channels went (`gain_ceiling`), computed from the scenario's base *where* line. Below the acceptance rule's 5 % minimum "
+          "gain such an effect can pass only through the base coefficients refitted with it (a bias that distorted the "
+          "base fit's hull coefficients frees them) — the real heading gap dominates E. Single-refit gain against the "
+          "ceiling: " + "; ".join(f"{r['scenario']} {100 * r['ranking'][r['expected']]['validation_gain']:.1f} % against "
+                                   f"{100 * gain_ceiling(r):.1f} %" for r in inj_all
+                                   if gain_ceiling(r) is not None and r["expected"] in r.get("ranking", {})) + "."]
     cols = sorted({r["first_selected"] for r in rows})
     L += ["", "Confusion (injected × first selected):", "", "| injected \\ first selected | " + " | ".join(cols) + " |",
           "|---|" + "---|" * len(cols)]
