@@ -299,7 +299,10 @@ def run_scenario(sc: str, prep: dict, a) -> dict:
     if pos and "x0" not in model.output_names:
         return {"scenario": sc, "expected": exp, "first_selected": "n/a",
                 "note": f"{a.model} predicts no positions: a {exp} shows only in the track"}
-    say = lambda s: print(f"[{sc}] {s}", file=sys.stderr, flush=True)  # noqa: E731
+
+    def say(s):
+        print(f"[{sc}] {s}", file=sys.stderr, flush=True)
+
     train = [inject(prep[k], sc) for k in TRAIN]
     val = [inject(prep[k], sc) for k in VALIDATE]
     t0 = time.perf_counter()
@@ -361,12 +364,12 @@ def write(rows, a):
     base = rows[0].get("base", "") if rows else ""
     L = [f"# Real logs with withheld effects ({a.model}, HSVA KVLCC2 zigzags, {a.horizon:g} s at {a.dt:g} s)", "",
          f"Command: `{cmd}` (timings under load: a 2-core machine shared with two other jobs). Base: {base}.", "",
-         f"Train {', '.join(TRAIN)}; validate {', '.join(VALIDATE)}. Every candidate effect of the library, "
-         "nothing told. Definitions (module docstring of `benchmarks/withheld_real.py`): *selected* = among the "
-         "selected effects (first or at a later greedy step); *size* = fitted size minus the none row's estimate of "
-         f"the same effect, within ±{TOL:.0%} of the injected size; **found** = selected and size right; "
-         "**found in the base fit** = the base model's own coefficient for the effect (MMG's rudder neutral angle δ_0) "
-         "moved by the injected size (±30 %) against the none row, the diagnosis' candidate having nothing left.", "",
+         (f"Train {', '.join(TRAIN)}; validate {', '.join(VALIDATE)}. Every candidate effect of the library, "
+          "nothing told. Definitions (module docstring of `benchmarks/withheld_real.py`): *selected* = among the "
+          "selected effects (first or at a later greedy step); *size* = fitted size minus the none row's estimate of "
+          f"the same effect, within ±{TOL:.0%} of the injected size; **found** = selected and size right; "
+          "**found in the base fit** = the base model's own coefficient for the effect (MMG's rudder neutral angle δ_0) "
+          "moved by the injected size (±30 %) against the none row, the diagnosis' candidate having nothing left."), "",
          f"**Of {len(inj)} injected scenarios: first selected {first}; selected at any step {anyk}; found (selected, "
          f"size right) {found}; found in the base fit only {in_base}; not found {len(inj) - found - in_base}.**"
          + ("".join(f" Extra row {r['scenario']} (stronger than basins see, not counted): "
@@ -396,8 +399,8 @@ def write(rows, a):
                  f"{_fmt(j.get('delta_in_base'))} | {j.get('rel_error_in_base', '')} | "
                  f"{'' if gain_ceiling(r) is None else f'{gain_ceiling(r):.1%}'} | {'yes' if j['found'] else 'no'} | "
                  f"{'yes' if j['found_in_base'] else ('no' if 'delta_in_base' in j else '—')} |")
-    L += ["", "The injected effect's own candidate in each scenario (its single refit against the no-effect refit; "
-          "the verdict as the diagnosis states it):", "",
+    L += ["", ("The injected effect's own candidate in each scenario (its single refit against the no-effect refit; "
+               "the verdict as the diagnosis states it):"), "",
           "| scenario | candidate | validation gain | verdict |", "|---|---|---|---|"]
     for r in inj_all:
         k = r.get("ranking", {}).get(r["expected"])

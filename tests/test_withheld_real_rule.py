@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import withheld_real as wr  # noqa: E402
+import withheld_real as wr
 
 D = math.pi / 180
 VC = wr.injected_vector("water_drift")  # 0.02 m/s towards 0.8 rad
