@@ -429,14 +429,14 @@ def write(rows, a):
         else:
             why = f"its refit: {k.get('verdict', 'not refitted')}"
         L.append(f"- {r['scenario']}: {why}.")
-    L += ["", "*Largest E gain possible*: for an effect that changes only some channels (a heading bias: the track "
+    ceil_rows = [r for r in inj_all if gain_ceiling(r) is not None and r["expected"] in r.get("ranking", {})]
+    L += [] if not ceil_rows else ["", "*Largest E gain possible*: for an effect that changes only some channels (a heading bias: the track "
           "only), the relative drop of the validation error E if the whole "
           "error of those channels went (`gain_ceiling`), computed from the scenario's base *where* line. Below the acceptance rule's 5 % minimum "
           "gain such an effect can pass only through the base coefficients refitted with it (a bias that distorted the "
           "base fit's hull coefficients frees them) — the real heading gap dominates E. Single-refit gain against the "
           "ceiling: " + "; ".join(f"{r['scenario']} {100 * r['ranking'][r['expected']]['validation_gain']:.1f} % against "
-                                   f"{100 * gain_ceiling(r):.1f} %" for r in inj_all
-                                   if gain_ceiling(r) is not None and r["expected"] in r.get("ranking", {})) + "."]
+                                   f"{100 * gain_ceiling(r):.1f} %" for r in ceil_rows) + "."]
     cols = sorted({r["first_selected"] for r in rows})
     L += ["", "Confusion (injected × first selected):", "", "| injected \\ first selected | " + " | ".join(cols) + " |",
           "|---|" + "---|" * len(cols)]
