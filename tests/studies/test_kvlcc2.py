@@ -84,3 +84,22 @@ def test_study_predicts_validation_first_overshoots_within_2deg(runs):
     assert abs(st.fit.params["delta0"]) < 0.02  # a small neutral rudder angle [rad]
     # the report names the directions zigzags cannot see instead of pretending to know them
     assert st.fit.info["identifiability"]["weak_directions"]
+
+
+@pytest.mark.slow
+def test_study_fit_moves_the_rudder_neutral_angle_by_an_injected_zero_error(runs):
+    """``study_fit`` on given runs (as ``benchmarks/withheld_real.py --base study`` calls it): a
+    rudder indicator zero error of 1° (δ_log = δ − 1°) is exactly a shift of MMG's rudder neutral
+    angle (d = δ + δ_0, no prior on δ_0: its reference value is 0), so the fitted δ_0 moves by
+    1° whatever the rest of the real gap. Two zigzags, 40 s at 0.5 s, δ_0 alone free."""
+    from diffship.data import Run
+    from diffship.studies.kvlcc2 import study_fit
+
+    prep = [runs[k].resample(0.5).slice(None, runs[k].t0 + 40.0) for k in ("Z_10_05", "Z_20_05")]
+    zero = np.deg2rad(1.0)
+    shifted = [Run(r.name, r.time, {**{c: np.asarray(r[c]) for c in r.channels}, "delta": np.asarray(r["delta"]) - zero},
+                   dict(r.metadata)) for r in prep]
+    clean, injected = (study_fit(rr, free=("delta0",), max_steps=30) for rr in (prep, shifted))
+    assert clean.converged and injected.converged
+    moved = injected.params["delta0"] - clean.params["delta0"]
+    assert np.rad2deg(moved) == pytest.approx(1.0, abs=0.02)

@@ -46,7 +46,9 @@ non-smooth actuator effects (delay, lag, rate limit: nonconvex in their time con
 refitted from three starts (probe magnitude × 1, 0.3, 3); smooth ones from the null. Joint
 refits (tie decisions, pairs, greedy steps) also start from the nested solutions — each
 single's fit with the other effect at its null — so a joint fit is never judged from a worse
-basin than its singles (:meth:`Search.joint_starts`).
+basin than its singles (:meth:`Search.joint_starts`). A greedy step starts the base parameters where the
+previous step left them, so its nested start is that step's solution; a trial whose refit fails is
+said, never dropped silently.
 
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
@@ -160,9 +162,10 @@ class Search:
     def n_params(self, names: Sequence[str]) -> int:
         return sum(len(e.param_names) for e in self.ws.effects if e.name in names)
 
-    def _refit(self, names: Sequence[str], starts: list[dict[str, float]]) -> tuple[RefitResult, Score]:
+    def _refit(self, names: Sequence[str], starts: list[dict[str, float]],
+               base_start: dict[str, float] | None = None) -> tuple[RefitResult, Score]:
         rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say,
-                           stall=self.options.stall)
+                           stall=self.options.stall, base_start=base_start)
         return rf, self.validation.refit(rf)
 
     def joint_starts(self, a: Candidate, b: Candidate) -> list[dict[str, float]]:
@@ -362,6 +365,7 @@ class Search:
         got = parallel(lambda ab: self._refit(list(ab), self.joint_starts(singles[ab[0]], singles[ab[1]])), pairs)
         for (a, b), g in zip(pairs, got):
             if isinstance(g, FitError):
+                self.say(f"  pair {a}+{b}: refit failed: {g}")
                 continue
             if isinstance(g, Exception):
                 raise g
@@ -393,9 +397,14 @@ class Search:
             starts = [{**cur.values, **e.null()}] if e.smooth_null else [
                 {**cur.values, **{k: f * v for k, v in e.PROBE.items()}} for f in (1.0, 3.0)] + [{**cur.values, **e.null()}]
             trials.append((n, effs_now, starts))
-        got = parallel(lambda t: self._refit(t[1], t[2]), trials)  # the trials side by side
+        # the base parameters start where the current step left them: with the base fit's values
+        # beside the step's effect values the "nested" start is not the current step's solution
+        # (on the KVLCC2 logs with a 0.5-s clock offset, damping_vr's Nvr = 3.6e4 with the base
+        # fit's hull coefficients blew up from every start of every step-2 trial, silently)
+        got = parallel(lambda t: self._refit(t[1], t[2], base_start=cur.base_values), trials)  # side by side
         for (n, _, _), g in zip(trials, got):
             if isinstance(g, FitError):
+                self.say(f"  + {n}: refit failed, not a candidate at this step: {g}")
                 continue
             if isinstance(g, Exception):
                 raise g

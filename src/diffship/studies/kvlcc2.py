@@ -52,7 +52,7 @@ from ..models.mmg import MMG, kvlcc2_mmg
 
 __all__ = [
     "AUTOPILOT_DELAY_S", "DEFAULT_CHANNELS", "DEFAULT_FREE", "DEFAULT_TRAIN", "TEN_FREE", "HELM_RATE_DEG_S", "KVLCC2Study",
-    "autopilot_delays", "closed_loop_run", "kvlcc2_study", "open_loop_run", "predict_zigzags",
+    "autopilot_delays", "closed_loop_run", "kvlcc2_study", "open_loop_run", "predict_zigzags", "study_fit",
 ]
 
 #: Training zigzags: small and large rudder, 5° and 10° switch (all starboard-first; both
@@ -161,6 +161,21 @@ def predict_zigzags(model: MMG, runs: Sequence[Run], roles: dict[str, str] | Non
     return df, cl, ol
 
 
+def study_fit(train: Sequence[Run], *, free: Sequence[str] = DEFAULT_FREE,
+              channels: Sequence[str] | None = DEFAULT_CHANNELS, max_steps: int = 60, model: MMG | None = None,
+              progress: Callable[[str], None] | None = None) -> FitResult:
+    """The study's MAP output-error fit on given training runs (already resampled and cut).
+
+    The fit :func:`kvlcc2_study` makes, on runs the caller prepares (e.g. logs with an injected
+    effect, ``benchmarks/withheld_real.py``): the published KVLCC2 values as start, ``free`` held by
+    their ±50 % priors (the default on the reference vessel), ``channels`` fitted.
+    """
+    model = model or kvlcc2_mmg()
+    spec = model.spec().only_free(list(free))
+    return fit_output_error(model, list(train), spec=spec, channels=channels, progress=progress,
+                            options=OutputErrorOptions(max_steps=max_steps))
+
+
 def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str] | None = None,
                  free: Sequence[str] = DEFAULT_FREE, channels: Sequence[str] | None = DEFAULT_CHANNELS,
                  dt: float = 0.2, horizon: float = 100.0, max_steps: int = 60,
@@ -182,10 +197,8 @@ def kvlcc2_study(*, train: Sequence[str] = DEFAULT_TRAIN, validate: Sequence[str
     if unknown:
         raise DataError(f"unknown KVLCC2 test(s) {unknown}; available: {sorted(runs)}")
     validate = tuple(validate) if validate is not None else tuple(k for k in runs if k not in train)
-    model = model or kvlcc2_mmg()
-    spec = model.spec().only_free(list(free))
     tr = [runs[k].resample(dt).slice(None, runs[k].time[0] + horizon) for k in train]
-    fit = fit_output_error(model, tr, spec=spec, channels=channels, progress=progress, options=OutputErrorOptions(max_steps=max_steps))
+    fit = study_fit(tr, free=free, channels=channels, max_steps=max_steps, model=model, progress=progress)
     roles = {**{k: "train" for k in train}, **{k: "validate" for k in validate}}
     table, cl, ol = predict_zigzags(fit.model, [runs[k] for k in (*train, *validate)], roles)
     return KVLCC2Study(fit=fit, train=tuple(train), validate=validate, table=table,
