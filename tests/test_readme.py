@@ -72,7 +72,10 @@ def test_readme_has_the_workflow_examples():
     assert "zz_20_20.csv" not in README.read_text()  # a file that never existed
 
 
-@pytest.mark.parametrize("lang,body,line", BLOCKS, ids=[f"line{b[2]}-{b[0]}" for b in BLOCKS])
+# the KVLCC2 blocks (MMG fit of four real zigzags, prediction with intervals: a minute on 2 cores) run with
+# ``-m slow``; the notebooks and tests/studies check the same path in the default run
+@pytest.mark.parametrize("lang,body,line", [pytest.param(*b, marks=pytest.mark.slow) if "../shared/data" in b[1] else b
+                                            for b in BLOCKS], ids=[f"line{b[2]}-{b[0]}" for b in BLOCKS])
 def test_readme_example_runs(lang, body, line, workdir, monkeypatch):
     if "../shared/data" in body and shared_data_dir() is None:
         pytest.skip(f"README line {line}: needs ../shared/data (the KVLCC2 model tests), absent here")

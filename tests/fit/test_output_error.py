@@ -193,7 +193,7 @@ def test_the_warm_up_stops_a_start_that_still_crawls_above_a_converged_one():
     above the cost of a converged start is stopped (dominated); one still running below it goes on;
     a start that stalled before the cap is not continued (scripted solver: the rule alone)."""
     import optimistix as optx
-    from diffship.fit.output_error import OutputError
+    from diffship.fit.warmup import warm_rounds
 
     R = optx.RESULTS
     # per start: (cost per round, status per round, steps per round)
@@ -214,8 +214,8 @@ def test_the_warm_up_stops_a_start_that_still_crawls_above_a_converged_one():
                 out.append((np.array([i, k + 1.0]), res, n, np.array([math.sqrt(2 * c)])))
             return out
 
-    o = OutputError(max_steps=200, warmup_round=5)
-    out, dominated = o._warm_rounds(Fake(), [np.array([i, 0.0]) for i in range(4)], None, lambda s: None, "warm")
+    out, dominated = warm_rounds(Fake(), [np.array([i, 0.0]) for i in range(4)], None, {"max_steps": 5}, 200,
+                                 lambda s: None, "warm")
     assert dominated == [1]
     assert [int(o_[2]) for o_ in out] == [4, 5, 9, 3]
     assert calls.count(2) == 2 and calls.count(1) == 1 and calls.count(3) == 1

@@ -105,6 +105,7 @@ def _worst(res):
     return max(abs(res.params[n] - TRUTH[n]) / abs(TRUTH[n]) for n in ("K", "T1"))
 
 
+@pytest.mark.slow  # 25–35 s on 2 cores; PEM's recovery, bounds and priors run in the default suite (test_battery)
 def test_pem_agrees_with_output_error_in_calm_water_and_finds_the_sensor_noise():
     oe, pe = _fits(_nomoto_numpy(seed=1))
     assert pe.converged, pe.status

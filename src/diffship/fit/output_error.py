@@ -43,7 +43,6 @@ from collections.abc import Callable, Mapping, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
 
 from ..data import Run
 from ..errors import FitError
@@ -62,6 +61,7 @@ from .kernel import PENALTY, Kernel, kernel_data, stalled
 from .priors import Priors, prior_arrays
 from .problem import make_batch
 from .result import FitResult
+from .warmup import same_points, warm_rounds
 from .weights import channel_rms, channel_spread, correlation_time, x0_scales
 
 __all__ = ["OutputError", "OutputErrorOptions", "bound_escape", "channel_rms", "channel_spread", "correlation_time",
@@ -252,7 +252,8 @@ class OutputError(AbstractEstimator):
         if n_warm:
             # Growing horizon: converge on the first part of every run, then the whole runs (a fit on
             # the first part that blows up on the whole runs is dropped: that start goes on from itself)
-            warm, dominated = self._warm_rounds(kernel, zs, data.head(n_warm), say, f"output error, first {n_warm} samples")
+            warm, dominated = warm_rounds(kernel, zs, data.head(n_warm), self.warm_lm, int(self.max_steps), say,
+                                          f"output error, first {n_warm} samples")
             if dominated:
                 say(f"output error: start(s) {', '.join(str(i + 1) for i in dominated)} stopped on the first {n_warm} "
                     "samples: still running, above the cost of a start that had converged there")
@@ -302,42 +303,6 @@ class OutputError(AbstractEstimator):
             res.append((np.asarray(z), math.inf if bad else 0.5 * float(r @ r), steps[i] + int(k)))
         problem.state["dominated"] = tuple(dominated)  # the starts report says which (driver)
         return res
-
-    def _warm_rounds(self, kernel, zs, data, say, label):
-        """The warm-up in rounds of ``warmup_round`` steps (one program): a start still running goes
-        on, unless its cost is above a converged start's (dominated: stopped). Returns
-        ``([(z, result, steps, residuals), ...], dominated indices)``."""
-        lm = self.warm_lm
-        cap, total = lm["max_steps"], int(self.max_steps)
-        out = [list(o) for o in kernel.solve_many(np.stack(zs), data, progress=say, label=label, **lm)]
-        last = [int(o[2]) for o in out]  # steps of each start's last round
-        dominated: set[int] = set()
-        ok, capped = (int(jax.tree_util.tree_leaves(r)[0]) for r in
-                      (optx.RESULTS.successful, optx.RESULTS.nonlinear_max_steps_reached))
-
-        def code(res):
-            return int(jax.tree_util.tree_leaves(res)[0])
-
-        def cost(o):
-            r = np.asarray(o[3])
-            return 0.5 * float(r @ r) if np.all(np.isfinite(r)) else math.inf
-
-        while True:
-            conv = [cost(o) for o in out if code(o[1]) == ok]
-            best = min(conv) if conv else math.inf
-            # unfinished: the last round ended on its cap (a stall stops before it, and is not continued)
-            running = [i for i, o in enumerate(out) if i not in dominated and code(o[1]) == capped
-                       and last[i] == cap and int(o[2]) < total and math.isfinite(cost(o))]
-            newly = {i for i in running if cost(out[i]) > best * (1 + 1e-6) + 1e-12}
-            dominated |= newly
-            going = [i for i in running if i not in newly]
-            if not going:
-                break
-            more = kernel.solve_many(np.stack([np.asarray(out[i][0]) for i in going]), data, progress=say,
-                                     label=label, **lm)
-            for i, o in zip(going, more):
-                out[i], last[i] = [o[0], o[1], int(out[i][2]) + int(o[2]), o[3]], int(o[2])
-        return out, sorted(dominated)
 
     def angle_periods(self, problem: Problem) -> np.ndarray:
         """Per unknown, the period in the scaled fit space of an estimated initial angle (2π over its
@@ -512,31 +477,3 @@ def fit_output_error(
     estimator (see there for ``starts``, ``init``, ``n_starts``, ``throw``)."""
     return fit(model, runs, options, spec=spec, init=init, starts=starts, n_starts=n_starts, channels=channels,
                progress=progress, throw=throw)
-
-
-def same_points(zs: Sequence[np.ndarray], costs: Sequence[float], rtol: float = 1e-4, ztol: float = 1e-4,
-                period: np.ndarray | None = None) -> list[int]:
-    """For each start, the index of the first start at the same point: every unknown equal to
-    ``ztol`` in the scaled fit space (parameters' scales and initial-state scales: 10⁻⁴ of a scale
-    is far inside a standard error) and whole-run costs equal to ``rtol`` (relative: a long
-    simulation amplifies the last digits — four warm-ups of a USV fit 3·10⁻⁶ apart in ``z`` differed
-    by 2·10⁻⁶ of the cost). ``period``: per unknown, a period (> 0) over which two values are the
-    same point (an initial angle: 2π in its scaled units, :meth:`OutputError.angle_periods`); the
-    difference is taken modulo it. Non-finite costs are never merged."""
-    per = None if period is None else np.asarray(period, dtype=np.float64)
-
-    def gap(a, b):
-        d = np.abs(np.asarray(a) - np.asarray(b))
-        if per is not None:
-            wrap = per > 0
-            d = np.where(wrap, np.abs(np.remainder(d + 0.5 * np.where(wrap, per, 1.0), np.where(wrap, per, 1.0))
-                                      - 0.5 * np.where(wrap, per, 1.0)), d)
-        return d
-
-    rep = []
-    for i, (z, c) in enumerate(zip(zs, costs)):
-        j = next((j for j in range(i) if rep[j] == j and math.isfinite(c) and math.isfinite(costs[j])
-                  and abs(c - costs[j]) <= rtol * max(abs(c), abs(costs[j]))
-                  and np.all(gap(z, zs[j]) <= ztol)), i)
-        rep.append(j)
-    return rep
