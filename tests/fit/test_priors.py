@@ -50,6 +50,7 @@ def test_reference_priors_only_on_the_reference_vessel():
     assert len(default_priors(Nomoto1(), Nomoto1().spec())[0]) == 0  # no reference set
 
 
+@pytest.mark.slow  # 20–30 s on 2 cores; tests/test_cli.py checks the undetermined Nomoto2 direction in the default run
 def test_unidentifiable_direction_is_named_and_a_prior_pins_it(usv_clean):
     # m, Xu̇ and Yv̇ enter the 3-DOF equations only as m − Xu̇ and m − Yv̇: the direction
     # (1, 1, 1) in (m, Xu̇, Yv̇) is invisible in any data.

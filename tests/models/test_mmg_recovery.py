@@ -29,6 +29,7 @@ def zigzag_csvs(tmp_path_factory):
     return truth, paths
 
 
+@pytest.mark.slow  # 20–30 s on 2 cores; tests/models/test_units_and_propulsion.py (synthetic) and the KVLCC2 study tests fit MMG by output error in the default run
 def test_mmg_output_error_recovers_its_hull_derivatives(zigzag_csvs, tmp_path, capsys):
     # noisy synthetic first samples: the initial states are estimated within their noise (--x0 estimate);
     # taken as measured (the default, --x0 data) the heading offset biases Yv by 16 %
