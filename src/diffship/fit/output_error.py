@@ -61,7 +61,7 @@ from .kernel import PENALTY, Kernel, kernel_data, stalled
 from .priors import Priors, prior_arrays
 from .problem import make_batch
 from .result import FitResult
-from .warmup import same_points, warm_rounds
+from .warmup import same_points, warm_rounds, wrap_periodic
 from .weights import channel_rms, channel_spread, correlation_time, x0_scales
 
 __all__ = ["OutputError", "OutputErrorOptions", "bound_escape", "channel_rms", "channel_spread", "correlation_time",
@@ -280,8 +280,8 @@ class OutputError(AbstractEstimator):
         # an initial angle a whole turn from the logged one is the same start: taken back to the branch
         # nearest the log (same cost; the reported start is the measured heading's)
         per = self.angle_periods(problem)
-        zs = [np.where(per > 0, z - per * np.round(z / np.where(per > 0, per, 1.0)), z) for z in zs]
-        w_costs = [self.start_cost(problem, z) for z in zs]
+        zs = [wrap_periodic(z, per) for z in zs]
+        w_costs = [self.start_cost(problem, z) for z in zs] if n_warm else []
         live = [i for i in range(len(zs)) if i not in dominated]
         rep_live = same_points([zs[i] for i in live], [w_costs[i] for i in live], period=per) if n_warm \
             else list(range(len(live)))

@@ -22,7 +22,7 @@ import jax
 import numpy as np
 import optimistix as optx
 
-__all__ = ["warm_rounds", "same_points"]
+__all__ = ["warm_rounds", "same_points", "wrap_periodic"]
 
 
 def warm_rounds(kernel, zs, data, lm: dict, total: int, say, label: str):
@@ -63,6 +63,13 @@ def warm_rounds(kernel, zs, data, lm: dict, total: int, say, label: str):
     return out, sorted(dominated)
 
 
+def wrap_periodic(x: np.ndarray, period: np.ndarray) -> np.ndarray:
+    """``x`` taken to (−period/2, period/2] where ``period > 0`` (an initial angle in its scaled
+    units), unchanged where it is 0."""
+    per = np.asarray(period, dtype=np.float64)
+    return np.where(per > 0, x - per * np.round(x / np.where(per > 0, per, 1.0)), x)
+
+
 def same_points(zs: Sequence[np.ndarray], costs: Sequence[float], rtol: float = 1e-4, ztol: float = 1e-4,
                 period: np.ndarray | None = None) -> list[int]:
     """For each start, the index of the first start at the same point: every unknown equal to
@@ -72,15 +79,9 @@ def same_points(zs: Sequence[np.ndarray], costs: Sequence[float], rtol: float = 
     by 2·10⁻⁶ of the cost). ``period``: per unknown, a period (> 0) over which two values are the
     same point (an initial angle: 2π in its scaled units, :meth:`OutputError.angle_periods`); the
     difference is taken modulo it. Non-finite costs are never merged."""
-    per = None if period is None else np.asarray(period, dtype=np.float64)
-
     def gap(a, b):
-        d = np.abs(np.asarray(a) - np.asarray(b))
-        if per is not None:
-            wrap = per > 0
-            d = np.where(wrap, np.abs(np.remainder(d + 0.5 * np.where(wrap, per, 1.0), np.where(wrap, per, 1.0))
-                                      - 0.5 * np.where(wrap, per, 1.0)), d)
-        return d
+        d = np.asarray(a) - np.asarray(b)
+        return np.abs(d if period is None else wrap_periodic(d, period))
 
     rep = []
     for i, (z, c) in enumerate(zip(zs, costs)):
