@@ -303,9 +303,7 @@ class Workspace:
         steps (:mod:`diffship.fit.batched`, item 6); such a refit is not ``converged`` and is not
         continued (its cost has stalled).
         """
-        lm = dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
-        if stall is not None:
-            lm.update(stall_steps=int(stall[0]), stall_rtol=float(stall[1]))
+        lm = self._lm(stall)
         t0 = time.perf_counter()
         pn = [n for e in self.effects if e.name in names for n in e.param_names]
         if len(pn) > P_MAX:
@@ -380,6 +378,19 @@ class Workspace:
                            time.perf_counter() - t0, ok, converged)
 
 
+    @staticmethod
+    def _lm(stall: tuple[int, float] | None) -> dict:
+        """The refits' Levenberg–Marquardt tolerances (and the stall rule, when given)."""
+        lm = dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
+        if stall is not None:
+            lm.update(stall_steps=int(stall[0]), stall_rtol=float(stall[1]))
+        return lm
+
+    def _n_warm(self, kd: KernelData) -> int:
+        """Samples of every run the warm-up fits first (0: no warm-up)."""
+        n_full = int(kd.ts.shape[1])
+        return int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
+
     def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int, lm: dict | None = None) -> tuple[np.ndarray, int]:
         """Growing horizon, as the base fit (:func:`~diffship.fit.fit_output_error`, ``warmup``):
         the refit first converges on the first quarter of every run (when that is at least 200
@@ -389,11 +400,10 @@ class Workspace:
         move back together (the same current to 0.5 %). Returns the start of the whole-run solve
         (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost)
         and the warm-up's steps."""
-        n_full = int(kd.ts.shape[1])
-        n_warm = int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
+        n_warm = self._n_warm(kd)
         if not n_warm:
             return z_start, 0
-        lm = lm or dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
+        lm = lm or self._lm(None)
         zw, _, steps, _ = self.kernel.call("solve", z_start, kd.head(n_warm), max_steps=4 * max_iter, **lm)
         rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):

@@ -89,8 +89,12 @@ def _eval(res: Callable, z, data, data_axis):
     return jax.vmap(res, in_axes=(0, data_axis))(z, data)
 
 
-def _jacobian(res: Callable, z, data, data_axis):
-    """``(J, r)`` per problem by forward mode: ``n`` JVPs batched over the tangents."""
+def _jacobian(res: Callable, z, data, data_axis, jac: Callable | None = None):
+    """``(J, r)`` per problem by forward mode: ``n`` JVPs batched over the tangents, or the
+    problem's own ``jac(z, data) -> (J, r)`` (one that skips known zero blocks,
+    :meth:`diffship.fit.kernel.Kernel.residuals_and_jacobian`)."""
+    if jac is not None:
+        return jax.vmap(jac, in_axes=(0, data_axis))(z, data)
     n = z.shape[-1]
 
     def one(zb, db):
@@ -133,9 +137,10 @@ def _step(jtj, jtr, step_size):
 
 def lm_start(res: Callable, z0: Float[Array, "B n"], data, free: Bool[Array, "B n"], *, data_axis=None,
              keep_jacobian: bool = False, penalty: float | None = None, stall_steps: int = 0, stall_rtol: float = 0.0,
-             **tol) -> dict:
-    """State of the batched LM after its first step (residuals and Jacobian at the starts)."""
-    jac, r = _jacobian(res, z0, data, data_axis)
+             jac: Callable | None = None, **tol) -> dict:
+    """State of the batched LM after its first step (residuals and Jacobian at the starts;
+    ``jac``: the problem's own ``(J, r)``, else forward mode over every unknown)."""
+    jac, r = _jacobian(res, z0, data, data_axis, jac)
     return _accept_all(res, z0, r, jac, free, keep_jacobian=keep_jacobian, penalty=penalty, **tol)
 
 
@@ -192,7 +197,7 @@ def _finish_step(st, converged, diverged, *, penalty, max_steps, stalled=None):
 
 def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=None, keep_jacobian: bool = False,
                penalty: float | None = None, rtol, atol, ftol, gntol, variance, gn_params, max_steps,
-               stall_steps: int = 0, stall_rtol: float = 0.0) -> dict:
+               stall_steps: int = 0, stall_rtol: float = 0.0, jac: Callable | None = None) -> dict:
     """Advance every unfinished problem until all are done or no more than ``stop_below`` remain
     unfinished (a dynamic scalar: the host repacks then; ``0`` runs to the end); with
     ``stall_steps`` > 0 a problem whose cost falls by less than ``stall_rtol``·cost over that many
@@ -217,11 +222,11 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
         zeros_j = jnp.zeros(z.shape[:1] + (m, n), z.dtype)
 
         def with_jac(_):
-            jac, _r = _jacobian(res, z_eval, data, data_axis)
-            return jac * st["free"].astype(z.dtype)[:, None, :]
-        jac = jax.lax.cond(jnp.any(accept), with_jac, lambda _: zeros_j, None)
-        jtj_new = jnp.einsum("bmi,bmj->bij", jac, jac)
-        jtr_new = jnp.einsum("bmi,bm->bi", jac, r_eval)
+            J, _r = _jacobian(res, z_eval, data, data_axis, jac)
+            return J * st["free"].astype(z.dtype)[:, None, :]
+        J = jax.lax.cond(jnp.any(accept), with_jac, lambda _: zeros_j, None)
+        jtj_new = jnp.einsum("bmi,bmj->bij", J, J)
+        jtr_new = jnp.einsum("bmi,bm->bi", J, r_eval)
 
         cauchy = accept & (_rms(jnp.abs(d) / (atol + rtol * jnp.abs(z_eval))) < 1) \
             & (_rms(jnp.abs(r_eval - st["r"]) / (atol + rtol * jnp.abs(r_eval))) < 1)
@@ -236,7 +241,7 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
                    accepted=st["accepted"] + accept.astype(jnp.int32),
                    steps=st["steps"] + active.astype(jnp.int32), step_size=step_size)
         if keep_jacobian:
-            new["jac"] = jnp.where(accept[:, None, None], jac, st["jac"])
+            new["jac"] = jnp.where(accept[:, None, None], J, st["jac"])
         stalled = (new["accepted"] >= 3) & ((new["prev_cost"] - new["cost"]) <= ftol * new["cost"])
         gn = _gn_short(new["z"], *_masked(new["jtj"], new["jtr"], new["free"]), new["cost"], new["rows"],
                        new["n_free"], **tol)

@@ -1,0 +1,47 @@
+"""The output-error kernel's block Jacobian (:meth:`diffship.fit.kernel.Kernel.blocked_jacobian`)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from diffship.fit.kernel import Kernel, kernel_data
+from diffship.fit.problem import make_batch
+from diffship.models import Nomoto1
+from diffship.preprocess import Filter
+from diffship.synthetic import nomoto_runs
+
+
+@pytest.mark.parametrize("priors", [False, True])
+def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
+    """Run i's rows depend on the shared parameters and on its own initial-state offsets only: the
+    block-assembled Jacobian is the dense forward-mode one, zero blocks included (a run's rows
+    must not move with another run's initial state), with and without prior rows."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=3, duration=30.0, dt=0.2, noise="realistic", seed=5)
+    model = Nomoto1()
+    spec = model.spec()
+    chans = ("psi", "r")
+    batch = make_batch(model, runs, chans, Filter("none"))
+    x0_idx = tuple(model.state_names.index(s) for s in model.states_for_channels(chans))
+    kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in chans),
+                    angle=(True, False), x0_idx=x0_idx)
+    n_t, n_d = len(spec.free_names), len(runs) * len(x0_idx)
+    pri = dict(prior_mean=np.full(n_t, 0.1), prior_w=np.full(n_t, 3.0),
+               x0_prior_w=np.full(n_d, 0.5)) if priors else {}
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
+                       x0_scale=np.full(len(x0_idx), 0.05), **pri)
+    z = jnp.asarray(np.random.default_rng(0).normal(0.0, 0.3, n_t + n_d))
+    assert kernel.own_jacobian() is not None
+    J, r = kernel.blocked_jacobian(z, data)
+    dense = jax.jacfwd(kernel.residuals)(z, data)
+    np.testing.assert_allclose(np.asarray(r), np.asarray(kernel.residuals(z, data)), rtol=0, atol=1e-12)
+    assert J.shape == dense.shape
+    scale = float(jnp.max(jnp.abs(dense)))
+    np.testing.assert_allclose(np.asarray(J), np.asarray(dense), rtol=0, atol=1e-10 * scale)
+    # the structure it relies on: run 0's rows do not depend on run 1's initial state
+    m = batch.ts.shape[1] * len(chans)
+    assert float(jnp.max(jnp.abs(dense[:m, n_t + len(x0_idx):n_t + 2 * len(x0_idx)]))) == 0.0
+    assert float(jnp.max(jnp.abs(dense[:m, n_t:n_t + len(x0_idx)]))) > 0.0
