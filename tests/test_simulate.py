@@ -61,3 +61,25 @@ def test_vmap_over_parameter_sets_and_forward_mode():
     for solver in ("rk4", "tsit5"):
         fwd = jax.jacfwd(f)(-50.0, solver)
         np.testing.assert_allclose(float(fwd), float(fd), rtol=1e-4)
+
+
+def test_a_horizon_simulates_the_first_samples_exactly_and_skips_whole_blocks_after_it():
+    """``horizon`` (a traced count, one compiled program for every horizon): the first ``horizon``
+    samples are the plain simulation's, bit for bit; the blocks wholly after it are not simulated
+    (the state is held), at any run length (the last block padded)."""
+    from diffship.simulate import BLOCK
+    m = Nomoto1(K=0.2, T1=8.0)
+    n = 5 * BLOCK + 17  # not a multiple of the block
+    t = np.arange(n) * 0.1
+    u = np.sin(0.05 * t)[:, None] * 0.3
+    x0 = np.array([0.1, 0.0])
+    plain = simulate(m, t, u, x0)
+    run = jax.jit(lambda h: simulate(m, t, u, x0, horizon=h).xs)
+    for h in (n, 2 * BLOCK + 5, BLOCK, 1):
+        xs = np.asarray(run(jnp.asarray(h)))
+        assert xs.shape == np.asarray(plain.xs).shape
+        np.testing.assert_array_equal(xs[:h], np.asarray(plain.xs)[:h])
+        last = -(-h // BLOCK) * BLOCK + 1  # samples up to the end of the horizon's block are simulated
+        if last < n:
+            assert np.all(xs[last:] == xs[last - 1]), "the blocks after the horizon are held, not simulated"
+            assert not np.allclose(np.asarray(plain.xs)[last:], xs[last - 1])

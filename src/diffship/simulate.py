@@ -24,7 +24,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from .data import Run
 from .errors import DataError
@@ -59,6 +59,10 @@ class Solution(eqx.Module):
         return jnp.all(self.valid)
 
 
+#: intervals per block of a simulation with a horizon (:func:`integrate`)
+BLOCK = 64
+
+
 def integrate(
     f,
     ts: Float[Array, " N"],
@@ -66,18 +70,56 @@ def integrate(
     x0: Float[Array, " n_x"],
     integrator: AbstractIntegrator,
     max_abs: float = MAX_ABS,
+    horizon: Int[Array, ""] | None = None,
 ) -> tuple[Float[Array, "N n_x"], Bool[Array, " N"]]:
-    """States of ``ẋ = f(t, x, u)`` on the grid ``ts`` and the per-sample validity flag."""
+    """States of ``ẋ = f(t, x, u)`` on the grid ``ts`` and the per-sample validity flag.
 
-    def interval(carry, inp):
-        x, good = carry
-        t0, t1, u0, u1 = inp
+    ``horizon`` (a traced sample count): the blocks of :data:`BLOCK` intervals wholly after the
+    first ``horizon`` samples are not simulated (the state is held there), so one compiled
+    program serves a growing-horizon warm-up and the whole runs; the caller masks the samples
+    after the horizon (a few past it, up to the end of their block, are simulated)."""
+
+    def advance(x, good, t0, t1, u0, u1):
         y = integrator.interval(f, t0, t1, x, u0, u1)
         good_now = good & jnp.all(jnp.isfinite(y)) & jnp.all(jnp.abs(y) < max_abs)
-        y = jnp.where(good_now, y, x)
+        return jnp.where(good_now, y, x), good_now
+
+    def interval(carry, inp):
+        y, good_now = advance(*carry, *inp)
         return (y, good_now), (y, good_now)
 
-    (_, _), (xs, valid) = jax.lax.scan(interval, (x0, jnp.array(True)), (ts[:-1], ts[1:], us[:-1], us[1:]))
+    steps = (ts[:-1], ts[1:], us[:-1], us[1:])
+    n = ts.shape[0] - 1
+    if horizon is None or n < 2 * BLOCK:
+        (_, _), (xs, valid) = jax.lax.scan(interval, (x0, jnp.array(True)), steps)
+    else:
+        # blocks of BLOCK intervals; a block wholly after the horizon is skipped (one cond per
+        # block, not per step: a cond in every step cost 20 % of a Jacobian). The last block is
+        # padded with unit-length intervals at the last input, whose states are dropped.
+        nb = -(-n // BLOCK)
+        pad = nb * BLOCK - n
+        t_end = ts[-1] + jnp.arange(1, pad + 2, dtype=ts.dtype)
+        ta = jnp.concatenate([ts[:-1], ts[-1:], t_end[:-1]])[:nb * BLOCK]
+        tb = jnp.concatenate([ts[1:], t_end])[:nb * BLOCK]
+        ue = jnp.broadcast_to(us[-1], (pad + 1,) + us.shape[1:])
+        ua = jnp.concatenate([us[:-1], ue])[:nb * BLOCK]
+        ub = jnp.concatenate([us[1:], ue])[:nb * BLOCK]
+        blocks = tuple(a.reshape((nb, BLOCK) + a.shape[1:]) for a in (ta, tb, ua, ub))
+
+        def block(carry, inp):
+            j, b = inp
+
+            def run(c):
+                c, out = jax.lax.scan(interval, c, b)
+                return c, out
+
+            def hold(c):
+                x, g = c
+                return c, (jnp.broadcast_to(x, (BLOCK,) + x.shape), jnp.broadcast_to(g, (BLOCK,)))
+            return jax.lax.cond(j * BLOCK + 1 < jnp.asarray(horizon).astype(j.dtype), run, hold, carry)
+
+        (_, _), (xs, valid) = jax.lax.scan(block, (x0, jnp.array(True)), (jnp.arange(nb), blocks))
+        xs, valid = xs.reshape((nb * BLOCK,) + xs.shape[2:])[:n], valid.reshape(-1)[:n]
     return jnp.concatenate([x0[None], xs], axis=0), jnp.concatenate([jnp.array([True]), valid])
 
 
@@ -89,6 +131,7 @@ def simulate(
     integrator: AbstractIntegrator = Diffrax(),
     *,
     max_abs: float = MAX_ABS,
+    horizon: Int[Array, ""] | None = None,
 ) -> Solution:
     """Simulate ``model`` from ``x0`` over the strictly increasing grid ``ts``.
 
@@ -100,11 +143,13 @@ def simulate(
         integrator: :class:`~diffship.integrators.Diffrax` (default: diffrax RK4 tableau, one
             step per sample), :class:`~diffship.integrators.RK4` or :class:`~diffship.integrators.Tsit5`.
         max_abs: a state component beyond this magnitude counts as a blow-up.
+        horizon: simulate the first ``horizon`` samples only, the state held after them
+            (:func:`integrate`; a traced count, so it does not recompile).
     """
     ts = jnp.asarray(ts, dtype=jnp.float64)
     us = jnp.asarray(us, dtype=jnp.float64)
     x0 = jnp.asarray(x0, dtype=jnp.float64)
-    xs, valid = integrate(model.vector_field, ts, us, x0, integrator, max_abs)
+    xs, valid = integrate(model.vector_field, ts, us, x0, integrator, max_abs, horizon)
     ys = jax.vmap(model.observe)(xs, us)
     return Solution(ts=ts, xs=xs, ys=ys, valid=valid)
 

@@ -45,3 +45,28 @@ def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
     m = batch.ts.shape[1] * len(chans)
     assert float(jnp.max(jnp.abs(dense[:m, n_t + len(x0_idx):n_t + 2 * len(x0_idx)]))) == 0.0
     assert float(jnp.max(jnp.abs(dense[:m, n_t:n_t + len(x0_idx)]))) > 0.0
+
+
+def test_a_warm_up_horizon_scores_the_same_samples_as_the_sliced_runs():
+    """Data with a horizon (:meth:`KernelData.with_horizon`): the warm-up's head keeps the shapes —
+    one compiled program for the warm-up and the whole runs — and gives the sliced head's residual
+    rows, the later rows zero."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, noise="realistic", seed=7)
+    model = Nomoto1()
+    spec = model.spec()
+    batch = make_batch(model, runs, ("psi", "r"), Filter("none"))
+    kernel = Kernel(spec=spec.structural(), out_idx=(model.output_names.index("psi"), model.output_names.index("r")),
+                    angle=(True, False), x0_idx=(0, 1))
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
+                       x0_scale=np.full(2, 0.05))
+    z = jnp.asarray(np.random.default_rng(1).normal(0.0, 0.2, len(spec.free_names) + 4))
+    n = 250
+    sliced = np.asarray(kernel.residuals(z, data.head(n))).reshape(2, n, 2)
+    held = data.with_horizon().head(n)
+    assert held.ts.shape == data.ts.shape
+    r = np.asarray(kernel.residuals(z, held)).reshape(2, -1, 2)
+    np.testing.assert_allclose(r[:, :n], sliced, rtol=0, atol=1e-12)
+    assert not np.any(r[:, n:])
+    full = np.asarray(kernel.residuals(z, data.with_horizon()))
+    np.testing.assert_allclose(full, np.asarray(kernel.residuals(z, data)), rtol=0, atol=1e-12)

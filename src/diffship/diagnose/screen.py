@@ -150,7 +150,8 @@ class Workspace:
         if x0_base is not None:
             x0[:, :len(self.base.state_names)] = np.stack([np.asarray(v)[:len(self.base.state_names)] for v in x0_base])
         kd = kernel_data(self.model, b.ts, b.us, b.ys, b.mask, x0, self.scales, x0_scale=self.x0_scale,
-                         S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo, hi=self.hi)
+                         S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo,
+                         hi=self.hi).with_horizon()  # the warm-up's horizon is data: one compiled solve
         return dict(batch=b, x0=x0, kd=kd)
 
     def data(self, runs):

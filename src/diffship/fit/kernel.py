@@ -40,6 +40,7 @@ All compiled programs come from the one cache, :func:`diffship.compiled.compiled
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable
@@ -50,7 +51,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from ..compiled import compiled as _compiled
 from ..compiled import compiled_many
@@ -98,6 +99,9 @@ class KernelData(eqx.Module):
         x0_prior_w: inverse standard deviations (in ``x0_scale`` units) of the initial-state offsets
             ``d`` ``(R·n_d,)``, or empty: rows :math:`w_k d_k` after the parameters' prior rows, so an
             estimated initial state moves from the measured one only as far as its noise allows.
+        horizon: ``None`` (the whole padded runs), or a traced sample count: only the first
+            ``horizon`` samples of every run are simulated and scored (:meth:`head_masked`), so a
+            growing-horizon warm-up and the whole runs share one compiled program.
     """
 
     model: AbstractModel
@@ -116,6 +120,7 @@ class KernelData(eqx.Module):
     prior_mean: Float[Array, " n_prior"]
     prior_w: Float[Array, " n_prior"]
     x0_prior_w: Float[Array, " n_x0_prior"]
+    horizon: Int[Array, ""] | None
 
     @property
     def n_prior(self) -> int:
@@ -128,8 +133,19 @@ class KernelData(eqx.Module):
         return eqx.tree_at(lambda d: tuple(getattr(d, n) for n in names), self, tuple(changes[n] for n in names))
 
     def head(self, n: int) -> KernelData:
-        """The first ``n`` samples of every run (growing-horizon warm-up)."""
+        """The first ``n`` samples of every run (growing-horizon warm-up): sliced, or — for data
+        with a ``horizon`` — the same shapes with the later samples masked and not simulated."""
+        if self.horizon is not None:
+            return self.with_horizon(n)
         return self.replace(ts=self.ts[:, :n], us=self.us[:, :n], ys=self.ys[:, :n], mask=self.mask[:, :n])
+
+    def with_horizon(self, n: int | None = None) -> KernelData:
+        """These data with a traced horizon of ``n`` samples (default: every sample); samples
+        after it are masked (residual rows zero) and not simulated."""
+        N = int(self.ts.shape[-1])
+        n = N if n is None else int(n)
+        keep = jnp.arange(N) < n
+        return dataclasses.replace(self, mask=self.mask & keep, horizon=jnp.asarray(n))
 
 
 class Kernel(eqx.Module):
@@ -182,7 +198,8 @@ class Kernel(eqx.Module):
         """Every run simulated at ``z`` (a batched :class:`~diffship.simulate.Solution`)."""
         model = self.model_at(z, data)
         x0 = self.initial_states(z, data)
-        return jax.vmap(lambda t, u, x: simulate(model, t, u, x, self.integrator))(data.ts, data.us, x0)
+        return jax.vmap(lambda t, u, x: simulate(model, t, u, x, self.integrator, horizon=data.horizon))(
+            data.ts, data.us, x0)
 
     def residuals(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, " m"]:
         """Normalised output errors, flattened in (run, sample, channel) order."""
@@ -255,7 +272,7 @@ class Kernel(eqx.Module):
 
         def run_errors(v, t, u, y, mask, x0):
             model = self.model_at(jnp.concatenate([v[:k], pad]), data)
-            sol = simulate(model, t, u, x0.at[idx].add(v[k:] * data.x0_scale), self.integrator)
+            sol = simulate(model, t, u, x0.at[idx].add(v[k:] * data.x0_scale), self.integrator, horizon=data.horizon)
             return self._errors(sol.ys, sol.valid, y, mask, data.scales).reshape(-1)
 
         def one(t, u, y, mask, x0, d):
@@ -483,4 +500,5 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
         phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
         hi=f(empty if hi is None else hi), prior_mean=f(empty if prior_mean is None else prior_mean),
         prior_w=f(empty if prior_w is None else prior_w), x0_prior_w=f(empty if x0_prior_w is None else x0_prior_w),
+        horizon=None,
     )
