@@ -138,35 +138,24 @@ def _step(jtj, jtr, step_size):
 def lm_start(res: Callable, z0: Float[Array, "B n"], data, free: Bool[Array, "B n"], *, data_axis=None,
              keep_jacobian: bool = False, penalty: float | None = None, stall_steps: int = 0, stall_rtol: float = 0.0,
              jac: Callable | None = None, **tol) -> dict:
-    """State of the batched LM after its first step (residuals and Jacobian at the starts;
-    ``jac``: the problem's own ``(J, r)``, else forward mode over every unknown)."""
-    jac, r = _jacobian(res, z0, data, data_axis, jac)
-    return _accept_all(res, z0, r, jac, free, keep_jacobian=keep_jacobian, penalty=penalty, **tol)
-
-
-def _accept_all(res, z, r, jac, free, *, keep_jacobian, penalty, rtol, atol, ftol, gntol, variance, gn_params,
-                max_steps):
-    B, n = z.shape
-    f = free.astype(z.dtype)
-    jac = jac * f[:, None, :]
-    jtj = jnp.einsum("bmi,bmj->bij", jac, jac)
-    jtr = jnp.einsum("bmi,bm->bi", jac, r)
-    cost = 0.5 * jnp.sum(r * r, axis=-1)
-    rows = jnp.sum(r != 0, axis=-1)
-    n_free = jnp.sum(free, axis=-1)
-    # optimistix's first step: residuals compared with zeros, no step in z.
-    cauchy = _rms(jnp.abs(r) / (atol + rtol * jnp.abs(r))) < 1
-    gn = _gn_short(z, *_masked(jtj, jtr, free), cost, rows, n_free, gntol=gntol, variance=variance,
-                   gn_params=gn_params, rtol=rtol, atol=atol)
-    bad = ~jnp.isfinite(cost)
-    st = dict(z=z, r=r, cost=cost, prev_cost=jnp.full((B,), jnp.inf, z.dtype), jtj=jtj, jtr=jtr, rows=rows,
-              n_free=n_free, free=free, step_size=jnp.ones((B,), z.dtype), accepted=jnp.ones((B,), jnp.int32),
-              steps=jnp.ones((B,), jnp.int32), done=jnp.zeros((B,), bool),
-              status=jnp.full((B,), CODES["successful"], jnp.int32),
-              win_cost=cost, win_steps=jnp.zeros((B,), jnp.int32))
+    """State of the batched LM at the starts, before any evaluation: the first pass of
+    :func:`lm_advance` forms the residuals and Jacobian there (optimistix's first step: the
+    residuals compared with zeros, no step in z), so a compiled solve holds the model's
+    forward-mode Jacobian once, not once for the start and once for the steps (half the
+    compile time of a solve). ``jac``: the problem's own ``(J, r)`` (:func:`lm_advance`)."""
+    del penalty, stall_steps, stall_rtol, jac, tol
+    B, n = z0.shape
+    m = jax.eval_shape(lambda z: _eval(res, z, data, data_axis), z0).shape[-1]
+    r0 = jnp.zeros((B, m), z0.dtype)
+    inf = jnp.full((B,), jnp.inf, z0.dtype)
+    st = dict(z=z0, z_eval=z0, r=r0, cost=inf, prev_cost=inf, jtj=jnp.zeros((B, n, n), z0.dtype),
+              jtr=jnp.zeros((B, n), z0.dtype), rows=jnp.sum(r0 != 0, axis=-1), n_free=jnp.sum(free, axis=-1),
+              free=free, step_size=jnp.ones((B,), z0.dtype), accepted=jnp.zeros((B,), jnp.int32),
+              steps=jnp.zeros((B,), jnp.int32), done=jnp.zeros((B,), bool),
+              status=jnp.full((B,), CODES["successful"], jnp.int32), win_cost=inf,
+              win_steps=jnp.zeros((B,), jnp.int32), first=jnp.ones((B,), bool))
     if keep_jacobian:
-        st["jac"] = jac
-    st = _finish_step(st, cauchy & gn, bad, penalty=penalty, max_steps=max_steps)
+        st["jac"] = jnp.zeros((B, m, n), z0.dtype)
     return st
 
 
@@ -212,10 +201,11 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
         d = z_eval - z
         pred = jnp.einsum("bi,bi->b", d, st["jtr"]) + 0.5 * jnp.einsum("bi,bij,bj->b", d, st["jtj"], d)
         actual = cost_eval - st["cost"]
-        accept = active & (actual <= _LOW * pred)
+        first = st["first"]  # the starts themselves (lm_start): accepted, step size 1
+        accept = active & ((actual <= _LOW * pred) | first)
         good = (actual < _HIGH * pred) & (pred < 0)
         mul = jnp.where(accept, jnp.where(good, _GROW, 1.0), _SHRINK)
-        step_size = jnp.where(active, mul * st["step_size"], st["step_size"])
+        step_size = jnp.where(active, jnp.where(first, 1.0, mul * st["step_size"]), st["step_size"])
 
         n = z.shape[-1]
         m = r_eval.shape[-1]
@@ -239,7 +229,8 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
                    jtr=jnp.where(A, jtr_new, st["jtr"]),
                    rows=jnp.where(accept, jnp.sum(r_eval != 0, axis=-1), st["rows"]),
                    accepted=st["accepted"] + accept.astype(jnp.int32),
-                   steps=st["steps"] + active.astype(jnp.int32), step_size=step_size)
+                   steps=st["steps"] + active.astype(jnp.int32), step_size=step_size,
+                   first=first & ~active)
         if keep_jacobian:
             new["jac"] = jnp.where(accept[:, None, None], J, st["jac"])
         stalled = (new["accepted"] >= 3) & ((new["prev_cost"] - new["cost"]) <= ftol * new["cost"])
@@ -247,7 +238,7 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
                        new["n_free"], **tol)
         crawl = None
         if stall_steps:
-            win = new["win_steps"] + active.astype(jnp.int32)
+            win = jnp.where(first, 0, new["win_steps"] + active.astype(jnp.int32))
             full = active & (win >= stall_steps)
             # a crawl, not the last steps of a convergence: the Gauss–Newton model still promises a
             # decrease above the threshold that the steps do not deliver
@@ -255,9 +246,10 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
             promise = 0.5 * jax.vmap(lambda ab, gb: gauss_newton_step(ab, gb)[1])(a, g)
             crawl = full & ((new["win_cost"] - new["cost"]) <= stall_rtol * new["cost"]) \
                 & (promise > stall_rtol * new["cost"])
-            new["win_cost"] = jnp.where(full, new["cost"], new["win_cost"])
+            new["win_cost"] = jnp.where(full | first, new["cost"], new["win_cost"])
             new["win_steps"] = jnp.where(full, 0, win)
-        return _finish_step(new, (cauchy | stalled) & gn, jnp.zeros_like(accept), penalty=penalty,
+        diverged = active & first & ~jnp.isfinite(cost_eval)  # a start whose cost is not finite
+        return _finish_step(new, (cauchy | stalled) & gn, diverged, penalty=penalty,
                             max_steps=max_steps, stalled=crawl)
 
     def cond(st):
