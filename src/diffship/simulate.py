@@ -77,7 +77,8 @@ def integrate(
     ``horizon`` (a traced sample count): the blocks of :data:`BLOCK` intervals wholly after the
     first ``horizon`` samples are not simulated (the state is held there), so one compiled
     program serves a growing-horizon warm-up and the whole runs; the caller masks the samples
-    after the horizon (a few past it, up to the end of their block, are simulated)."""
+    after the horizon (a few past it, up to the end of their block, are simulated; a run shorter
+    than two blocks is simulated whole)."""
 
     def advance(x, good, t0, t1, u0, u1):
         y = integrator.interval(f, t0, t1, x, u0, u1)

@@ -92,7 +92,7 @@ def _eval(res: Callable, z, data, data_axis):
 def _jacobian(res: Callable, z, data, data_axis, jac: Callable | None = None):
     """``(J, r)`` per problem by forward mode: ``n`` JVPs batched over the tangents, or the
     problem's own ``jac(z, data) -> (J, r)`` (one that skips known zero blocks,
-    :meth:`diffship.fit.kernel.Kernel.residuals_and_jacobian`)."""
+    :meth:`diffship.fit.kernel.Kernel.blocked_jacobian`)."""
     if jac is not None:
         return jax.vmap(jac, in_axes=(0, data_axis))(z, data)
     n = z.shape[-1]

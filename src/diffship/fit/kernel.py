@@ -100,7 +100,7 @@ class KernelData(eqx.Module):
             ``d`` ``(R·n_d,)``, or empty: rows :math:`w_k d_k` after the parameters' prior rows, so an
             estimated initial state moves from the measured one only as far as its noise allows.
         horizon: ``None`` (the whole padded runs), or a traced sample count: only the first
-            ``horizon`` samples of every run are simulated and scored (:meth:`head_masked`), so a
+            ``horizon`` samples of every run are simulated and scored (:meth:`with_horizon`, :meth:`head`), so a
             growing-horizon warm-up and the whole runs share one compiled program.
     """
 
@@ -242,8 +242,9 @@ class Kernel(eqx.Module):
         return jac(z, data)[0] if jac is not None else jax.jacfwd(self.residuals)(z, data)
 
     def own_jacobian(self) -> Callable | None:
-        """:meth:`blocked_jacobian` for this kernel's residuals; ``None`` for a subclass with
-        residuals of its own (multiple shooting, prediction error: their own structure)."""
+        """``(z, data) -> (J, r)`` the LM and :meth:`jacobian` use: :meth:`blocked_jacobian` for
+        this kernel's residuals; ``None`` (forward mode over every unknown) for a subclass with
+        residuals of its own, unless it gives its own (multiple shooting's per-segment blocks)."""
         return self.blocked_jacobian if type(self).residuals is Kernel.residuals else None
 
     def blocked_jacobian(self, z: Float[Array, " n_z"], data: KernelData

@@ -187,6 +187,13 @@ class ShootingKernel(Kernel):
         d = (ends - starts) / data.state_scale * data.weight
         return jnp.where(data.defect_mask[..., None], d, 0.0).reshape(-1)
 
+    def own_jacobian(self):
+        """The per-segment block Jacobian as the LM's ``(J, r)`` (:meth:`residuals_and_jacobian`),
+        not ``J`` pushed through :meth:`residuals`' custom JVP one tangent at a time."""
+        if not self.block_jacobian:
+            return None
+        return lambda z, data: self.residuals_and_jacobian(z, data)[::-1]
+
     def residuals_and_jacobian(self, z: Float[Array, " n_z"], data: ShootingData):
         """``(r, J)``: :meth:`residuals` and its Jacobian from per-segment blocks (class docstring)."""
         n = self.n_theta

@@ -35,11 +35,10 @@ def warm_rounds(kernel, zs, data, lm: dict, total: int, say, label: str):
     out = [list(o) for o in kernel.solve_many(np.stack(zs), data, progress=say, label=label, **lm)]
     last = [int(o[2]) for o in out]  # steps of each start's last round
     dominated: set[int] = set()
-    ok, capped = (int(jax.tree_util.tree_leaves(r)[0]) for r in
-                  (optx.RESULTS.successful, optx.RESULTS.nonlinear_max_steps_reached))
-
     def code(res):
         return int(jax.tree_util.tree_leaves(res)[0])
+
+    ok, capped = code(optx.RESULTS.successful), code(optx.RESULTS.nonlinear_max_steps_reached)
 
     def cost(o):
         r = np.asarray(o[3])
