@@ -48,14 +48,16 @@ import numpy as np
 
 from . import cache
 
-__all__ = ["cache_size", "clear", "compiled", "compiled_many", "exported", "loaded", "release_if_crowded"]
+__all__ = ["Prefetch", "cache_size", "clear", "compiled", "compiled_many", "exported", "loaded", "prefetch",
+           "release_if_crowded"]
 
 #: Share of the kernel's limit on a process's memory maps (``vm.max_map_count``, 65 530 by default)
 #: above which the programs held here and in JAX's caches are released before compiling more.
 MAP_SHARE = 0.4
 
 _CACHE: dict[Hashable, Callable] = {}
-_COMPILING = threading.RLock()
+_STATE = threading.Lock()  # guards _INFLIGHT (programs being compiled, by key)
+_INFLIGHT: dict[Hashable, threading.Event] = {}
 _LOADED: list[int] = [0]
 _EXPORTED = {"loaded": 0, "saved": 0}
 _SOURCE: list[str] = []
@@ -196,28 +198,47 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
     core). A fit that needs its residuals, its warm-up solve and its full solve from an empty
     cache waits for the slowest of them instead of their sum. Returns the functions, in order,
     and the wall seconds spent (0.0 when all came from this process's cache).
+
+    A program another thread is compiling (a refit beside another, :func:`prefetch`) is waited
+    for, not compiled twice; programs of different keys compile side by side, so a caller never
+    waits behind a queue of programs it does not need.
     """
     t0 = time.perf_counter()
     keys = [_key(*r) for r in requests]
     if all(k in _CACHE for k in keys):
         return [_CACHE[k] for k in keys], 0.0
-    # one compiling caller at a time: threads that need the same program (refits run side by side)
-    # wait for the first to compile it instead of compiling it again each
-    with _COMPILING:
-        return _compile_missing(requests, keys, t0)
+    with _STATE:
+        mine, theirs = {}, []
+        for k, r in zip(keys, requests):
+            if k in _CACHE or k in mine:
+                continue
+            if k in _INFLIGHT:
+                theirs.append(_INFLIGHT[k])
+            else:
+                mine[k] = r
+        if mine and not _INFLIGHT:  # nobody compiling: programs may be released safely
+            release_if_crowded()
+        for k in mine:
+            _INFLIGHT[k] = threading.Event()
+    try:
+        if mine:
+            _compile(mine)
+    finally:
+        with _STATE:
+            for k in mine:
+                _INFLIGHT.pop(k).set()
+    for ev in theirs:
+        ev.wait()
+    left = [r for k, r in zip(keys, requests) if k not in _CACHE]
+    if left:  # another thread's compile failed or was released meanwhile: compile it here
+        compiled_many(left)
+    return [_CACHE[k] for k in keys], time.perf_counter() - t0
 
 
-def _compile_missing(requests, keys, t0) -> tuple[list[Callable], float]:
+def _compile(todo: dict) -> None:
+    """Lower and compile the requests ``{key: (owner, name, args, static)}`` into the cache."""
     hits = cache.hits()
-    if any(k not in _CACHE for k in keys):
-        release_if_crowded()
-    todo = {}
-    for k, (owner, name, args, static) in zip(keys, requests):
-        if k not in _CACHE and k not in todo:
-            todo[k] = _lowered(owner, name, args, static)
-    if not todo:
-        return [_CACHE[k] for k in keys], 0.0
-    items = list(todo.items())
+    items = [(k, _lowered(*r)) for k, r in todo.items()]
     workers = min(len(items), os.cpu_count() or 1)
     if workers > 1:
         with ThreadPoolExecutor(workers) as pool:
@@ -227,7 +248,44 @@ def _compile_missing(requests, keys, t0) -> tuple[list[Callable], float]:
     for (k, (_, wrap)), program in zip(items, programs):
         _CACHE[k] = wrap(program)
     _LOADED[0] += min(cache.hits() - hits, len(items))  # programs that came from the persistent cache
-    return [_CACHE[k] for k in keys], time.perf_counter() - t0
+
+
+class Prefetch:
+    """Programs compiled in a background thread, one after the other (:func:`prefetch`)."""
+
+    def __init__(self, requests: list[tuple[Hashable, str, tuple, dict]]):
+        self._requests = list(requests)
+        self._stop = threading.Event()
+        self.compiled = 0
+        self.failed: list[str] = []
+        self._thread = threading.Thread(target=self._work, name="diffship-prefetch", daemon=False)
+        self._thread.start()
+
+    def _work(self) -> None:
+        for owner, name, args, static in self._requests:
+            if self._stop.is_set():
+                return
+            try:
+                compiled_many([(owner, name, args, static)])
+                self.compiled += 1
+            except Exception as exc:  # noqa: BLE001 - the caller compiles it again and sees the error there
+                self.failed.append(f"{type(owner).__name__}.{name}: {exc}")
+
+    def cancel(self) -> None:
+        """Compile no further program (the one being compiled finishes)."""
+        self._stop.set()
+
+    def join(self, timeout: float | None = None) -> None:
+        self._thread.join(timeout)
+
+
+def prefetch(requests: list[tuple[Hashable, str, tuple, dict]]) -> Prefetch:
+    """Compile ``requests`` (as in :func:`compiled_many`) in a background thread, in order, while
+    the caller goes on — e.g. a diagnosis compiles its workspace's programs while the base fit
+    runs: XLA's compile and a running program use different cores. A later :func:`compiled` of
+    the same program waits for it or finds it done. Call :meth:`Prefetch.cancel` when leaving
+    early (the process then waits only for the program being compiled)."""
+    return Prefetch(requests)
 
 
 def _maps() -> tuple[int, int] | None:

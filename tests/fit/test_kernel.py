@@ -70,3 +70,35 @@ def test_a_warm_up_horizon_scores_the_same_samples_as_the_sliced_runs():
     assert not np.any(r[:, n:])
     full = np.asarray(kernel.residuals(z, data.with_horizon()))
     np.testing.assert_allclose(full, np.asarray(kernel.residuals(z, data)), rtol=0, atol=1e-12)
+
+
+def test_a_traced_step_cap_gives_the_static_caps_solves_and_the_start_jacobian():
+    """``KernelData.step_cap``: one compiled solve runs any number of steps under its static cap —
+    k steps equal a solve compiled with ``max_steps=k`` — and a cap of 1 returns the start itself
+    with its residuals and Jacobian (what a caller without a Jacobian program of its own needs)."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=2, duration=30.0, dt=0.2, noise="realistic", seed=9)
+    model = Nomoto1()
+    spec = model.spec()
+    chans = ("psi", "r")
+    batch = make_batch(model, runs, chans, Filter("none"))
+    kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in chans),
+                    angle=(True, False), x0_idx=(0, 1))
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
+                       x0_scale=np.full(2, 0.05))
+    z0 = np.zeros(len(spec.free_names) + 4)
+    lm = dict(rtol=1e-10, atol=1e-10, jacobian=True)
+    for k in (3, 7):
+        z_s, res_s, n_s, r_s, J_s = kernel.call("solve", z0, data, max_steps=k, **lm)
+        z_t, res_t, n_t, r_t, J_t = kernel.call("solve", z0, data.replace(step_cap=jnp.asarray(k)), max_steps=40, **lm)
+        assert int(n_s) == int(n_t) == k
+        np.testing.assert_allclose(np.asarray(z_t), np.asarray(z_s), rtol=0, atol=1e-13)
+        np.testing.assert_allclose(np.asarray(J_t), np.asarray(J_s), rtol=0, atol=1e-12)
+    z1, _, n1, r1, J1 = kernel.call("solve", z0, data.replace(step_cap=jnp.asarray(1)), max_steps=40, **lm)
+    assert int(n1) == 1
+    np.testing.assert_array_equal(np.asarray(z1), z0)
+    np.testing.assert_allclose(np.asarray(r1), np.asarray(kernel.residuals(jnp.asarray(z0), data)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(J1), np.asarray(kernel.jacobian(jnp.asarray(z0), data)), rtol=0, atol=1e-10)
+    # the uncapped solve moves: the cap is what held it
+    z40, _, n40, _, _ = kernel.call("solve", z0, data.replace(step_cap=jnp.asarray(40)), max_steps=40, **lm)
+    assert int(n40) > 7 and np.max(np.abs(np.asarray(z40) - z0)) > 0.05

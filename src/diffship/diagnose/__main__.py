@@ -2,10 +2,13 @@
 
 Same options as ``python -m diffship.fit`` (:mod:`diffship.cli_options`): data, columns, degrees,
 rudder sign, vessel (with the fit's particulars rule: a model that needs the vessel's particulars
-stops, before JAX is imported, without ``--vessel`` or ``--fix`` for them), channels (default: the
-fit's, positions left out), fix/free/init, priors, filter, solver. The base model is fitted here by
-output error with those options (or started from ``--from-fit FIT.json``, whose verdict is read and
-warned about) and handed to :func:`diffship.diagnose.diagnose`.
+stops, before JAX is imported, without ``--vessel`` or ``--fix`` for them), channels (default:
+:func:`diffship.diagnose.diagnosis.diagnosis_channels`, the same as the library's ``diagnose``:
+the fit's channels and the logged positions), fix/free/init, priors, filter, solver. The base model
+is fitted here by output error with those options (or started from ``--from-fit FIT.json``, whose
+verdict is read and warned about) and handed to :func:`diffship.diagnose.diagnose`; the
+diagnosis's workspace programs compile beside the fit
+(:func:`~diffship.diagnose.diagnosis.prefetch_workspace`).
 """
 
 from __future__ import annotations
@@ -41,8 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"base model: one of {', '.join(MODEL_PARTICULARS)}")
     add_data_options(p, validate_required=True)
     add_vessel_option(p)
-    add_parameter_options(p, channels_help="channels of the base fit and of the diagnosis (default: the fit's: what "
-                                           "the model predicts and the runs have, positions x0, y0 left out)")
+    add_parameter_options(p, channels_help="channels of the base fit and of the diagnosis (default: the fit's "
+                                           "— what the model predicts and the runs have — and the positions x0, y0 "
+                                           "where every run logs them: a current or a heading bias shows in the track)")
     add_prior_options(p)
     add_numerics_options(p, filter_help="initial-state filter: butter[:Hz] (default), savgol[:s] or none")
     p.add_argument("--from-fit", default=None, metavar="FIT.json",
@@ -117,14 +121,13 @@ def _diagnose(args, say):
     from ..errors import DataError
     from ..fit import OutputErrorOptions, fit_output_error
     from ..fit.priors import load_priors, parse_priors
-    from ..fit.problem import default_channels
     from ..fitfile import fit_warnings, load_fit
     from ..integrators import get_integrator
     from ..models import get_model
     from ..preprocess import Filter
     from ..usability import verdict
     from ..vessel import model_spec
-    from .diagnosis import DiagnoseOptions, diagnose
+    from .diagnosis import DiagnoseOptions, diagnose, diagnosis_channels, prefetch_workspace
 
     effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
     if args.free_hydrodynamic:  # every parameter that is not a vessel particular
@@ -148,7 +151,7 @@ def _diagnose(args, say):
     if args.filter == "kalman":
         raise DataError("--filter kalman: the Kalman smoother is an equation-error preprocessing; the diagnosis fits "
                         "by output error (use butter[:Hz], savgol[:s] or none)")
-    chans = tuple(args.channels) if args.channels else default_channels(model, train)
+    chans = tuple(args.channels) if args.channels else diagnosis_channels(model, train)  # as diagnose()
     priors = parse_priors(args.prior)
     if args.prior_file:
         priors = load_priors(args.prior_file).merged(priors)
@@ -158,9 +161,17 @@ def _diagnose(args, say):
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
                               prior_rel_sd=args.prior_sd, stall=options.stall)
     say(f"fitting the base model {model.name} by output error on {len(train)} runs (channels {', '.join(chans)})...")
-    fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say, n_starts=args.starts)
+    pre = prefetch_workspace(model, spec, train, val, chans, options, opts.integrator)  # compiled beside the fit
+    try:
+        fit = fit_output_error(model, train, spec=spec, channels=chans, options=opts, progress=say, n_starts=args.starts)
+    except BaseException:
+        if pre is not None:
+            pre.cancel()
+        raise
     v = verdict(fit, None, train)
     if not v.usable:
+        if pre is not None:
+            pre.cancel()
         return None, "; ".join(v.reasons) or v.label
     for line in v.lines()[1:]:
         print(f"warning (base fit):{line[1:]}", file=sys.stderr)

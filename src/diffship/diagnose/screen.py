@@ -101,11 +101,19 @@ class Workspace:
         runs: training runs.
         channels: fitted channels; ``scales``: their normalisation (the base fit's noise σ).
         warmup: fraction of every run each refit converges on first (:meth:`_warmup`; 0: none).
+        max_iter, stall: the refits' step cap (``4·max_iter`` per solve) and stall rule
+            (:meth:`refit`'s defaults).
+        refits: whether refits will follow the screen. Then the screen's Jacobian and each refit's
+            covariance Jacobian come from the refits' compiled solve (``jacobian=True``, a traced
+            step cap of 1: :class:`~diffship.fit.kernel.KernelData`), so the workspace compiles
+            one program holding the model's Jacobian, not two; a screen alone compiles the
+            cheaper Jacobian program.
     """
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
                  scales: dict[str, float], x0_train: Sequence[np.ndarray] | None = None,
-                 integrator: AbstractIntegrator = Diffrax(), warmup: float = 0.25):
+                 integrator: AbstractIntegrator = Diffrax(), warmup: float = 0.25, max_iter: int = 60,
+                 stall: tuple[int, float] | None = None, refits: bool = True):
         self.base = base
         self.spec = spec
         self.integrator = integrator
@@ -143,6 +151,7 @@ class Workspace:
         self.train = self._data(runs, x0_train, batch)
         self.base_cost = math.inf  # the base fit's training cost, set by the screen
         self.warmup = warmup
+        self.max_iter, self.stall, self.refits = int(max_iter), stall, bool(refits)
 
     def _data(self, runs, x0_base=None, batch=None) -> dict:
         b = batch if batch is not None else make_batch(self.model, runs, self.channels)
@@ -152,6 +161,7 @@ class Workspace:
         kd = kernel_data(self.model, b.ts, b.us, b.ys, b.mask, x0, self.scales, x0_scale=self.x0_scale,
                          S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo,
                          hi=self.hi).with_horizon()  # the warm-up's horizon is data: one compiled solve
+        kd = kd.replace(step_cap=jnp.asarray(2 ** 30, jnp.int32))  # so is the step cap (:meth:`jacobian`)
         return dict(batch=b, x0=x0, kd=kd)
 
     def data(self, runs):
@@ -173,6 +183,23 @@ class Workspace:
             return list(data["x0"])
         return list(np.asarray(self.x0_kernel.initial_states(z, kd)))
 
+    def programs(self, val_runs=()) -> list:
+        """The compiled programs a diagnosis on this workspace runs, as :mod:`diffship.compiled`
+        requests: the residuals and the refits' solve (the Jacobian program for a screen alone) on
+        the training runs, and the held-out start rule's residuals and Jacobian on ``val_runs``
+        (:mod:`.start`). They depend only on the structure (model class and effects, spec, channels,
+        run shapes), not on values: a workspace of the start model gives the fitted one's programs,
+        so :func:`~.diagnosis.diagnose` compiles them while the base fit runs."""
+        z, kd = self.z0(), self._kd(None, self.selection([]), self.phi_null)
+        out = self.kernel.requests([("residuals", z, kd, {}),
+                                    ("solve", z, kd, self._solve_static(self.max_iter, self.stall)) if self.refits
+                                    else ("jacobian", z, kd, {})])
+        if val_runs:
+            v = self.data(val_runs)
+            d = np.zeros(self.n_x0(v))
+            out += self.x0_kernel.requests([("residuals", d, v["kd"], {}), ("jacobian", d, v["kd"], {})])
+        return out
+
     # -- evaluation helpers ------------------------------------------------------------
     def _kd(self, data, S, phi0, model=None) -> KernelData:
         d = (data or self.train)["kd"]
@@ -191,7 +218,20 @@ class Workspace:
         return np.asarray(self.kernel.call("residuals", z, self._kd(data, S, phi0, model)))
 
     def jacobian(self, z, S, phi0, data=None, model=None):
-        return np.asarray(self.kernel.call("jacobian", z, self._kd(data, S, phi0, model)))
+        """The normalised residuals' Jacobian at ``z``: the refits' solve capped at its first pass
+        (no step) when refits follow, else the Jacobian program."""
+        kd = self._kd(data, S, phi0, model)
+        if not self.refits:
+            return np.asarray(self.kernel.call("jacobian", z, kd))
+        out = self.kernel.call("solve", z, kd.replace(step_cap=jnp.asarray(1, jnp.int32)),
+                               **self._solve_static(self.max_iter, self.stall))
+        return np.asarray(out[4])
+
+    @staticmethod
+    def _solve_static(max_iter: int, stall: tuple[int, float] | None) -> dict:
+        """The static options of the refits' compiled solve (:meth:`_lm`; it returns the Jacobian
+        at its solution)."""
+        return dict(max_steps=4 * int(max_iter), jacobian=True, **Workspace._lm(stall))
 
     def selection(self, names: Sequence[str]) -> np.ndarray:
         S = np.zeros((len(self.phi_names), P_MAX))
@@ -285,9 +325,9 @@ class Workspace:
 
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
-              max_iter: int = 60, progress: Callable[[str], None] | None = None, rounds: int = 3,
+              max_iter: int | None = None, progress: Callable[[str], None] | None = None, rounds: int = 3,
               finish: bool | None = None, base_start: dict[str, float] | None = None,
-              stall: tuple[int, float] | None = None) -> RefitResult:
+              stall: tuple[int, float] | None | str = "workspace") -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
@@ -302,9 +342,12 @@ class Workspace:
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
         ``stall`` ``(W, ρ)``: every solve stops early when its cost falls by less than ρ·cost over W
         steps (:mod:`diffship.fit.batched`, item 6); such a refit is not ``converged`` and is not
-        continued (its cost has stalled).
+        continued (its cost has stalled). ``max_iter`` and ``stall`` default to the workspace's.
+        ``base_start``: the base parameters' values to start from (default: the base fit's).
         """
-        lm = self._lm(stall)
+        max_iter = self.max_iter if max_iter is None else int(max_iter)
+        stall = self.stall if isinstance(stall, str) else stall
+        lm = self._solve_static(max_iter, stall)
         t0 = time.perf_counter()
         pn = [n for e in self.effects if e.name in names for n in e.param_names]
         if len(pn) > P_MAX:
@@ -316,7 +359,7 @@ class Workspace:
             list(range(nk, nk + self.n_x0()))
         z_start = self.z0(base_values=base_start)  # the base fit's values unless given
         best = None
-        def one(st):  # LM from one start (non-smooth effects have flat regions: several starts)
+        def warm(st):  # the warm-up from one start (non-smooth effects have flat regions: several starts)
             phi0 = base_phi.copy()
             for n in pn:
                 phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
@@ -324,19 +367,34 @@ class Workspace:
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
                 return None
-            z1, warm_steps = self._warmup(z_start, kd, max_iter, lm)
-            z, res, steps, r = self.kernel.call("solve", z1, kd, max_steps=4 * max_iter, **lm)
+            z1, warm_steps, c1 = self._warmup(z_start, kd, max_iter, lm)
+            return z1, warm_steps, c1, phi0, kd
+
+        def whole(w):  # then the whole runs
+            z1, warm_steps, _, phi0, kd = w
+            z, res, steps, r, J = self.kernel.call("solve", z1, kd, **lm)
             r = np.asarray(r)
             return np.asarray(z), r, 0.5 * float(r @ r), int(steps) + warm_steps, phi0, warm_steps, \
-                stalled(res, steps, 4 * max_iter)
-        for got in parallel(one, starts):  # the starts side by side, the lowest cost wins
+                stalled(res, steps, 4 * max_iter), np.asarray(J)
+        warmed = []
+        for got in parallel(warm, starts):  # the starts side by side
             if isinstance(got, Exception):
                 raise got
-            if got is not None and math.isfinite(got[2]) and (best is None or got[2] < best[2]):
+            if got is not None:
+                warmed.append(got)
+        if len(warmed) > 1 and any(w[1] for w in warmed):
+            # several starts, warmed up on the first quarter: the whole runs are solved from the one
+            # the warm-up left lowest on the whole runs only (each whole-run solve costs four
+            # warm-ups; the warm-up is what separates the basins of a delay's or lag's time constant)
+            warmed = [min(warmed, key=lambda w: w[2])]
+        for got in parallel(whole, warmed):  # the lowest cost wins
+            if isinstance(got, Exception):
+                raise got
+            if math.isfinite(got[2]) and (best is None or got[2] < best[2]):
                 best = got
         if best is None:
             raise FitError(f"refit with {names}: every start blows up")
-        z, r, cost, it, phi0, warm_steps, crawl = best
+        z, r, cost, it, phi0, warm_steps, crawl, J = best
         it_whole = it - warm_steps
         # a refit that stops at the step cap has not converged: continue the best start (same
         # compiled program) while it still lowers the cost, up to ``rounds`` more times (not one
@@ -348,7 +406,7 @@ class Workspace:
         for _ in range(rounds if promising and not crawl else 0):
             if converged:
                 break
-            z1, res1, steps, r1 = self.kernel.call("solve", z, self._kd(None, S, phi0), max_steps=4 * max_iter, **lm)
+            z1, res1, steps, r1, J1 = self.kernel.call("solve", z, self._kd(None, S, phi0), **lm)
             r1 = np.asarray(r1)
             c1 = 0.5 * float(r1 @ r1)
             if not (math.isfinite(c1) and c1 < cost):
@@ -356,11 +414,11 @@ class Workspace:
             crawl = stalled(res1, steps, 4 * max_iter)
             converged = (int(steps) < 4 * max_iter and not crawl) or (cost - c1) < 1e-9 * cost
             slow = (cost - c1) < STALL * cost
-            z, r, it = np.asarray(z1), r1, it + int(steps)
+            z, r, it, J = np.asarray(z1), r1, it + int(steps), np.asarray(J1)
             cost = c1
             if slow or crawl:  # a mis-specified model crawls: its verdict does not hang on the last 0.1 %
                 break
-        J = self.jacobian(z, S, phi0)[:, active]
+        J = J[:, active]  # the Jacobian at the solution, from its solve
         cov = covariance(J, r, dof=self.train["batch"].n_residuals - len(active)).matrix
         w = self.selection(pn) @ z[self.n_theta:nk]
         phi = np.clip(phi0 + self.phi_scale * w, self.lo, self.hi)
@@ -392,29 +450,32 @@ class Workspace:
         n_full = int(kd.ts.shape[1])
         return int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
 
-    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int, lm: dict | None = None) -> tuple[np.ndarray, int]:
+    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int,
+                lm: dict | None = None) -> tuple[np.ndarray, int, float]:
         """Growing horizon, as the base fit (:func:`~diffship.fit.fit_output_error`, ``warmup``):
         the refit first converges on the first quarter of every run (when that is at least 200
         samples), then continues on the whole runs. From a base fit distorted by an unmodelled
         effect, a warm start on the whole runs crawls (a current's refit stopped at 40 % of the
         true current after 120 steps); on the short horizon the effect and the base parameters
         move back together (the same current to 0.5 %). Returns the start of the whole-run solve
-        (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost)
-        and the warm-up's steps."""
+        (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost),
+        the warm-up's steps and the whole runs' cost there (``inf`` without a warm-up)."""
         n_warm = self._n_warm(kd)
         if not n_warm:
-            return z_start, 0
-        lm = lm or self._lm(None)
-        zw, _, steps, _ = self.kernel.call("solve", z_start, kd.head(n_warm), max_steps=4 * max_iter, **lm)
+            return z_start, 0, math.inf
+        lm = lm or self._solve_static(max_iter, None)
+        zw, _, steps, *_ = self.kernel.call("solve", z_start, kd.head(n_warm), **lm)
         rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
+        r0 = np.asarray(self.kernel.call("residuals", z_start, kd))
+        c0 = 0.5 * float(r0 @ r0)
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
-            return z_start, int(steps)
+            return z_start, int(steps), c0
         # kept only when it also helps on the whole runs: from a base already fitted to the whole
         # runs, a short-horizon fit of a wrong candidate (or of no effect) lands in a worse basin
-        r0 = np.asarray(self.kernel.call("residuals", z_start, kd))
-        if float(rw @ rw) >= float(r0 @ r0):
-            return z_start, int(steps)
-        return np.asarray(zw), int(steps)
+        cw = 0.5 * float(rw @ rw)
+        if cw >= c0:
+            return z_start, int(steps), c0
+        return np.asarray(zw), int(steps), cw
 
 
 def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:

@@ -139,11 +139,11 @@ class Search:
 
     Args:
         ws: the all-effects workspace of the base fit.
-        validation: the held-out runs; ``base``: the base model's score on them.
+        validation: the held-out runs; ``base``: the base model's score on them (or None until :meth:`set_base`).
         options: effort and acceptance rule; ``say``: progress messages.
     """
 
-    def __init__(self, ws: Workspace, validation: Validation, base: Score, options: DiagnoseOptions,
+    def __init__(self, ws: Workspace, validation: Validation, base: Score | None, options: DiagnoseOptions,
                  say: Callable[[str], None], gate: float | None = None):
         self.ws = ws
         self.validation = validation
@@ -154,7 +154,7 @@ class Search:
         # the gap gate: given, or the options' fixed value, or FALLBACK_GATE (a Search built without
         # the data's sample counts); diagnose() passes the one from structural_gate()
         self.gate = gate if gate is not None else (options.gap_gate if options.gap_gate is not None else FALLBACK_GATE)
-        self.has_gap = base.E >= self.gate
+        self.has_gap = base is not None and base.E >= self.gate  # ``base`` may come later (:meth:`set_base`)
 
     def effect(self, name: str) -> Effect:
         return next(e for e in self.ws.effects if e.name == name)

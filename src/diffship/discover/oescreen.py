@@ -116,7 +116,7 @@ def oe_screen(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequ
     scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
     x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None
     ws = Workspace(base, base_spec, [term_class(t)() for t in terms], runs, chans, scales, x0_train=x0,
-                   integrator=res0.integrator, warmup=0.0)
+                   integrator=res0.integrator, warmup=0.0, refits=False)
     r0, J_theta, cols = ws.columns()
     names = list(ws.phi_names)  # one coefficient per term, in the workspace's order
     G = np.stack([cols[n] for n in names], axis=1)

@@ -102,6 +102,9 @@ class KernelData(eqx.Module):
         horizon: ``None`` (the whole padded runs), or a traced sample count: only the first
             ``horizon`` samples of every run are simulated and scored (:meth:`with_horizon`, :meth:`head`), so a
             growing-horizon warm-up and the whole runs share one compiled program.
+        step_cap: ``None``, or a traced cap on :meth:`Kernel.solve`'s steps under its static
+            ``max_steps``: one compiled solve serves solves of any length (``1``: the residuals and
+            Jacobian at ``z0``, no step), so a caller needs no Jacobian program of its own.
     """
 
     model: AbstractModel
@@ -121,6 +124,7 @@ class KernelData(eqx.Module):
     prior_w: Float[Array, " n_prior"]
     x0_prior_w: Float[Array, " n_x0_prior"]
     horizon: Int[Array, ""] | None
+    step_cap: Int[Array, ""] | None = None
 
     @property
     def n_prior(self) -> int:
@@ -129,8 +133,7 @@ class KernelData(eqx.Module):
 
     def replace(self, **changes) -> KernelData:
         """A copy with some fields replaced."""
-        names = tuple(changes)
-        return eqx.tree_at(lambda d: tuple(getattr(d, n) for n in names), self, tuple(changes[n] for n in names))
+        return dataclasses.replace(self, **changes)
 
     def head(self, n: int) -> KernelData:
         """The first ``n`` samples of every run (growing-horizon warm-up): sliced, or — for data
@@ -316,13 +319,15 @@ class Kernel(eqx.Module):
         (:mod:`diffship.fit.batched`, item 6; :func:`stalled` tells the two apart).
 
         The solve is the batched LM (:mod:`diffship.fit.batched`) at ``B = 1``; a final point whose
-        simulation still blows up has the status ``nonlinear_divergence``."""
+        simulation still blows up has the status ``nonlinear_divergence``; ``data.step_cap`` lowers
+        the step cap at run time (:class:`KernelData`)."""
         lm = self._lm_static(max_steps=max_steps, rtol=rtol, atol=atol, ftol=ftol, jacobian=jacobian, gntol=gntol,
                              variance=variance, gn_params=gn_params, stall_steps=stall_steps, stall_rtol=stall_rtol)
         z0 = jnp.asarray(z0)[None]
         free = jnp.ones(z0.shape, bool)
         st = self.batch_start(z0, data, free, **lm)
-        st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **lm)
+        cap = lm["max_steps"] if data.step_cap is None else jnp.minimum(data.step_cap, lm["max_steps"])
+        st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **dict(lm, max_steps=cap))
         result = jax.tree_util.tree_unflatten(_RESULT_TREE, [st["status"][0]])
         out = (st["z"][0], result, st["steps"][0], st["r"][0])
         return (*out, st["jac"][0]) if jacobian else out
@@ -443,10 +448,13 @@ class Kernel(eqx.Module):
         ``(name, z, data, static keywords)``; ``extra`` further programs of other owners, as
         ``(owner, name, args, static)``, compiled in the same batch (fetch them later with
         :func:`diffship.compiled.compiled`, at no cost). Returns ``(functions, compile seconds)``."""
-        fns, seconds = compiled_many([
-            (self, "solve_coded" if name == "solve" else name, (jnp.asarray(z, dtype=jnp.float64), data), static)
-            for name, z, data, static in requests] + list(extra))
+        fns, seconds = compiled_many(self.requests(requests) + list(extra))
         return [_with_result(fn) if name == "solve" else fn for fn, (name, *_) in zip(fns, requests)], seconds
+
+    def requests(self, requests) -> list:
+        """``(name, z, data, static)`` as :mod:`diffship.compiled` keys them (e.g. to prefetch)."""
+        return [(self, "solve_coded" if name == "solve" else name, (jnp.asarray(z, dtype=jnp.float64), data), static)
+                for name, z, data, static in requests]
 
     def call(self, name: str, z, data: KernelData, **static):
         """Run a compiled method; returns its output (JAX arrays)."""
