@@ -8,16 +8,23 @@ freely (the base model started 15–30 m off the logged position). This runs the
     python benchmarks/diagnose_current_case.py --duration 240          # the issue's size
     python benchmarks/diagnose_current_case.py --duration 120 --effects current,heading_bias,actuator_lag,damping_vv
     python benchmarks/diagnose_current_case.py --duration 240 --effects current,heading_bias,actuator_lag,damping_vv --null
+    python benchmarks/diagnose_current_case.py --duration 240 --cli   # the same runs through python -m diffship.diagnose
 
-Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null].md``.
+``--cli`` writes the runs as CSV files and times the command a user runs (``python -m diffship.diagnose
+TRAIN.csv ... --validate VAL.csv ... --model fossen3 --vessel usv --out DIR``) as a whole process,
+figures and report included, with the compile cache of ``$DIFFSHIP_CACHE_DIR`` (a new folder: cold).
+
+Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null|_cli].md``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import json
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -45,6 +52,7 @@ def main(argv=None):
     p.add_argument("--duration", type=float, default=240.0, help="seconds per run")
     p.add_argument("--effects", default="all")
     p.add_argument("--null", action="store_true", help="the same runs without the current (nothing to attribute)")
+    p.add_argument("--cli", action="store_true", help="time python -m diffship.diagnose on the runs as CSV files")
     a = p.parse_args(argv)
     truth = usv_truth() if a.null else augment(usv_truth(), "current", Vcx=0.125, Vcy=0.2165)
     runs = []
@@ -53,6 +61,8 @@ def main(argv=None):
         runs.append(simulate_run(truth, t, inp, np.asarray(truth.initial_state({"u": 2.0})), name=f"usv{i}",
                                  noise="realistic", seed=1000 + i))
     effects = "all" if a.effects == "all" else a.effects.split(",")
+    if a.cli:
+        return cli(a, runs)
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     d = diagnose(Fossen3(), runs[:3], runs[3:], options=DiagnoseOptions(effects=effects),
@@ -79,6 +89,39 @@ def main(argv=None):
     L += [f"> {x}  " for x in d.verdict]
     text = "\n".join(L) + "\n"
     (OUT / f"diagnose_current_case_{int(a.duration)}s{'_null' if a.null else ''}.md").write_text(text)
+    print(text)
+
+
+def cli(a, runs) -> None:
+    """The user's command on the same runs, timed as a whole process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = []
+        for r in runs:
+            paths.append(str(Path(tmp) / f"{r.name}.csv"))
+            r.to_dataframe().to_csv(paths[-1], index=False)
+        cmd = [sys.executable, "-m", "diffship.diagnose", *paths[:3], "--validate", *paths[3:], "--model", "fossen3",
+               "--vessel", "usv", "--out", str(Path(tmp) / "out"), "--json", str(Path(tmp) / "d.json")]
+        if a.effects != "all":
+            cmd += ["--effects", a.effects]
+        load0 = os.getloadavg()
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        load1 = os.getloadavg()
+        if proc.returncode != 0:
+            sys.exit(f"python -m diffship.diagnose failed ({proc.returncode}): {proc.stderr[-2000:]}")
+        doc = json.loads((Path(tmp) / "d.json").read_text())
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                            text=True).stdout.strip()
+    cache = os.environ.get("DIFFSHIP_CACHE_DIR", "the default compile cache")
+    L = [f"# The issue-28 current case through `python -m diffship.diagnose` ({a.duration:g} s runs)", "",
+         f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g} --cli` at {commit} "
+         f"(compile cache {cache}); 1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end.", "",
+         f"- whole process (figures and report included): **{wall:.1f} s**",
+         f"- selected: {doc.get('selected')}; held-out E {doc.get('validation_E_before', float('nan')):.3g} → "
+         f"{doc.get('validation_E_after', float('nan')):.3g}; timings [s] {doc.get('timings_s')}; current {({k: round(v, 4) for k, v in doc.get('final_params', {}).items() if k in ('Vcx', 'Vcy')})}", ""]
+    text = "\n".join(L) + "\n"
+    (OUT / f"diagnose_current_case_{int(a.duration)}s_cli.md").write_text(text)
     print(text)
 
 

@@ -409,7 +409,8 @@ def test_diagnose_vessel_and_particulars_rule(tmp_path, capsys):
 @pytest.mark.slow
 def test_diagnose_with_vessel_runs_end_to_end(tmp_path, capsys):
     """``python -m diffship.diagnose TRAIN --validate VAL --model fossen3 --vessel usv``: a whole diagnosis
-    (base fit without position channels, one effect screened); about a minute on a loaded 2-core machine."""
+    (base fit with the logged positions, as the library's ``diagnose``; one effect screened); about a minute on
+    a loaded 2-core machine."""
     from diffship.diagnose.__main__ import main as diagnose_main
     from diffship.synthetic import usv_runs
 
@@ -419,7 +420,7 @@ def test_diagnose_with_vessel_runs_end_to_end(tmp_path, capsys):
     assert diagnose_main(paths[:2] + ["--validate", paths[2], "--model", "fossen3", "--vessel", "usv", "--effects",
                                       "heading_bias", "--json", str(js), "--quiet"]) == 0
     doc = json.loads(js.read_text())
-    assert "x0" not in doc["noise_floor"] and "psi" in doc["noise_floor"]
+    assert "x0" in doc["noise_floor"] and "psi" in doc["noise_floor"]  # the channels of the library's diagnose
 
 
 def test_fit_figure_always_shows_the_held_out_runs(nomoto_csvs, tmp_path):

@@ -58,6 +58,8 @@ MAP_SHARE = 0.4
 _CACHE: dict[Hashable, Callable] = {}
 _STATE = threading.Lock()  # guards _INFLIGHT (programs being compiled, by key)
 _INFLIGHT: dict[Hashable, threading.Event] = {}
+_FOREGROUND = {"active": 0, "last": 0.0}  # compiles of callers other than a prefetch, and when the last ended
+_PREFETCH = threading.local()
 _LOADED: list[int] = [0]
 _EXPORTED = {"loaded": 0, "saved": 0}
 _SOURCE: list[str] = []
@@ -220,6 +222,10 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
             release_if_crowded()
         for k in mine:
             _INFLIGHT[k] = threading.Event()
+    fore = bool(mine) and not getattr(_PREFETCH, "on", False)
+    if fore:
+        with _STATE:
+            _FOREGROUND["active"] += 1
     try:
         if mine:
             _compile(mine)
@@ -227,6 +233,9 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
         with _STATE:
             for k in mine:
                 _INFLIGHT.pop(k).set()
+            if fore:
+                _FOREGROUND["active"] -= 1
+                _FOREGROUND["last"] = time.perf_counter()
     for ev in theirs:
         ev.wait()
     left = [r for k, r in zip(keys, requests) if k not in _CACHE]
@@ -253,16 +262,31 @@ def _compile(todo: dict) -> None:
 class Prefetch:
     """Programs compiled in a background thread, one after the other (:func:`prefetch`)."""
 
-    def __init__(self, requests: list[tuple[Hashable, str, tuple, dict]]):
+    def __init__(self, requests: list[tuple[Hashable, str, tuple, dict]], first_wait: float = 1.0):
         self._requests = list(requests)
+        self._first_wait = float(first_wait)
         self._stop = threading.Event()
         self.compiled = 0
         self.failed: list[str] = []
         self._thread = threading.Thread(target=self._work, name="diffship-prefetch", daemon=False)
         self._thread.start()
 
+    def _quiet(self) -> None:
+        """Wait while a caller's own compile runs (and briefly after it: it may ask for more).
+        Two compiles side by side on two cores take longer than one after the other; a compile
+        beside a running program does not (measured with jax 0.10, ``benchmarks/compile_time.py``)."""
+        while not self._stop.is_set():
+            with _STATE:
+                busy = _FOREGROUND["active"] > 0 or time.perf_counter() - _FOREGROUND["last"] < 0.5
+            if not busy:
+                return
+            time.sleep(0.05)
+
     def _work(self) -> None:
+        _PREFETCH.on = True
+        self._stop.wait(self._first_wait)  # the caller's own first compile goes first
         for owner, name, args, static in self._requests:
+            self._quiet()
             if self._stop.is_set():
                 return
             try:
@@ -279,13 +303,15 @@ class Prefetch:
         self._thread.join(timeout)
 
 
-def prefetch(requests: list[tuple[Hashable, str, tuple, dict]]) -> Prefetch:
+def prefetch(requests: list[tuple[Hashable, str, tuple, dict]], first_wait: float = 1.0) -> Prefetch:
     """Compile ``requests`` (as in :func:`compiled_many`) in a background thread, in order, while
     the caller goes on — e.g. a diagnosis compiles its workspace's programs while the base fit
-    runs: XLA's compile and a running program use different cores. A later :func:`compiled` of
-    the same program waits for it or finds it done. Call :meth:`Prefetch.cancel` when leaving
-    early (the process then waits only for the program being compiled)."""
-    return Prefetch(requests)
+    runs: XLA's compile and a running program use different cores. The thread starts after
+    ``first_wait`` seconds and gives way to the caller's own compiles (it starts no program while
+    one runs). A later :func:`compiled` of the same program waits for it or finds it done. Call
+    :meth:`Prefetch.cancel` when leaving early (the process then waits only for the program being
+    compiled)."""
+    return Prefetch(requests, first_wait)
 
 
 def _maps() -> tuple[int, int] | None:

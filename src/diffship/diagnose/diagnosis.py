@@ -22,6 +22,8 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
+import jax.numpy as jnp
+
 from ..data import Run
 from ..compiled import Prefetch, prefetch
 from ..errors import DataError, FitError
@@ -30,6 +32,7 @@ from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
+from ..simulate import _Simulator, model_inputs
 from ..models.effects import Augmented, applicability, is_ship3, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
@@ -42,7 +45,7 @@ from .periodic import training_period
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
-__all__ = ["diagnose", "Diagnosis", "diagnosis_channels"]
+__all__ = ["diagnose", "Diagnosis", "diagnosis_channels", "prefetch_workspace", "workspace_programs"]
 
 SHRINK_DEFINITION = ("(S(E_before) - S(E_after)) / S(E_before) with S(E) = sqrt(max(E^2 - 1, 0)): share of the "
                      "structural (above-noise, RMS) validation error closed by the selected effects")
@@ -158,27 +161,40 @@ def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, 
     return tuple(c for c in model.output_names if c in chans or c in pos)
 
 
+def workspace_programs(model: AbstractModel, spec: ParamSpec, train, val, chans, o: DiagnoseOptions,
+                       integrator) -> list:
+    """The compiled programs the diagnosis's workspace will run (:meth:`~.screen.Workspace.programs`),
+    from the base model *before* its fit: they depend on the structure only, so a workspace of the
+    start model gives the fitted one's (``tests/diagnose/test_prefetch.py``). ``integrator``: the
+    base fit's. Raises what building the workspace raises."""
+    effs, _ = library(model, train, o.effect_names)
+    if "delta0" in spec.free_names and not is_ship3(model):  # as after the base fit in diagnose()
+        effs = [e for e in effs if e.name != "rudder_offset"]
+    if not effs:
+        return []
+    start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # the fit's start, inside its bounds
+    ws = Workspace(model, start, effs, train, chans, {c: 1.0 for c in chans}, integrator=integrator,
+                   max_iter=o.max_iter, stall=o.stall)
+    sims = []  # the held-out simulations of the base and of the workspace model (:class:`.shrink.Validation`)
+    for m in (ws.base, ws.model):
+        for r in {r.n: r for r in val}.values():
+            sims.append((_Simulator(integrator), "run", (m, jnp.asarray(r.time), jnp.asarray(model_inputs(m, r)),
+                                                         jnp.zeros(len(m.state_names), dtype=jnp.float64)), {}))
+    return ws.programs(val) + sims
+
+
 def prefetch_workspace(model: AbstractModel, spec: ParamSpec, train, val, chans, o: DiagnoseOptions,
                        integrator) -> Prefetch | None:
-    """Compile the workspace's programs (:meth:`~.screen.Workspace.programs`) in the background
-    while the base fit runs: they depend on the structure only, and a workspace of the start
-    model has the fitted one's (``tests/diagnose/test_prefetch.py``). XLA compiles on one core
-    while the fit's solve runs on the other; a cold diagnosis no longer compiles them after the
-    fit. ``None`` when no workspace can be built (the diagnosis then reports why itself). A
-    caller that fits the base model itself (``python -m diffship.diagnose``) calls it before its fit.
-    ``integrator``: the base fit's."""
+    """Compile :func:`workspace_programs` in the background while the base fit runs
+    (:func:`diffship.compiled.prefetch`): XLA compiles on one core while the fit's solves run on
+    the other, so a cold diagnosis no longer compiles them after the fit. A caller that fits the
+    base model itself (``python -m diffship.diagnose``) calls it before its fit. ``None`` when no
+    workspace can be built (the diagnosis then reports why itself)."""
     try:
-        effs, _ = library(model, train, o.effect_names)
-        if "delta0" in spec.free_names and not is_ship3(model):  # as after the base fit below
-            effs = [e for e in effs if e.name != "rudder_offset"]
-        if not effs:
-            return None
-        start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # the fit's start, inside its bounds
-        ws = Workspace(model, start, effs, train, chans, {c: 1.0 for c in chans}, integrator=integrator,
-                       max_iter=o.max_iter, stall=o.stall)
-        return prefetch(ws.programs(val))
+        reqs = workspace_programs(model, spec, train, val, chans, o, integrator)
     except Exception:  # noqa: BLE001 - only a head start: the diagnosis builds the real workspace and says what fails
         return None
+    return prefetch(reqs) if reqs else None
 
 
 def diagnose(

@@ -27,7 +27,8 @@ o_k ≈ 0 means the base parameters can mimic the effect to first order).
 **Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base
 parameters, the chosen effects' parameters and the per-run initial states, warm-started at θ̂
 from each given φ start, with the base fit's growing horizon (the first quarter of every run,
-then the whole runs: :meth:`Workspace._warmup`); the start with the lowest cost wins. Which candidates are refitted,
+then the whole runs: :meth:`Workspace._warmup`); of several starts, the whole runs are solved
+from the one the warm-up left lowest there, and the lowest cost wins. Which candidates are refitted,
 from which starts, and how they are judged on the held-out runs is decided in :mod:`.which`
 and :mod:`.shrink`.
 """
@@ -333,8 +334,11 @@ class Workspace:
 
         Each start is solved by the output-error kernel's Levenberg–Marquardt, first on the first
         quarter of every run (:meth:`_warmup`), then on the whole runs (the unselected
-        effect coordinates have zero Jacobian columns and stay at zero); the start with the
-        lowest cost wins, and — when it already removes half the base training cost — is
+        effect coordinates have zero Jacobian columns and stay at zero). With a warm-up and several
+        starts (a delay's, lag's or rate limit's time constant) only the start the warm-up left
+        with the lowest whole-run cost goes on to the whole runs: each whole-run solve costs about
+        four warm-ups, and on the issue-28 current case the three whole-run solves of each such
+        candidate were a third of the refits' time. The start with the lowest cost wins, and — when it already removes half the base training cost — is
         continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
         step cap and still lowers the cost by :data:`STALL` (0.1 %) or more (``converged`` says whether it ended before the cap);
         ``finish=True`` continues it whatever its cost (the no-effect reference refit of
@@ -440,10 +444,8 @@ class Workspace:
     @staticmethod
     def _lm(stall: tuple[int, float] | None) -> dict:
         """The refits' Levenberg–Marquardt tolerances (and the stall rule, when given)."""
-        lm = dict(rtol=1e-8, atol=1e-8, ftol=1e-12)
-        if stall is not None:
-            lm.update(stall_steps=int(stall[0]), stall_rtol=float(stall[1]))
-        return lm
+        rule = {} if stall is None else dict(stall_steps=int(stall[0]), stall_rtol=float(stall[1]))
+        return dict(rtol=1e-8, atol=1e-8, ftol=1e-12, **rule)
 
     def _n_warm(self, kd: KernelData) -> int:
         """Samples of every run the warm-up fits first (0: no warm-up)."""

@@ -52,7 +52,9 @@ said, never dropped silently.
 
 **Path.** The accepted candidate with the lowest validation error is selected; then up to
 ``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
-against the previous step. When no single effect passes, up to ``max_pairs`` pairs of the best
+against the previous step — while the validation error is still at or above the gap gate (under
+it no structural gap is left: a further effect would need a gain beyond the noise band below the
+noise floor itself, so the path stops there without the trial refits). When no single effect passes, up to ``max_pairs`` pairs of the best
 single candidates are refitted jointly (two effects can each fail alone yet pass together).
 With two or more effects in, a **swap** pass replaces one by an accepted alternative when that
 lowers the validation error by more than 2 % (a delay chosen first where lag + damping is the
@@ -293,6 +295,9 @@ class Search:
             cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values, conf, rivals, note)
             cands = [n for n in by_E if n != name and singles[n].judgement.gain > 0][:3]
             for _ in range(1, o.greedy_steps):
+                if cur.final.E < self.gate:  # no structural gap left: nothing more can be attributed
+                    self.say(f"  validation E {cur.final.E:.3g} under the gap gate {self.gate:.3g}: no further effect")
+                    break
                 nxt = self._greedy_step(cur, cands)
                 if nxt is None:
                     break
