@@ -13,7 +13,10 @@ promises more; the base fit then says "stopped early: the cost stalled", not con
 on the issue-28 current case (3 + 2 USV runs of 240 s): the base fit's whole-run solve 91 steps
 instead of 4 × 200, the wrong candidates' refits 42 steps instead of up to 600, the result the same
 (``benchmarks/results/diagnose_current_case_240s.md``). ``timings`` gives ``refits`` (the reference
-and the single candidates together) and ``where`` (the analysis alone).
+and the single candidates together) and ``where`` (the analysis alone). The workspace's programs
+compile while the base fit runs (:func:`prefetch_workspace`), and the refits' compiled solve also
+gives the screen's and the covariances' Jacobians: on that case a cold whole process went from 133
+to 82–93 s on two cores.
 """
 
 from __future__ import annotations
