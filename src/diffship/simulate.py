@@ -193,8 +193,15 @@ class _Simulator(eqx.Module):
         return sol.ts, sol.xs, sol.ys, sol.valid
 
 
+def simulation_request(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
+    """The :mod:`diffship.compiled` request ``(owner, name, args, static)`` that :func:`simulate_run`
+    runs: compile it ahead (:func:`diffship.compiled.prefetch`) and the simulation finds it."""
+    args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
+    return _Simulator(integrator), "run", args, {}
+
+
 def simulate_run(model: AbstractModel, run: Run, x0: np.ndarray, integrator: AbstractIntegrator = Diffrax()):
     """Whole-horizon simulation of ``model`` on ``run`` from ``x0`` (compiled once per shape)."""
-    args = (model, jnp.asarray(run.time), jnp.asarray(model_inputs(model, run)), jnp.asarray(x0, dtype=jnp.float64))
-    fn, _ = compiled(_Simulator(integrator), "run", args)
+    owner, name, args, _ = simulation_request(model, run, x0, integrator)
+    fn, _ = compiled(owner, name, args)
     return Solution(*fn(*args))

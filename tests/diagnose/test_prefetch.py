@@ -7,7 +7,6 @@ diagnosis then uses. And :func:`diffship.compiled.prefetch` must hand a later ca
 it compiled, not compile it again.
 """
 
-import jax.numpy as jnp
 import numpy as np
 
 import diffship  # noqa: F401
@@ -48,9 +47,8 @@ def test_the_start_models_workspace_has_the_fitted_workspaces_programs():
     after = ws.programs(val)
     assert [compiled._key(*r) for r in before[:4]] == [compiled._key(*r) for r in after]
     # the held-out simulations a Validation runs: the base's and a refit's model (other values)
-    from diffship.simulate import _Simulator, model_inputs
-    sims = [(_Simulator(Diffrax()), "run", (m, jnp.asarray(val[0].time), jnp.asarray(model_inputs(m, val[0])),
-                                            jnp.asarray(np.full(len(m.state_names), 0.2), dtype=jnp.float64)), {})
+    from diffship.simulate import simulation_request
+    sims = [simulation_request(m, val[0], np.full(len(m.state_names), 0.2), Diffrax())
             for m in (ws.base, ws.model_with({e.param_names[0]: 0.1 for e in effs[:1]}, fitted))]
     assert [compiled._key(*r) for r in before[4:]] == [compiled._key(*r) for r in sims]
     # a refit's own call asks for exactly the prefetched solve (its static options included)

@@ -25,7 +25,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 
-import jax.numpy as jnp
+import numpy as np
 
 from ..data import Run
 from ..compiled import Prefetch, prefetch
@@ -35,7 +35,7 @@ from ..fit.problem import default_channels
 from ..metrics import Evaluation
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..simulate import _Simulator, model_inputs
+from ..simulate import simulation_request
 from ..models.effects import Augmented, applicability, is_ship3, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
@@ -178,11 +178,9 @@ def workspace_programs(model: AbstractModel, spec: ParamSpec, train, val, chans,
     start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # the fit's start, inside its bounds
     ws = Workspace(model, start, effs, train, chans, {c: 1.0 for c in chans}, integrator=integrator,
                    max_iter=o.max_iter, stall=o.stall)
-    sims = []  # the held-out simulations of the base and of the workspace model (:class:`.shrink.Validation`)
-    for m in (ws.base, ws.model):
-        for r in {r.n: r for r in val}.values():
-            sims.append((_Simulator(integrator), "run", (m, jnp.asarray(r.time), jnp.asarray(model_inputs(m, r)),
-                                                         jnp.zeros(len(m.state_names), dtype=jnp.float64)), {}))
+    # the held-out simulations of the base and of the workspace model (:class:`.shrink.Validation`)
+    sims = [simulation_request(m, r, np.zeros(len(m.state_names)), integrator)
+            for m in (ws.base, ws.model) for r in {r.n: r for r in val}.values()]
     return ws.programs(val) + sims
 
 
