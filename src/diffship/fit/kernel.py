@@ -124,7 +124,7 @@ class KernelData(eqx.Module):
     prior_w: Float[Array, " n_prior"]
     x0_prior_w: Float[Array, " n_x0_prior"]
     horizon: Int[Array, ""] | None
-    step_cap: Int[Array, ""] | None = None
+    step_cap: Int[Array, ""] | None
 
     @property
     def n_prior(self) -> int:
@@ -509,5 +509,5 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
         phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
         hi=f(empty if hi is None else hi), prior_mean=f(empty if prior_mean is None else prior_mean),
         prior_w=f(empty if prior_w is None else prior_w), x0_prior_w=f(empty if x0_prior_w is None else x0_prior_w),
-        horizon=None,
+        horizon=None, step_cap=None,
     )
