@@ -14,13 +14,11 @@ from diffship.preprocess import Filter
 from diffship.synthetic import nomoto_runs
 
 
-@pytest.mark.parametrize("priors", [False, True])
-def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
-    """Run i's rows depend on the shared parameters and on its own initial-state offsets only: the
-    block-assembled Jacobian is the dense forward-mode one, zero blocks included (a run's rows
-    must not move with another run's initial state), with and without prior rows."""
+def _problem(n_runs: int, duration: float, dt: float, seed: int, priors: bool = False):
+    """A first-order Nomoto output-error problem: ``(runs, spec, kernel, data)``, heading and rate
+    fitted, both initial states estimated, prior rows on every unknown when ``priors``."""
     truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
-    runs = nomoto_runs(truth, n_runs=3, duration=30.0, dt=0.2, noise="realistic", seed=5)
+    runs = nomoto_runs(truth, n_runs=n_runs, duration=duration, dt=dt, noise="realistic", seed=seed)
     model = Nomoto1()
     spec = model.spec()
     chans = ("psi", "r")
@@ -33,6 +31,17 @@ def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
                x0_prior_w=np.full(n_d, 0.5)) if priors else {}
     data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
                        x0_scale=np.full(len(x0_idx), 0.05), **pri)
+    return runs, spec, kernel, data
+
+
+@pytest.mark.parametrize("priors", [False, True])
+def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
+    """Run i's rows depend on the shared parameters and on its own initial-state offsets only: the
+    block-assembled Jacobian is the dense forward-mode one, zero blocks included (a run's rows
+    must not move with another run's initial state), with and without prior rows."""
+    runs, spec, kernel, data = _problem(3, 30.0, 0.2, seed=5, priors=priors)
+    x0_idx = kernel.x0_idx
+    n_t, n_d = len(spec.free_names), len(runs) * len(x0_idx)
     z = jnp.asarray(np.random.default_rng(0).normal(0.0, 0.3, n_t + n_d))
     assert kernel.own_jacobian() is not None
     J, r = kernel.blocked_jacobian(z, data)
@@ -42,7 +51,7 @@ def test_block_jacobian_equals_forward_mode_over_every_unknown(priors):
     scale = float(jnp.max(jnp.abs(dense)))
     np.testing.assert_allclose(np.asarray(J), np.asarray(dense), rtol=0, atol=1e-10 * scale)
     # the structure it relies on: run 0's rows do not depend on run 1's initial state
-    m = batch.ts.shape[1] * len(chans)
+    m = data.ts.shape[1] * data.ys.shape[-1]
     assert float(jnp.max(jnp.abs(dense[:m, n_t + len(x0_idx):n_t + 2 * len(x0_idx)]))) == 0.0
     assert float(jnp.max(jnp.abs(dense[:m, n_t:n_t + len(x0_idx)]))) > 0.0
 
@@ -51,15 +60,7 @@ def test_a_warm_up_horizon_scores_the_same_samples_as_the_sliced_runs():
     """Data with a horizon (:meth:`KernelData.with_horizon`): the warm-up's head keeps the shapes —
     one compiled program for the warm-up and the whole runs — and gives the sliced head's residual
     rows, the later rows zero."""
-    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
-    runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, noise="realistic", seed=7)
-    model = Nomoto1()
-    spec = model.spec()
-    batch = make_batch(model, runs, ("psi", "r"), Filter("none"))
-    kernel = Kernel(spec=spec.structural(), out_idx=(model.output_names.index("psi"), model.output_names.index("r")),
-                    angle=(True, False), x0_idx=(0, 1))
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
-                       x0_scale=np.full(2, 0.05))
+    _, spec, kernel, data = _problem(2, 60.0, 0.1, seed=7)
     z = jnp.asarray(np.random.default_rng(1).normal(0.0, 0.2, len(spec.free_names) + 4))
     n = 250
     sliced = np.asarray(kernel.residuals(z, data.head(n))).reshape(2, n, 2)
@@ -76,16 +77,7 @@ def test_a_traced_step_cap_gives_the_static_caps_solves_and_the_start_jacobian()
     """``KernelData.step_cap``: one compiled solve runs any number of steps under its static cap —
     k steps equal a solve compiled with ``max_steps=k`` — and a cap of 1 returns the start itself
     with its residuals and Jacobian (what a caller without a Jacobian program of its own needs)."""
-    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
-    runs = nomoto_runs(truth, n_runs=2, duration=30.0, dt=0.2, noise="realistic", seed=9)
-    model = Nomoto1()
-    spec = model.spec()
-    chans = ("psi", "r")
-    batch = make_batch(model, runs, chans, Filter("none"))
-    kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in chans),
-                    angle=(True, False), x0_idx=(0, 1))
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.array([0.01, 0.002]),
-                       x0_scale=np.full(2, 0.05))
+    _, spec, kernel, data = _problem(2, 30.0, 0.2, seed=9)
     z0 = np.zeros(len(spec.free_names) + 4)
     lm = dict(rtol=1e-10, atol=1e-10, jacobian=True)
     for k in (3, 7):

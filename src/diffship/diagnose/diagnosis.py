@@ -164,15 +164,26 @@ def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, 
     return tuple(c for c in model.output_names if c in chans or c in pos)
 
 
+def candidate_effects(model: AbstractModel, train, o: DiagnoseOptions, free: Sequence[str],
+                      delta0: float | None = None, starts=None) -> tuple[list, dict[str, str]]:
+    """The library's effects for a base model fitted with the free parameters ``free``, and
+    ``{name: reason}`` for those skipped: a Nomoto model that fits its own rudder offset ``delta0``
+    (value ``delta0`` when known) has no ``rudder_offset`` candidate, the same effect."""
+    effs, skipped = library(model, train, o.effect_names, starts=starts)
+    if "delta0" in free and not is_ship3(model) and any(e.name == "rudder_offset" for e in effs):
+        effs = [e for e in effs if e.name != "rudder_offset"]
+        skipped["rudder_offset"] = ("the given base fit estimated the model's own rudder offset delta0"
+                                    + (f" = {delta0:.4g} rad" if delta0 is not None else "") + " (the same effect)")
+    return effs, skipped
+
+
 def workspace_programs(model: AbstractModel, spec: ParamSpec, train, val, chans, o: DiagnoseOptions,
                        integrator) -> list:
     """The compiled programs the diagnosis's workspace will run (:meth:`~.screen.Workspace.programs`),
     from the base model *before* its fit: they depend on the structure only, so a workspace of the
     start model gives the fitted one's (``tests/diagnose/test_prefetch.py``). ``integrator``: the
     base fit's. Raises what building the workspace raises."""
-    effs, _ = library(model, train, o.effect_names)
-    if "delta0" in spec.free_names and not is_ship3(model):  # as after the base fit in diagnose()
-        effs = [e for e in effs if e.name != "rudder_offset"]
+    effs, _ = candidate_effects(model, train, o, spec.free_names)
     if not effs:
         return []
     start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # the fit's start, inside its bounds
@@ -284,11 +295,8 @@ def diagnose(
 
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
-    effs, skipped = library(base, train, o.effect_names, starts={"wave": {"T_w": period["period_s"]}} if period else None)
-    if "delta0" in fit.free and not is_ship3(base) and any(e.name == "rudder_offset" for e in effs):
-        effs = [e for e in effs if e.name != "rudder_offset"]
-        skipped["rudder_offset"] = (f"the given base fit estimated the model's own rudder offset delta0 = "
-                                    f"{fit.params['delta0']:.4g} rad (the same effect)")
+    effs, skipped = candidate_effects(base, train, o, fit.free, fit.params.get("delta0"),
+                                      starts={"wave": {"T_w": period["period_s"]}} if period else None)
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
     say(f"screening {len(effs)} candidate effects ({', '.join(e.name for e in effs)})...")
@@ -313,7 +321,7 @@ def diagnose(
     say(f"gap gate {gate.value:.3f} ({gate.method})")
 
     def reference():
-        rf = ws.refit([], [{}], max_iter=o.max_iter, progress=say, finish=True, stall=o.stall)
+        rf = ws.refit([], [{}], progress=say, finish=True)
         return rf, (validation.refit(rf) if rf.ok and rf.train_cost < sinfo["train_cost"] else None)
     search = Search(ws, validation, None, o, say, gate=gate.value)
     refits, (ref, before) = search.refit_singles(refit_order(scr, o), extra=[reference, validation.base])

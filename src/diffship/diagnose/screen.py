@@ -103,7 +103,7 @@ class Workspace:
         channels: fitted channels; ``scales``: their normalisation (the base fit's noise σ).
         warmup: fraction of every run each refit converges on first (:meth:`_warmup`; 0: none).
         max_iter, stall: the refits' step cap (``4·max_iter`` per solve) and stall rule
-            (:meth:`refit`'s defaults).
+            (every :meth:`refit`'s).
         refits: whether refits will follow the screen. Then the screen's Jacobian and each refit's
             covariance Jacobian come from the refits' compiled solve (``jacobian=True``, a traced
             step cap of 1: :class:`~diffship.fit.kernel.KernelData`), so the workspace compiles
@@ -326,9 +326,8 @@ class Workspace:
 
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
-              max_iter: int | None = None, progress: Callable[[str], None] | None = None, rounds: int = 3,
-              finish: bool | None = None, base_start: dict[str, float] | None = None,
-              stall: tuple[int, float] | None | str = "workspace") -> RefitResult:
+              progress: Callable[[str], None] | None = None, rounds: int = 3,
+              finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
         values held, e.g. already accepted effects that are refitted jointly are in ``names``).
 
@@ -346,12 +345,12 @@ class Workspace:
         on the active unknowns: an effect parameter the data do not inform gets an infinite one.
         ``stall`` ``(W, ρ)``: every solve stops early when its cost falls by less than ρ·cost over W
         steps (:mod:`diffship.fit.batched`, item 6); such a refit is not ``converged`` and is not
-        continued (its cost has stalled). ``max_iter`` and ``stall`` default to the workspace's.
+        continued (its cost has stalled). ``max_iter`` and ``stall`` are the workspace's, so every
+        refit runs the one compiled solve (:meth:`programs`).
         ``base_start``: the base parameters' values to start from (default: the base fit's).
         """
-        max_iter = self.max_iter if max_iter is None else int(max_iter)
-        stall = self.stall if isinstance(stall, str) else stall
-        lm = self._solve_static(max_iter, stall)
+        max_iter = self.max_iter
+        lm = self._solve_static(max_iter, self.stall)
         t0 = time.perf_counter()
         pn = [n for e in self.effects if e.name in names for n in e.param_names]
         if len(pn) > P_MAX:
@@ -371,7 +370,7 @@ class Workspace:
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):
                 return None
-            z1, warm_steps, c1 = self._warmup(z_start, kd, max_iter, lm)
+            z1, warm_steps, c1 = self._warmup(z_start, kd, lm, r_start)
             return z1, warm_steps, c1, phi0, kd
 
         def whole(w):  # then the whole runs
@@ -452,8 +451,8 @@ class Workspace:
         n_full = int(kd.ts.shape[1])
         return int(self.warmup * n_full) if self.warmup and self.warmup * n_full >= 200 else 0
 
-    def _warmup(self, z_start: np.ndarray, kd: KernelData, max_iter: int,
-                lm: dict | None = None) -> tuple[np.ndarray, int, float]:
+    def _warmup(self, z_start: np.ndarray, kd: KernelData, lm: dict,
+                r_start: np.ndarray) -> tuple[np.ndarray, int, float]:
         """Growing horizon, as the base fit (:func:`~diffship.fit.fit_output_error`, ``warmup``):
         the refit first converges on the first quarter of every run (when that is at least 200
         samples), then continues on the whole runs. From a base fit distorted by an unmodelled
@@ -461,15 +460,14 @@ class Workspace:
         true current after 120 steps); on the short horizon the effect and the base parameters
         move back together (the same current to 0.5 %). Returns the start of the whole-run solve
         (``z_start`` when the warm-up blows up on the whole runs or does not lower their cost),
-        the warm-up's steps and the whole runs' cost there (``inf`` without a warm-up)."""
+        the warm-up's steps and the whole runs' cost there (``inf`` without a warm-up). ``lm``: the
+        solve's options; ``r_start``: the residuals at ``z_start`` on the whole runs."""
         n_warm = self._n_warm(kd)
         if not n_warm:
             return z_start, 0, math.inf
-        lm = lm or self._solve_static(max_iter, None)
         zw, _, steps, *_ = self.kernel.call("solve", z_start, kd.head(n_warm), **lm)
         rw = np.asarray(self.kernel.call("residuals", np.asarray(zw), kd))
-        r0 = np.asarray(self.kernel.call("residuals", z_start, kd))
-        c0 = 0.5 * float(r0 @ r0)
+        c0 = 0.5 * float(r_start @ r_start)
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
             return z_start, int(steps), c0
         # kept only when it also helps on the whole runs: from a base already fitted to the whole

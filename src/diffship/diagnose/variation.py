@@ -74,8 +74,7 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
     start = {k: const.refit.values[c] for k, c in _FROM_CONSTANT[var].items()}
     start.update({k: 0.0 for k in TREND_PARAMS[var]})
     try:
-        rf = search.ws.refit([var], [start], max_iter=search.options.max_iter, progress=say,
-                             base_start=const.refit.base_values, stall=search.options.stall)
+        rf = search.ws.refit([var], [start], progress=say, base_start=const.refit.base_values)
     except FitError as exc:
         say(f"  refit {var} failed: {exc}")
         return None

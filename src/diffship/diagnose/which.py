@@ -166,8 +166,7 @@ class Search:
 
     def _refit(self, names: Sequence[str], starts: list[dict[str, float]],
                base_start: dict[str, float] | None = None) -> tuple[RefitResult, Score]:
-        rf = self.ws.refit(list(names), starts, max_iter=self.options.max_iter, progress=self.say,
-                           stall=self.options.stall, base_start=base_start)
+        rf = self.ws.refit(list(names), starts, progress=self.say, base_start=base_start)
         return rf, self.validation.refit(rf)
 
     def joint_starts(self, a: Candidate, b: Candidate) -> list[dict[str, float]]:
