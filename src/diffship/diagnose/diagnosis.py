@@ -75,7 +75,9 @@ class Diagnosis:
     (offsets from the logged state in noise floors, the bounds that were active); ``notes`` what
     the diagnosis changed in the base fit (a model's own rudder offset held at 0);
     ``time_variation`` the check of the first selected effect for a change along the run
-    (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``).
+    (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``;
+    ``None`` when the effect has no varying form or already leaves the held-out runs under the
+    gap gate).
     """
 
     model_name: str

@@ -8,7 +8,9 @@ diagnosis selected first (or, with nothing selected, the nearest miss) that has 
 solution (its base values, the constant value at t = 0 and no trend) and scored on the held-out
 runs by the same start rule (:mod:`.start`). It is reported as a **possible** time variation when
 
-* a structural gap exists (the base's E is above the gap gate),
+* a structural gap exists (the base's E is above the gap gate) and is left by the constant
+  effect (its E is above the gate too; else the varying form is not refitted: under the gate a
+  further drop would have to go beyond the noise band below the noise floor itself),
 * the held-out error drops against the constant effect by at least ``min_gain`` and by more
   than the noise band ``max(gate − 1, 2 SE)`` (as in :mod:`.which`), on a majority of the runs,
 * a trend parameter's 95 % interval excludes 0.
@@ -71,6 +73,13 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
     if not any(e.name == var for e in search.ws.effects):
         return None
     const = singles[name]
+    if const.score.E < search.gate:
+        # the constant effect already leaves no structural gap on the held-out runs: a varying form
+        # would need a drop beyond the noise band below the noise floor itself (the greedy path's rule,
+        # :meth:`~.which.Search.select`), so it is not refitted
+        say(f"  time variation of {name}: not checked — held-out E {const.score.E:.3g} with the constant {name} "
+            f"is under the gap gate {search.gate:.3g}, no structural gap left for a change along the run")
+        return None
     start = {k: const.refit.values[c] for k, c in _FROM_CONSTANT[var].items()}
     start.update({k: 0.0 for k in TREND_PARAMS[var]})
     try:
