@@ -104,3 +104,28 @@ def test_a_significant_term_that_closes_the_gap_is_relevant_below_the_absolute_t
     # the same small magnitude with no validation gain stays irrelevant
     j0 = s.judge(rf, s.base, SimpleNamespace(E=1.15, E_runs={"a": 1.16, "b": 1.14}), ["damping_vv"])
     assert not j0.ok and "below relevance" in j0.why
+
+
+def test_an_effect_the_base_model_carries_is_reported_in_the_base():
+    """MMG's (and Nomoto's) rudder neutral angle delta0 is a rudder zero error: where the base fit
+    estimated it, the diagnosis says the effect is in the base, with its value in degrees, and
+    only when its 95 % interval excludes 0; a model without such a parameter reports nothing."""
+    import math
+    from types import SimpleNamespace
+
+    from diffship.diagnose.verdict import in_base, in_base_line
+    from diffship.models import MMG, Fossen3
+
+    fit = SimpleNamespace(free=("Yv", "delta0"), params={"Yv": -0.3, "delta0": math.radians(1.0)},
+                          stderr={"Yv": 0.01, "delta0": math.radians(0.05)})
+    twins = in_base(fit, MMG())
+    assert set(twins) == {"rudder_offset"} and twins["rudder_offset"]["parameter"] == "delta0"
+    assert twins["rudder_offset"]["excludes_zero"]
+    line = in_base_line(twins)
+    assert line.startswith("In the base: rudder_offset as the base model's own delta0 = 1 ± 0.098 °")
+    # not estimated there (held, e.g. by the diagnosis on a Nomoto model): nothing to say
+    assert in_base(SimpleNamespace(free=("Yv",), params=fit.params, stderr=fit.stderr), MMG()) == {}
+    # an interval that includes 0: in the JSON, not in the verdict
+    weak = SimpleNamespace(free=("delta0",), params={"delta0": math.radians(0.05)}, stderr={"delta0": math.radians(0.1)})
+    assert not in_base(weak, MMG())["rudder_offset"]["excludes_zero"] and in_base_line(in_base(weak, MMG())) is None
+    assert in_base(fit, Fossen3()) == {}

@@ -42,7 +42,7 @@ from .screen import ScreenResult, Workspace
 from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
 from .variation import TimeVariation, time_variation
-from .verdict import RankedEffect, rank, verdict_lines
+from .verdict import RankedEffect, in_base, in_base_line, rank, verdict_lines
 from .floors import physical_position_floor
 from .periodic import training_period
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
@@ -77,7 +77,9 @@ class Diagnosis:
     ``time_variation`` the check of the first selected effect for a change along the run
     (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``;
     ``None`` when the effect has no varying form or already leaves the held-out runs under the
-    gap gate).
+    gap gate); ``in_base`` the library effects the base model carries as a parameter of its own
+    that the base fit estimated (:func:`~.verdict.in_base`; a rudder zero error is MMG's ``delta0``),
+    with a verdict line for those whose 95 % interval excludes 0.
     """
 
     model_name: str
@@ -110,6 +112,7 @@ class Diagnosis:
     start: dict | None = None
     notes: tuple[str, ...] = ()
     time_variation: TimeVariation | None = None
+    in_base: dict = dataclasses.field(default_factory=dict)
 
     @property
     def gap_gate(self) -> float:
@@ -152,6 +155,7 @@ class Diagnosis:
             "start": self.start,
             "notes": list(self.notes),
             "time_variation": self.time_variation.to_dict() if self.time_variation else None,
+            "in_base": self.in_base,
             "timings_s": self.timings,
         }
 
@@ -373,6 +377,9 @@ def diagnose(
     if tv is not None and tv.possible:
         lines = (*lines, tv.line())
         possible = (*possible, tv.varying)
+    twins = in_base(fit, base)
+    if (line := in_base_line(twins)) is not None:
+        lines = (*lines, line)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
@@ -386,5 +393,5 @@ def diagnose(
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
-        notes=tuple(notes), time_variation=tv,
+        notes=tuple(notes), time_variation=tv, in_base=twins,
     )

@@ -22,7 +22,7 @@ from .screen import ScreenResult
 from .where import GapBudget, WhereAnalysis
 from .which import Candidate
 
-__all__ = ["RankedEffect", "rank", "verdict_lines", "format_params", "nearest_miss"]
+__all__ = ["RankedEffect", "rank", "verdict_lines", "format_params", "nearest_miss", "in_base", "in_base_line"]
 
 #: The experiment that settles a possible effect under the gap gate.
 SETTLE_SMALL_GAP = ("more validation runs, longer or with larger inputs, so that the gap rises above the gate "
@@ -143,6 +143,39 @@ def format_params(p: dict, se: dict | None = None) -> str:
         s = (se or {}).get(k)
         out.append(f"{k} = {v:.4g}" + (f" ± {1.96 * s:.2g}" if s is not None and math.isfinite(s) else ""))
     return ", ".join(out)
+
+
+def in_base(fit, model) -> dict[str, dict]:
+    """Library effects the base model carries as a parameter of its own
+    (:meth:`~diffship.models.AbstractModel.effect_twins`) that the base fit estimated:
+    ``{effect: {parameter, value, stderr, unit, excludes_zero}}`` — a rudder zero error is a
+    Nomoto or MMG model's rudder neutral angle ``delta0``, so the base fit has already taken what
+    the effect's own candidate would find."""
+    units = {p.name: p.unit for p in model.spec().params}
+    out = {}
+    for eff, par in model.effect_twins().items():
+        if par not in fit.free:
+            continue
+        v, se = float(fit.params[par]), float(fit.stderr.get(par, math.nan))
+        out[eff] = {"parameter": par, "value": v, "stderr": se, "unit": units.get(par, ""),
+                    "excludes_zero": bool(math.isfinite(se) and abs(v) > 1.96 * se)}
+    return out
+
+
+def in_base_line(twins: dict[str, dict]) -> str | None:
+    """The verdict's line for :func:`in_base` (effects whose 95 % interval excludes 0), or ``None``."""
+    parts = []
+    for eff, t in twins.items():
+        if not t["excludes_zero"]:
+            continue
+        deg = t["unit"] == "rad"
+        k = 180 / math.pi if deg else 1.0
+        parts.append(f"{eff} as the base model's own {t['parameter']} = {k * t['value']:.3g} ± {1.96 * k * t['stderr']:.2g}"
+                     + (" °" if deg else (f" {t['unit']}" if t["unit"] else "")))
+    if not parts:
+        return None
+    return ("In the base: " + "; ".join(parts) + " (estimated in the base fit, 95 % interval excludes 0; the "
+            "effect's own candidate has only what is left).")
 
 
 def nearest_miss(ranking: Sequence[RankedEffect]) -> RankedEffect | None:

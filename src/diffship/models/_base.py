@@ -245,6 +245,14 @@ class AbstractModel(eqx.Module):
     def vector_field(self, t: Float[Array, ""], x: Float[Array, " n_x"], u: Float[Array, " n_u"]) -> Float[Array, " n_x"]:
         raise NotImplementedError
 
+    def effect_twins(self) -> dict[str, str]:
+        """Library effects (:mod:`diffship.models.effects`) this model carries as a parameter of
+        its own, ``{effect name: parameter}`` — a rudder zero error is a Nomoto or MMG model's
+        rudder neutral angle ``delta0``. Where the base fit estimates that parameter, the
+        diagnosis reports the effect as in the base (:func:`diffship.diagnose.diagnose`, ``in_base``).
+        Default: none."""
+        return {}
+
     def observe(self, x: Float[Array, " n_x"], u: Float[Array, " n_u"]) -> Float[Array, " n_y"]:
         """Predicted measured channels; by default the states named in ``output_names``."""
         idx = [self.state_names.index(n) for n in self.output_names]

@@ -267,6 +267,10 @@ class MMG(AbstractShip3):
         a, b, c, e = self.masses()
         return Mass3(a, b, c, c, e)
 
+    def effect_twins(self) -> dict[str, str]:
+        """A rudder zero error is this model's own ``delta0`` (:meth:`AbstractModel.effect_twins`)."""
+        return {"rudder_offset": "delta0"}
+
     def vector_field(self, t, x, u):
         psi, uu, v, r = x[2], x[3], x[4], x[5]
         X, Y, N = self.forces(x, u)

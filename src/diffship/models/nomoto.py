@@ -63,6 +63,10 @@ class Nomoto1(AbstractModel):
     def input_names(self) -> tuple[str, ...]:
         return ("delta",)
 
+    def effect_twins(self) -> dict[str, str]:
+        """A rudder zero error is this model's own ``delta0`` (:meth:`AbstractModel.effect_twins`)."""
+        return {"rudder_offset": "delta0"}
+
     def vector_field(self, t, x, u):
         r = x[1]
         return jnp.stack([r, (self.K * (u[0] + self.delta0) - r) / self.T1])
@@ -122,6 +126,10 @@ class Nomoto2(AbstractModel):
     @property
     def input_names(self) -> tuple[str, ...]:
         return ("delta",)
+
+    def effect_twins(self) -> dict[str, str]:
+        """A rudder zero error is this model's own ``delta0`` (:meth:`AbstractModel.effect_twins`)."""
+        return {"rudder_offset": "delta0"}
 
     def vector_field(self, t, x, u):
         r, xid = x[1], x[2]

@@ -215,6 +215,10 @@ class Augmented(AbstractModel):
                 dx = dx.at[iu].add(rg * vcb_y + acb_x).at[iu + 1].add(-rg * vcb_x + acb_y)
         return jnp.concatenate([dx] + [d for d in extra_dots if d.size]) if any(d.size for d in extra_dots) else dx
 
+    def effect_twins(self) -> dict[str, str]:
+        """The base's (:meth:`AbstractModel.effect_twins`)."""
+        return self.base.effect_twins()
+
     def observe(self, x, u):
         xb, _ = self._split_x(x)
         ub, _ = self._split_u(u)
