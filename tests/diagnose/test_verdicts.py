@@ -122,9 +122,13 @@ def test_an_effect_the_base_model_carries_is_reported_in_the_base():
     assert set(twins) == {"rudder_offset"} and twins["rudder_offset"]["parameter"] == "delta0"
     assert twins["rudder_offset"]["excludes_zero"]
     line = in_base_line(twins)
-    assert line.startswith("In the base: rudder_offset as the base model's own delta0 = 1 ± 0.098 °")
-    # not estimated there (held, e.g. by the diagnosis on a Nomoto model): nothing to say
-    assert in_base(SimpleNamespace(free=("Yv",), params=fit.params, stderr=fit.stderr), MMG()) == {}
+    assert line.startswith("In the base: rudder_offset as the base model's own delta0 = 1 ± 0.098 ° (estimated")
+    # held at a given value (a study's earlier fit): said, as held; held at 0 (by the diagnosis on a
+    # Nomoto model, whose candidate then stands for it): nothing to say
+    held = in_base(SimpleNamespace(free=("Yv",), params=fit.params, stderr=fit.stderr), MMG())
+    assert held["rudder_offset"]["held"] and "delta0 = 1 ° (held at the given value)" in in_base_line(held)
+    zero = SimpleNamespace(free=("Yv",), params={**fit.params, "delta0": 0.0}, stderr=fit.stderr)
+    assert in_base(zero, MMG()) == {}
     # an interval that includes 0: in the JSON, not in the verdict
     weak = SimpleNamespace(free=("delta0",), params={"delta0": math.radians(0.05)}, stderr={"delta0": math.radians(0.1)})
     assert not in_base(weak, MMG())["rudder_offset"]["excludes_zero"] and in_base_line(in_base(weak, MMG())) is None

@@ -147,35 +147,41 @@ def format_params(p: dict, se: dict | None = None) -> str:
 
 def in_base(fit, model) -> dict[str, dict]:
     """Library effects the base model carries as a parameter of its own
-    (:meth:`~diffship.models.AbstractModel.effect_twins`) that the base fit estimated:
-    ``{effect: {parameter, value, stderr, unit, excludes_zero}}`` — a rudder zero error is a
-    Nomoto or MMG model's rudder neutral angle ``delta0``, so the base fit has already taken what
-    the effect's own candidate would find."""
+    (:meth:`~diffship.models.AbstractModel.effect_twins`), estimated by the base fit or held at a
+    given non-zero value (a study's earlier fit): ``{effect: {parameter, value, stderr, unit,
+    held, excludes_zero}}`` — a rudder zero error is a Nomoto or MMG model's rudder neutral angle
+    ``delta0``, so the base has already taken what the effect's own candidate would find."""
     units = {p.name: p.unit for p in model.spec().params}
     out = {}
     for eff, par in model.effect_twins().items():
-        if par not in fit.free:
+        if par not in fit.params:
             continue
-        v, se = float(fit.params[par]), float(fit.stderr.get(par, math.nan))
-        out[eff] = {"parameter": par, "value": v, "stderr": se, "unit": units.get(par, ""),
+        v = float(fit.params[par])
+        held = par not in fit.free
+        if held and v == 0.0:  # held at zero (e.g. by the diagnosis, whose candidate then stands for it)
+            continue
+        se = math.nan if held else float(fit.stderr.get(par, math.nan))
+        out[eff] = {"parameter": par, "value": v, "stderr": se, "unit": units.get(par, ""), "held": held,
                     "excludes_zero": bool(math.isfinite(se) and abs(v) > 1.96 * se)}
     return out
 
 
 def in_base_line(twins: dict[str, dict]) -> str | None:
-    """The verdict's line for :func:`in_base` (effects whose 95 % interval excludes 0), or ``None``."""
+    """The verdict's line for :func:`in_base` (estimated effects whose 95 % interval excludes 0,
+    and held non-zero ones), or ``None``."""
     parts = []
     for eff, t in twins.items():
-        if not t["excludes_zero"]:
+        if not (t["excludes_zero"] or t.get("held")):
             continue
         deg = t["unit"] == "rad"
         k = 180 / math.pi if deg else 1.0
-        parts.append(f"{eff} as the base model's own {t['parameter']} = {k * t['value']:.3g} ± {1.96 * k * t['stderr']:.2g}"
-                     + (" °" if deg else (f" {t['unit']}" if t["unit"] else "")))
+        unit = " °" if deg else (f" {t['unit']}" if t["unit"] else "")
+        parts.append(f"{eff} as the base model's own {t['parameter']} = {k * t['value']:.3g}"
+                     + (f"{unit} (held at the given value)" if t.get("held") else
+                        f" ± {1.96 * k * t['stderr']:.2g}{unit} (estimated in the base fit, 95 % interval excludes 0)"))
     if not parts:
         return None
-    return ("In the base: " + "; ".join(parts) + " (estimated in the base fit, 95 % interval excludes 0; the "
-            "effect's own candidate has only what is left).")
+    return "In the base: " + "; ".join(parts) + "; the effect's own candidate has only what is left."
 
 
 def nearest_miss(ranking: Sequence[RankedEffect]) -> RankedEffect | None:
