@@ -328,7 +328,8 @@ def run_scenario(sc: str, prep: dict, a) -> dict:
                                   "params": {k: float(v) for k, v in (r.params or {}).items()}}
                        for r in d.ranking},
            "seconds": round(secs, 1), "seconds_study_fit": round(t_base, 1),
-           "verdict_where": d.verdict[0], "verdict_which": d.verdict[1]}
+           "verdict_where": d.verdict[0], "verdict_which": d.verdict[1],
+           "verdict_in_base": next((v for v in d.verdict if v.startswith("In the base")), ""), "in_base": d.in_base}
     print(f"{sc}: expected {exp}, selected {d.selected}, E {d.E_before:.3g} → {d.E_after:.3g}, {secs:.0f} s",
           flush=True)
     return row
@@ -444,6 +445,9 @@ def write(rows, a):
         L.append(f"| {r['expected']} | " + " | ".join("1" if r["first_selected"] == c else "" for c in cols) + " |")
     L += ["", "Where (verdict line per scenario):", ""] + [f"- {r['scenario']}: {r.get('verdict_where', '')}" for r in rows]
     L += ["", "Which:", ""] + [f"- {r['scenario']}: {r.get('verdict_which', '')}" for r in rows]
+    L += ["", "In the base (the verdict's line for an effect the base model carries as a parameter of its own, "
+          "`Diagnosis.in_base`; rows run before stop 37 did not record it):", ""] + \
+        [f"- {r['scenario']}: {r.get('verdict_in_base') or ('—' if 'verdict_in_base' in r else 'not recorded')}" for r in rows]
     (OUT / f"{stem}.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
 
