@@ -77,9 +77,10 @@ class Diagnosis:
     ``time_variation`` the check of the first selected effect for a change along the run
     (:mod:`.variation`; a possible one adds a fourth verdict line and its name to ``possible``;
     ``None`` when the effect has no varying form or already leaves the held-out runs under the
-    gap gate); ``in_base`` the library effects the base model carries as a parameter of its own
-    that the base fit estimated (:func:`~.verdict.in_base`; a rudder zero error is MMG's ``delta0``),
-    with a verdict line for those whose 95 % interval excludes 0.
+    gap gate); ``in_base`` the library effects the base model carries as a parameter of its own,
+    estimated by the base fit or held at a given non-zero value (:func:`~.verdict.in_base`; a
+    rudder zero error is MMG's ``delta0``), with a verdict line for the estimated ones whose 95 %
+    interval excludes 0 and the held ones.
     """
 
     model_name: str
