@@ -171,16 +171,30 @@ def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, 
     return tuple(c for c in model.output_names if c in chans or c in pos)
 
 
+def own_twin(model: AbstractModel, effect: str) -> str | None:
+    """The model's own parameter that *is* the library's candidate ``effect``
+    (:meth:`~diffship.models.AbstractModel.effect_twins`: a Nomoto model's ``delta0`` is the
+    ``rudder_offset`` candidate, δ + δ_off), or ``None``. On 3-DOF ships the ``rudder_offset``
+    candidate is a sway force and yaw moment, another effect than their ``delta0``."""
+    par = model.effect_twins().get(effect)
+    return None if par is None or is_ship3(model) else par
+
+
 def candidate_effects(model: AbstractModel, train, o: DiagnoseOptions, free: Sequence[str],
-                      delta0: float | None = None, starts=None) -> tuple[list, dict[str, str]]:
+                      values: dict[str, float] | None = None, starts=None) -> tuple[list, dict[str, str]]:
     """The library's effects for a base model fitted with the free parameters ``free``, and
-    ``{name: reason}`` for those skipped: a Nomoto model that fits its own rudder offset ``delta0``
-    (value ``delta0`` when known) has no ``rudder_offset`` candidate, the same effect."""
+    ``{name: reason}`` for those skipped: a candidate whose :func:`own_twin` the base fit estimates
+    (a Nomoto model's rudder offset ``delta0``; its value from ``values`` when known) is the same
+    effect, and no candidate."""
     effs, skipped = library(model, train, o.effect_names, starts=starts)
-    if "delta0" in free and not is_ship3(model) and any(e.name == "rudder_offset" for e in effs):
-        effs = [e for e in effs if e.name != "rudder_offset"]
-        skipped["rudder_offset"] = ("the given base fit estimated the model's own rudder offset delta0"
-                                    + (f" = {delta0:.4g} rad" if delta0 is not None else "") + " (the same effect)")
+    for name in [e.name for e in effs]:
+        par = own_twin(model, name)
+        if par is not None and par in free:
+            effs = [e for e in effs if e.name != name]
+            v = (values or {}).get(par)
+            unit = next((p.unit for p in model.spec().params if p.name == par), "")
+            skipped[name] = (f"the given base fit estimated the model's own {par}"
+                             + (f" = {v:.4g} {unit}".rstrip() if v is not None else "") + " (the same effect)")
     return effs, skipped
 
 
@@ -252,13 +266,12 @@ def diagnose(
     # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same
     # rudder angle offset): the base fit holds it at 0 and the candidate is the offset
     # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is a sway force and yaw moment
-    own_offset = ("delta0" in spec.free_names and "rudder_offset" in o.effect_names and not is_ship3(model)
-                  and not applicability(model, "rudder_offset", train))
-    if fit is None and own_offset:
-        spec = spec.fix({"delta0": 0.0})
-        notes.append("the base model's own rudder offset delta0 is held at 0 in the base fit: the rudder_offset "
-                     "candidate stands for it")
-        say(notes[-1])
+    for name in o.effect_names:
+        par = own_twin(model, name)
+        if fit is None and par is not None and par in spec.free_names and not applicability(model, name, train):
+            spec = spec.fix({par: 0.0})
+            notes.append(f"the base model's own {par} is held at 0 in the base fit: the {name} candidate stands for it")
+            say(notes[-1])
     if fit is None:
         say(f"fitting the base model {model.name} by output error on {len(train)} runs...")
         chans0 = o.channels or diagnosis_channels(model, train)
@@ -302,7 +315,7 @@ def diagnose(
 
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
-    effs, skipped = candidate_effects(base, train, o, fit.free, fit.params.get("delta0"),
+    effs, skipped = candidate_effects(base, train, o, fit.free, fit.params,
                                       starts={"wave": {"T_w": period["period_s"]}} if period else None)
     if not effs:
         raise DataError(f"no candidate effect applies to {base.name} with these runs: {skipped}")
