@@ -36,6 +36,7 @@ EPILOG = ("Effects: see diffship.models.effects (wind needs wind_speed and wind_
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .options import DiagnoseOptions
     p = argparse.ArgumentParser(prog="python -m diffship.diagnose", epilog=EPILOG,
                                 description="Diagnose where a fitted model misses, which unmodelled effect explains it "
                                             "(selected on held-out runs) and how much of the gap it closes.")
@@ -56,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not stop when the heading turns against the rudder (or yaw moment) in a run")
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
     p.add_argument("--refit-all", action="store_true", help="refit every candidate, not only the screen's best")
+    p.add_argument("--greedy-steps", type=int, default=DiagnoseOptions.greedy_steps, metavar="N",
+                   help="effects on the greedy path at most (default %(default)s; each after the first must pass the "
+                        "rule against the previous step, and the path stops under the gap gate)")
     add_output_options(p, out_help="write diagnosis.md, diagnosis.json and figures here",
                        json_help="write the JSON result here")
     add_log_options(p)  # --map (logs), --html (issue 30)
@@ -155,7 +159,8 @@ def _diagnose(args, say):
     priors = parse_priors(args.prior)
     if args.prior_file:
         priors = load_priors(args.prior_file).merged(priors)
-    options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans)
+    options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans,
+                              greedy_steps=args.greedy_steps)
     opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
                               integrator=get_integrator(args.solver, hold=args.input_hold), flt=Filter.parse(args.filter),
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
