@@ -288,6 +288,9 @@ def test_repeated_list_options_accumulate_in_every_cli(capsys):
                                       "--solver", "rk4", "--filter", "none", "--free", "Xu", "--init", "C=3"])
     assert d.fix == ["A=1", "B=2"] and d.validate == ["v.csv", "w.csv"] and d.vessel == "kvlcc2_model"
     assert d.no_prior and d.solver == "rk4" and d.filter == "none" and d.channels is None
+    assert d.greedy_steps == 2  # DiagnoseOptions' default
+    assert diagnose_parser().parse_args(["r.csv", "--validate", "v.csv", "--model", "mmg",
+                                         "--greedy-steps", "3"]).greedy_steps == 3
     p = predict_parser().parse_args(["fit.json", "--input", "n=1", "--input", "thrust=2", "--measured", "a.csv",
                                      "--measured", "b.csv", "--manoeuvre", "turning:35", "--manoeuvre", "zigzag:10/10",
                                      "--rudder-sign", "port"])
@@ -299,6 +302,8 @@ def test_repeated_list_options_accumulate_in_every_cli(capsys):
                                (fit_parser(), ["r.csv", "--channels", "heading"], "'heading' is not a channel"),
                                (diagnose_parser(), ["r.csv", "--validate", "v.csv", "--model", "nomoto1", "--fix", "K"],
                                 "expected NAME=VALUE"),
+                               (diagnose_parser(), ["r.csv", "--validate", "v.csv", "--model", "mmg", "--greedy-steps",
+                                                    "0"], "expected a whole number of effects >= 1"),
                                (predict_parser(), ["f.json", "--input", "n"], "expected NAME=VALUE")):
         with pytest.raises(SystemExit) as e:
             parser.parse_args(argv)
