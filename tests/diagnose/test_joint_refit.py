@@ -80,7 +80,7 @@ def test_the_greedy_path_takes_up_to_greedy_steps_effects(monkeypatch):
     import dataclasses
     from types import SimpleNamespace
 
-    from diffship.diagnose.which import Candidate, Judgement, Search
+    from diffship.diagnose.which import Candidate, Search
 
     names = ("damping_vr", "damping_rv", "input_delay", "actuator_lag")
     effs = [SimpleNamespace(name=n, param_names=(f"p_{n}",), smooth_null=True, null=lambda n=n: {f"p_{n}": 0.0},
