@@ -303,7 +303,7 @@ def test_repeated_list_options_accumulate_in_every_cli(capsys):
                                (diagnose_parser(), ["r.csv", "--validate", "v.csv", "--model", "nomoto1", "--fix", "K"],
                                 "expected NAME=VALUE"),
                                (diagnose_parser(), ["r.csv", "--validate", "v.csv", "--model", "mmg", "--greedy-steps",
-                                                    "0"], "expected a whole number of effects >= 1"),
+                                                    "0"], "'0': must be at least 1"),
                                (predict_parser(), ["f.json", "--input", "n"], "expected NAME=VALUE")):
         with pytest.raises(SystemExit) as e:
             parser.parse_args(argv)

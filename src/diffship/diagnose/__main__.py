@@ -25,6 +25,7 @@ from ..cli_options import (
     add_prior_options,
     add_vessel_option,
     names_of,
+    positive_int,
 )
 from ..errors import DiffshipError
 from ..log_options import add_log_options, log_kwargs
@@ -57,24 +58,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not stop when the heading turns against the rudder (or yaw moment) in a run")
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
     p.add_argument("--refit-all", action="store_true", help="refit every candidate, not only the screen's best")
-    p.add_argument("--greedy-steps", type=_at_least_one, default=DiagnoseOptions.greedy_steps, metavar="N",
+    p.add_argument("--greedy-steps", type=positive_int, default=DiagnoseOptions.greedy_steps, metavar="N",
                    help="effects on the greedy path at most (default %(default)s; each after the first must pass the "
                         "rule against the previous step, and the path stops under the gap gate)")
     add_output_options(p, out_help="write diagnosis.md, diagnosis.json and figures here",
                        json_help="write the JSON result here")
     add_log_options(p)  # --map (logs), --html (issue 30)
     return p
-
-
-def _at_least_one(text: str) -> int:
-    """``--greedy-steps``: a whole number >= 1."""
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number of effects >= 1")
-    return n
 
 
 def precheck(args) -> str | None:

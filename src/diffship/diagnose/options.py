@@ -5,8 +5,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 
-import numpy as np
-
 from ..errors import DataError
 from ..models.effects import EFFECT_NAMES
 
@@ -105,7 +103,7 @@ class DiagnoseOptions:
             if bad:
                 raise DataError(f"unknown effect(s) {', '.join(map(repr, bad))}; "
                                 f"choose from: {', '.join(EFFECT_NAMES)}")
-        if not (isinstance(self.greedy_steps, (int, np.integer)) and self.greedy_steps >= 1):
+        if not (int(self.greedy_steps) == self.greedy_steps and self.greedy_steps >= 1):
             raise DataError(f"greedy_steps: a whole number of effects >= 1, got {self.greedy_steps!r}")
         if not self.start_bound > 0:
             raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
