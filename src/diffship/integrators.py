@@ -210,7 +210,10 @@ class Diffrax(AbstractIntegrator):
         tab = self._tableau()
         y = x
         if tab is not None:
-            return _explicit_rk(tab, rhs, t0, h, x, self.substeps)
+            # the stages' inputs at their fixed fractions of the interval (static weights: no division
+            # by the interval's length inside the time step, which XLA keeps as a kernel of its own)
+            du = u1 - u0
+            return _explicit_rk(tab, lambda t, y, w: f(t, y, u0 + w * du), t0, h, x, self.substeps)
         term = diffrax.ODETerm(rhs)
         for k in range(self.substeps):
             ta = t0 + k * h
@@ -236,7 +239,9 @@ def _needed_stages(a_lower, b_sol) -> list[bool]:
 
 
 def _explicit_rk(tab, rhs, t0, h, x, substeps: int):
-    """``substeps`` steps of the explicit Runge–Kutta method ``tab`` (diffrax's tableau), stages written out."""
+    """``substeps`` steps of the explicit Runge–Kutta method ``tab`` (diffrax's tableau), stages written out;
+    ``rhs(t, y, w)`` with ``w`` the stage time's fraction of the whole interval, ``(k + c_i) / substeps``
+    (a Python float: the input at a stage is interpolated with a constant weight)."""
     b = np.asarray(tab.b_sol)
     c = np.concatenate([[0.0], np.asarray(tab.c)])
     need = _needed_stages(tab.a_lower, b)
@@ -253,7 +258,7 @@ def _explicit_rk(tab, rhs, t0, h, x, substeps: int):
                 for j, a in enumerate(np.asarray(tab.a_lower[i - 1])):
                     if float(a) != 0.0:
                         yi = yi + (float(a) * h) * ks[j]
-            ks.append(rhs(t + float(c[i]) * h, yi, None))
+            ks.append(rhs(t + float(c[i]) * h, yi, (k + float(c[i])) / substeps))
         inc = None
         for i, bi in enumerate(b):
             if float(bi) != 0.0:

@@ -142,3 +142,75 @@ def test_importing_effects_does_not_load_the_fitter():
     for heavy in ("diffship.fit", "diffship.metrics", "diffship.simulate", "diffship.diagnose.screen",
                   "diffship.diagnose.diagnosis", "diffship.diagnose.where"):
         assert heavy not in loaded, heavy
+
+
+def test_every_hook_has_one_definition_and_both_forms_agree(usv):
+    """An effect writes a hook once, on arrays (``force``, ``apply_input``) or on scalar parts
+    (``force_parts``, ``apply_input_parts``, what the augmented vector field calls in the time step);
+    the other form is derived and gives the same numbers — for effects written either way (wind and
+    the Nomoto |r|r term on arrays, the rest on parts), with their extra states."""
+    from diffship.models.effects import parts
+
+    base, run = usv
+    effs, _ = library(base, [run], starts={"wave": {"T_w": 6.0}})
+    nomoto_effs, _ = library(Nomoto2(), nomoto_runs(Nomoto1(K=0.2, T1=8.0), n_runs=1, duration=5.0),
+                             starts={"wave": {"T_w": 6.0}})
+    rng = np.random.default_rng(5)
+    for b, group in ((base, effs), (Nomoto2(), nomoto_effs)):
+        for e in group:
+            e = Augmented(b, [e]).with_params({n: e.PROBE[n] for n in e.param_names}).effects[0]
+            xb = jnp.asarray(rng.normal(size=len(b.state_names)) + (np.r_[0, 0, 0, 2.0, 0, 0] if b is base else 0))
+            ub = jnp.asarray(rng.normal(size=len(b.input_names)) * (500.0 if b is base else 0.1))
+            xe = jnp.asarray(rng.normal(size=len(e.extra_states(b))) * 0.1)
+            uext = jnp.asarray([8.0, 0.7]) if e.extra_inputs else None
+            t = jnp.asarray(2.3)
+            if e.hook == "force":
+                arr = np.asarray(e.force(b, t, xb, ub, uext))
+                prt = np.asarray(jnp.stack(e.force_parts(b, t, parts(xb), parts(ub), uext)))
+                np.testing.assert_allclose(prt, arr, rtol=1e-14, atol=1e-12, err_msg=e.name)
+                assert np.any(arr != 0), e.name
+            elif e.hook == "input":
+                ua, da = e.apply_input(b, t, xb, xe, ub)
+                up, dp = e.apply_input_parts(b, t, parts(xb), parts(xe), parts(ub))
+                np.testing.assert_allclose(np.asarray(jnp.stack(up)), np.asarray(ua), rtol=1e-14, err_msg=e.name)
+                np.testing.assert_allclose(np.asarray(jnp.stack(dp)) if dp else np.zeros(0), np.asarray(da),
+                                           rtol=1e-14, err_msg=e.name)
+                assert np.any(np.asarray(ua) != np.asarray(ub)) or np.asarray(da).size, e.name
+
+
+def test_force_effects_add_their_force_through_the_base_mass_matrix(usv):
+    """ν̇ of the augmented model = ν̇ of the base + M⁻¹ Σ Δτ (the dense mass matrix, solved by NumPy),
+    for every force effect at its probe value together; positions and heading rates unchanged."""
+    base, run = usv
+    effs, _ = library(base, [run], starts={"wave": {"T_w": 6.0}})
+    force = [e for e in effs if e.hook == "force"]
+    m = Augmented(base, force).with_params({n: v for e in force for n, v in e.PROBE.items()})
+    x = jnp.asarray([3.0, -2.0, 0.4, 2.1, 0.3, 0.05])
+    u = jnp.asarray([3000.0, 200.0, -900.0])
+    t = jnp.asarray(1.7)
+    uext = jnp.asarray([8.0, 0.7])
+    dtau = sum(np.asarray(e.force(base, t, x, u, uext if e.extra_inputs else None)) for e in m.effects)
+    expect = np.asarray(base.vector_field(t, x, u)).copy()
+    expect[3:] += np.linalg.solve(np.asarray(base.mass_matrix()), dtau)
+    got = np.asarray(m.vector_field(t, x, jnp.concatenate([u, uext])))
+    np.testing.assert_allclose(got, expect, rtol=1e-12, atol=1e-12)
+    assert np.linalg.norm(got[3:] - np.asarray(base.vector_field(t, x, u))[3:]) > 1e-3
+
+
+def test_all_effects_vector_field_has_no_gather_scatter_or_stacked_intermediates(usv):
+    """The augmented vector field of the diagnosis's all-effects workspace is written on scalar
+    components: its program holds no gather or scatter (index arrays, ``.at[]`` updates) and one
+    concatenation (the result). On a CPU each of those is a kernel of its own in every stage of every
+    time step; the issue-28 workspace had 22 scatters, 8 gathers and 14 concatenations per evaluation."""
+    import re
+
+    base, run = usv
+    effs, _ = library(base, [run])
+    effs = [e for e in effs if not e.extra_inputs]  # measured wind: an extra input, stacked for its array hook
+    m = Augmented(base, effs)
+    text = jax.jit(lambda m, x, u: m.vector_field(0.0, x, u)).lower(
+        m, jnp.zeros(len(m.state_names)), jnp.zeros(len(m.input_names))).as_text()
+    ops = re.findall(r"stablehlo\.([a-z_]+)", text)
+    assert "gather" not in ops and "scatter" not in ops and "dynamic_update_slice" not in ops
+    assert ops.count("concatenate") == 1
+    assert len(m.state_names) == 16 and len(m.effects) == 13

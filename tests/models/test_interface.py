@@ -93,6 +93,28 @@ def test_vector_fields_use_the_mass_solve():
     np.testing.assert_allclose(xd[3:], np.linalg.solve(np.asarray(m.mass_matrix()), rhs), rtol=1e-10)
 
 
+def test_fossen3_vector_field_is_the_matrix_form():
+    """The component form the integrator runs (:meth:`Fossen3.vector_field_parts`, stacked) is
+    η̇ = R(ψ)ν, ν̇ = M⁻¹(τ − C(ν)ν − D(ν)ν) with the dense matrices, also with the water-jet map."""
+    from diffship.models.actuators import WaterJet
+
+    rng = np.random.default_rng(2)
+    for m, inp in ((Fossen3(Xudot=-300.0, Yvdot=-900.0, Yrdot=-50.0, Nvdot=80.0, Nrdot=-4e3, xg=0.4, Yr=30.0),
+                    jnp.asarray([2000.0, -300.0, 800.0])),
+                   (Fossen3(actuator=WaterJet()), jnp.asarray([0.2, 1500.0]))):
+        for _ in range(3):
+            x = jnp.asarray(np.r_[rng.normal(size=2), rng.uniform(-3, 3), 2.0 + rng.normal(), rng.normal(size=2) * 0.3])
+            nu = np.asarray(x[3:])
+            psi = float(x[2])
+            R = np.array([[np.cos(psi), -np.sin(psi), 0.0], [np.sin(psi), np.cos(psi), 0.0], [0.0, 0.0, 1.0]])
+            tau = np.asarray(m.actuator(inp, x[3:]))
+            rhs = tau - np.asarray(m.coriolis_matrix(x[3:])) @ nu - np.asarray(m.damping_matrix(x[3:])) @ nu
+            expect = np.r_[R @ nu, np.linalg.solve(np.asarray(m.mass_matrix()), rhs)]
+            np.testing.assert_allclose(np.asarray(m.vector_field(0.0, x, inp)), expect, rtol=1e-11, atol=1e-11)
+            parts = m.vector_field_parts(0.0, tuple(x[i] for i in range(6)), tuple(inp[i] for i in range(inp.size)))
+            np.testing.assert_array_equal(np.asarray(jnp.stack(parts)), np.asarray(m.vector_field(0.0, x, inp)))
+
+
 # -- equation-error form --------------------------------------------------------------------
 def test_equation_error_forms_are_declared():
     for name in ("nomoto1", "nomoto2", "fossen3", "fossen3_waterjet", "vmm_linear", "fossen6", "decay1", "decay2"):

@@ -145,8 +145,19 @@ class MaterialisedLM(optx.AbstractGaussNewton):
         stalled = (ds.accepted >= 3) & ((ds.prev_cost - ds.cost) <= self.ftol * ds.cost)
         small = state.terminate | stalled
         if self.gntol == float("inf"):
-            return small, state.result
+            # the plain tests, or an undamped Gauss–Newton step negligible in y: a stationary point.
+            # On a linear problem (equation error's inverse dynamics) the optimum is reached in one
+            # step; the trust region's acceptance there compares round-off with round-off, and
+            # whether three steps are accepted (the stalled test) is then a matter of luck
+            return small | self._gn_step_tiny(y, ds), state.result
         return small & self.gauss_newton_short(y, ds), state.result
+
+    def _gn_step_tiny(self, y, ds: _State) -> Array:
+        """Whether the Gauss–Newton step at ``y`` is negligible in ``y`` (``atol + rtol·|y|``), once a step
+        has been accepted (before that the state holds no Jacobian)."""
+        dz, _ = gauss_newton_step(ds.jtj, ds.jtr, self.gn_params)
+        k = y.size if self.gn_params is None else min(self.gn_params, y.size)
+        return (ds.accepted >= 1) & jnp.all(jnp.abs(dz[:k]) < self.atol + self.rtol * jnp.abs(y[:k]))
 
     def gauss_newton_short(self, y, ds: _State) -> Array:
         """Whether the Gauss–Newton step at ``y`` is short in standard errors or negligible in ``y``."""

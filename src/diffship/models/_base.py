@@ -4,7 +4,11 @@ A model is data plus a vector field: an :class:`equinox.Module` whose fields are
 parameters (float64 JAX arrays) and static options, with
 
 * ``vector_field(t, x, u) -> ẋ`` — a pure JAX function of one state ``x`` and one input
-  vector ``u`` (inputs interpolated at time ``t`` by the simulator);
+  vector ``u`` (inputs interpolated at time ``t`` by the simulator); optionally written as
+  ``vector_field_parts(t, xs, us) -> tuple`` on scalar components (``vector_field`` then stacks
+  it), the form an augmented model (:class:`~diffship.models.effects.Augmented`) composes its
+  effects in, so that no intermediate vector is stacked inside the time step (Fossen 3-DOF and
+  MMG do; the others are split from the array form);
 * ``observe(x, u) -> y`` — the measured channels the model predicts (``output_names``);
 * ``initial_state(y0)`` — a state built from measured values at the first sample.
 
@@ -244,6 +248,14 @@ class AbstractModel(eqx.Module):
     # -- dynamics -------------------------------------------------------------------------
     def vector_field(self, t: Float[Array, ""], x: Float[Array, " n_x"], u: Float[Array, " n_u"]) -> Float[Array, " n_x"]:
         raise NotImplementedError
+
+    def vector_field_parts(self, t: Float[Array, ""], xs: tuple, us: tuple) -> tuple:
+        """:meth:`vector_field` on tuples of scalar components (what an augmented model calls,
+        :class:`~diffship.models.effects.Augmented`); by default the array form, stacked and split.
+        A model that writes this form natively keeps the integrator's time step free of stacked
+        intermediate vectors, which XLA on a CPU runs as kernels of their own."""
+        v = self.vector_field(t, jnp.stack(xs), jnp.stack(us))
+        return tuple(v[i] for i in range(v.shape[0]))
 
     def effect_twins(self) -> dict[str, str]:
         """Library effects (:mod:`diffship.models.effects`) this model carries as a parameter of

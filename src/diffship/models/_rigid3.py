@@ -26,7 +26,7 @@ from jaxtyping import Array, Float
 
 from ._base import AbstractModel
 
-__all__ = ["AbstractShip3", "Mass3", "mass_matrix3", "solve_mass3"]
+__all__ = ["AbstractShip3", "Mass3", "mass_matrix3", "solve_mass3", "solve_mass3_parts"]
 
 
 class Mass3(NamedTuple):
@@ -47,8 +47,15 @@ def mass_matrix3(M: Mass3) -> Float[Array, "3 3"]:
 
 def solve_mass3(M: Mass3, rhs: Float[Array, " 3"]) -> Float[Array, " 3"]:
     """:math:`M^{-1}\\,\\mathrm{rhs}` in closed form (module docstring)."""
-    det = M.b * M.e - M.c * M.d
-    return jnp.stack([rhs[0] / M.a, (M.e * rhs[1] - M.c * rhs[2]) / det, (M.b * rhs[2] - M.d * rhs[1]) / det])
+    return jnp.stack(solve_mass3_parts(M, rhs[0], rhs[1], rhs[2]))
+
+
+def solve_mass3_parts(M: Mass3, X, Y, N) -> tuple:
+    """:func:`solve_mass3` on scalar components: ``(u̇, v̇, ṙ)``."""
+    # reciprocals of the parameters, then products: inside the time step a quotient whose value has
+    # several users (its forward-mode tangents) is a kernel of its own on a CPU
+    inv_a, inv_det = 1.0 / M.a, 1.0 / (M.b * M.e - M.c * M.d)
+    return X * inv_a, (M.e * Y - M.c * N) * inv_det, (M.b * N - M.d * Y) * inv_det
 
 
 class AbstractShip3(AbstractModel):
@@ -68,6 +75,10 @@ class AbstractShip3(AbstractModel):
     def solve_mass(self, rhs: Float[Array, " 3"]) -> Float[Array, " 3"]:
         """M⁻¹·rhs (accelerations from generalised forces), closed form."""
         return solve_mass3(self.mass_entries(), rhs)
+
+    def solve_mass_parts(self, X, Y, N) -> tuple:
+        """:meth:`solve_mass` on scalar components."""
+        return solve_mass3_parts(self.mass_entries(), X, Y, N)
 
     @staticmethod
     def position_rates(psi: Float[Array, ""], u: Float[Array, ""], v: Float[Array, ""]) -> tuple[Float[Array, ""], ...]:

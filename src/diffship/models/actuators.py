@@ -27,6 +27,10 @@ class ForceInput(eqx.Module):
     def __call__(self, u, nu):
         return u
 
+    def parts(self, us, nu):
+        """:meth:`__call__` on scalar components: ``(τ_x, τ_y, τ_z)``."""
+        return us[0], us[1], us[2]
+
 
 class WaterJet(eqx.Module):
     r"""Twin water-jet map of the high-speed USV *Odin* (seed 002, §6.1.1, fitted by FFI).
@@ -63,10 +67,14 @@ class WaterJet(eqx.Module):
         )
 
     def __call__(self, u, nu):
-        delta_n, rpm = u[0], u[1]
+        return jnp.stack(self.parts(u, nu))
+
+    def parts(self, us, nu):
+        """:meth:`__call__` on scalar components: ``(τ_x, τ_y, τ_z)``."""
+        delta_n, rpm = us[0], us[1]
         total = self.n_jets * self.thrust(rpm, nu[0])
         tau_y = total * jnp.sin(delta_n)
-        return jnp.stack([total * jnp.cos(delta_n), tau_y, -self.lever_arm * tau_y])
+        return total * jnp.cos(delta_n), tau_y, -self.lever_arm * tau_y
 
 
 class ThrustInput(eqx.Module):

@@ -139,11 +139,19 @@ class Fossen3(AbstractShip3):
         return self.actuator(u, nu)
 
     def vector_field(self, t, x, u):
-        psi, nu = x[2], x[3:]
-        xd, yd = self.position_rates(psi, nu[0], nu[1])
-        tau = self.forces(u, nu)
-        rhs = tau - self.coriolis_vector(nu) - self.damping_vector(nu)
-        return jnp.concatenate([jnp.stack([xd, yd, nu[2]]), self.solve_mass(rhs)])
+        return jnp.stack(self.vector_field_parts(t, tuple(x[i] for i in range(6)),
+                                                 tuple(u[i] for i in range(u.shape[0]))))
+
+    def vector_field_parts(self, t, xs, us):
+        """The vector field on scalar components (:meth:`AbstractModel.vector_field_parts`):
+        :math:`\\dot\\nu = M^{-1}(\\tau - C(\\nu)\\nu - D(\\nu)\\nu)` with the component forms below."""
+        psi, u, v, r = xs[2], xs[3], xs[4], xs[5]
+        xd, yd = self.position_rates(psi, u, v)
+        tau = self.actuator.parts(us, (u, v, r))
+        cor = self._coriolis_parts(u, v, r)
+        dmp = self._damping_parts(u, v, r)
+        rhs = [tau[k] - cor[k] - dmp[k] for k in range(3)]
+        return (xd, yd, r, *self.solve_mass_parts(*rhs))
 
     def equation_residual(self, z, zd, zdd, u):
         """e = Mν̇ + C(ν)ν + D(ν)ν − τ at one sample (z = ν = (u, v, r), zd = ν̇) [N, N, N·m]."""
@@ -154,19 +162,21 @@ class Fossen3(AbstractShip3):
     # small kernels inside the integrator loop (measured 5–10× slower Jacobians).
     def coriolis_vector(self, nu):
         """C(ν)ν in component form."""
-        u, v, r = nu[0], nu[1], nu[2]
-        a = self.m * (self.xg * r + v) - self.Yvdot * v - 0.5 * (self.Nvdot + self.Yrdot) * r
-        b = (self.m - self.Xudot) * u
-        return jnp.stack([-a * r, b * r, a * u - b * v])
+        return jnp.stack(self._coriolis_parts(nu[0], nu[1], nu[2]))
 
     def damping_vector(self, nu):
         """D(ν)ν in component form."""
-        u, v, r = nu[0], nu[1], nu[2]
-        return -jnp.stack([
-            (self.Xu + self.Xuu * jnp.abs(u)) * u,
-            (self.Yv + self.Yvv * jnp.abs(v)) * v + self.Yr * r,
-            self.Nv * v + (self.Nr + self.Nrr * jnp.abs(r)) * r,
-        ])
+        return jnp.stack(self._damping_parts(nu[0], nu[1], nu[2]))
+
+    def _coriolis_parts(self, u, v, r):
+        a = self.m * (self.xg * r + v) - self.Yvdot * v - 0.5 * (self.Nvdot + self.Yrdot) * r
+        b = (self.m - self.Xudot) * u
+        return -a * r, b * r, a * u - b * v
+
+    def _damping_parts(self, u, v, r):
+        return (-((self.Xu + self.Xuu * jnp.abs(u)) * u),
+                -((self.Yv + self.Yvv * jnp.abs(v)) * v + self.Yr * r),
+                -(self.Nv * v + (self.Nr + self.Nrr * jnp.abs(r)) * r))
 
 
 def usv_standard(actuator: ForceInput | WaterJet | None = None, **overrides: float) -> Fossen3:

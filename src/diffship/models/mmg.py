@@ -272,13 +272,17 @@ class MMG(AbstractShip3):
         return {"rudder_offset": "delta0"}
 
     def vector_field(self, t, x, u):
-        psi, uu, v, r = x[2], x[3], x[4], x[5]
-        X, Y, N = self.forces(x, u)
+        return jnp.stack(self.vector_field_parts(t, tuple(x[i] for i in range(6)), (u[0], u[1])))
+
+    def vector_field_parts(self, t, xs, us):
+        """The vector field on scalar components (:meth:`AbstractModel.vector_field_parts`)."""
+        psi, uu, v, r = xs[2], xs[3], xs[4], xs[5]
+        X, Y, N = self.forces(xs, us)
         a, b, c, _ = self.masses()
         # M ν̇ = (X + b v r + c r², Y − a u r, N − c u r)
-        acc = self.solve_mass(jnp.stack([X + b * v * r + c * r * r, Y - a * uu * r, N - c * uu * r]))
+        acc = self.solve_mass_parts(X + b * v * r + c * r * r, Y - a * uu * r, N - c * uu * r)
         xd, yd = self.position_rates(psi, uu, v)
-        return jnp.concatenate([jnp.stack([xd, yd, r]), acc])
+        return (xd, yd, r, *acc)
 
 
 def kvlcc2_mmg(**overrides: float) -> MMG:

@@ -94,11 +94,11 @@ class Term(Effect):
             out = out * vals[f]
         return out
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
         q = self.coefficient * self.regressor(u, v, r)
         z = jnp.zeros_like(q)
-        return jnp.stack([q if self.equation == e else z for e in EQUATIONS])
+        return tuple(q if self.equation == e else z for e in EQUATIONS)
 
 
 def term_label(name: str) -> str:

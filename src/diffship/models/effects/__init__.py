@@ -13,6 +13,7 @@ Importing this package loads models, params and errors only (not fit, metrics or
 from ._base import DataFacts as DataFacts
 from ._base import Effect as Effect
 from ._base import is_ship3 as is_ship3
+from ._base import parts as parts
 from ._base import steering_inputs as steering_inputs
 from .actuator import ActuatorLag as ActuatorLag
 from .actuator import InputDelay as InputDelay
@@ -44,7 +45,7 @@ from .wave import NomotoWave as NomotoWave
 
 __all__ = [
     "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "POSSIBLE_ONLY", "applicability", "make_effect",
-    "library", "augment", "is_ship3", "steering_inputs",
+    "library", "augment", "is_ship3", "parts", "steering_inputs",
     "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset",
     "DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR", "Wind",
     "CurrentTrend", "LagTrend", "Wave", "NomotoWave",

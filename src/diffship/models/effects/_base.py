@@ -11,6 +11,13 @@ exactly like the base model (the tests check 1e-12). Effects act through one hoo
   :math:`\Delta\tau = (\Delta X, \Delta Y, \Delta N)` on a 3-DOF model;
 * ``kinematics`` — handled by :class:`~.augmented.Augmented` itself (current, heading bias).
 
+Each hook is written once, on arrays (``apply_input``, ``force``) or on tuples of scalar components
+(``apply_input_parts``, ``force_parts``); the other form follows. :class:`~.augmented.Augmented`
+composes the parts forms, so the all-effects model of a diagnosis evaluates as one expression per
+stage: on the issue-28 workspace (Fossen 3-DOF with 13 effects) the time step's forward-mode
+Jacobian went from 331 to 180 kernels per step and from about 185 to 125 ms per evaluation on a
+2-core CPU (``benchmarks/results/diagnose_current_case_240s.md``, stop 39).
+
 Each effect class also says when it applies (:meth:`Effect.applicability`) and how it is
 configured from the training data (:meth:`Effect.for_data`, from :class:`DataFacts`).
 """
@@ -29,7 +36,15 @@ from .._base import AbstractModel, _DeclaredParams, param, scalar
 from .._rigid3 import AbstractShip3
 from ...params import Param
 
-__all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "param", "scalar"]
+__all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "param", "parts", "scalar"]
+
+
+def parts(v) -> tuple:
+    """The components of a vector as a tuple of scalars (static slices); a tuple stays a tuple
+    (``None``, no vector, stays ``None``)."""
+    if v is None or isinstance(v, tuple):
+        return v
+    return tuple(v[i] for i in range(v.shape[0]))
 
 
 def is_ship3(model: AbstractModel) -> bool:
@@ -147,10 +162,33 @@ class Effect(eqx.Module):
         return []
 
     # -- hooks (default: nothing) ------------------------------------------------------------
+    # Each hook has two forms: on arrays (``apply_input``, ``force``) and on tuples of scalar
+    # components (``apply_input_parts``, ``force_parts``: what :class:`~.augmented.Augmented` calls
+    # inside the integrator). An effect defines one form; the other follows from it. The parts form
+    # keeps the time step free of stacked intermediate vectors: XLA on a CPU makes every stacked
+    # vector with several users a kernel of its own, in every stage of every step (the issue-28
+    # all-effects workspace: ~100 such kernels per step with arrays).
     def apply_input(self, base, t, xb, xe, ub):
         """``(u_new, xe_dot)``: transformed base inputs and extra-state derivatives."""
+        if type(self).apply_input_parts is not Effect.apply_input_parts:
+            u_new, dxe = self.apply_input_parts(base, t, parts(xb), parts(xe), parts(ub))
+            return jnp.stack(u_new), (jnp.stack(dxe) if dxe else jnp.zeros((0,), dtype=xb.dtype))
         return ub, jnp.zeros((0,), dtype=xb.dtype)
+
+    def apply_input_parts(self, base, t, xb: tuple, xe: tuple, ub: tuple) -> tuple[tuple, tuple]:
+        """:meth:`apply_input` on tuples of scalar components: ``(u_new, xe_dot)`` as tuples."""
+        if type(self).apply_input is Effect.apply_input:
+            return ub, ()
+        u_new, dxe = self.apply_input(base, t, jnp.stack(xb), jnp.stack(xe) if xe else jnp.zeros((0,)), jnp.stack(ub))
+        return parts(u_new), parts(dxe)
 
     def force(self, base, t, xb, ub, uext):
         """Added generalised force (ΔX, ΔY, ΔN) [N, N, N·m]."""
+        if type(self).force_parts is not Effect.force_parts:
+            return jnp.stack(self.force_parts(base, t, parts(xb), parts(ub), uext))
         return jnp.zeros((3,), dtype=xb.dtype)
+
+    def force_parts(self, base, t, xb: tuple, ub: tuple, uext) -> tuple:
+        """:meth:`force` on tuples of scalar components: ``(ΔX, ΔY, ΔN)``."""
+        f = self.force(base, t, jnp.stack(xb), jnp.stack(ub), uext)
+        return f[0], f[1], f[2]

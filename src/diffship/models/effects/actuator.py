@@ -61,12 +61,12 @@ class _InputEffect(Effect):
     def _names(self, base, suffix=""):
         return tuple(base.input_names[i] + suffix for i in self.idx)
 
-    def _sel(self, ub):
-        return ub[jnp.asarray(self.idx)]
-
-    def _put(self, ub, vals, on):
-        new = ub.at[jnp.asarray(self.idx)].set(vals)
-        return jnp.where(on, new, ub)
+    def _put(self, ub: tuple, vals, on) -> tuple:
+        """``ub`` with the steering components replaced by ``vals`` where the effect is on."""
+        out = list(ub)
+        for j, i in enumerate(self.idx):
+            out[i] = jnp.where(on, vals[j], ub[i])
+        return tuple(out)
 
 
 class InputDelay(_InputEffect):
@@ -88,15 +88,16 @@ class InputDelay(_InputEffect):
     def extra_init(self, base, y0):
         return [float(y0.get(n, 0.0)) for n in self._names(base)] + [0.0] * len(self.idx)
 
-    def apply_input(self, base, t, xb, xe, ub):
+    def apply_input_parts(self, base, t, xb, xe, ub):
         k = len(self.idx)
         z1, z2 = xe[:k], xe[k:]
         on = self.tau_d > 0.0
         tau = jnp.maximum(jnp.where(on, self.tau_d, 1.0), 1.5 * self.dt)
-        u = self._sel(ub)
-        dz1 = z2 / tau
-        dz2 = (12.0 / tau) * (u - z1 - 0.5 * z2)
-        return self._put(ub, u - z2, on), jnp.concatenate([dz1, dz2])
+        u = [ub[i] for i in self.idx]
+        inv = 1.0 / tau  # a parameter's reciprocal, then products (no quotient in the time step)
+        dz1 = tuple(z2[j] * inv for j in range(k))
+        dz2 = tuple((12.0 * inv) * (u[j] - z1[j] - 0.5 * z2[j]) for j in range(k))
+        return self._put(ub, [u[j] - z2[j] for j in range(k)], on), dz1 + dz2
 
 
 class ActuatorLag(_InputEffect):
@@ -117,10 +118,10 @@ class ActuatorLag(_InputEffect):
     def extra_init(self, base, y0):
         return [float(y0.get(n, 0.0)) for n in self._names(base)]
 
-    def apply_input(self, base, t, xb, xe, ub):
+    def apply_input_parts(self, base, t, xb, xe, ub):
         on = self.T_act > 0.0
-        T = jnp.maximum(jnp.where(on, self.T_act, 1.0), 0.5 * self.dt)
-        return self._put(ub, xe, on), (self._sel(ub) - xe) / T
+        inv = 1.0 / jnp.maximum(jnp.where(on, self.T_act, 1.0), 0.5 * self.dt)
+        return self._put(ub, xe, on), tuple((ub[i] - xe[j]) * inv for j, i in enumerate(self.idx))
 
 
 class LagTrend(_InputEffect):
@@ -146,10 +147,10 @@ class LagTrend(_InputEffect):
     def extra_init(self, base, y0):
         return [float(y0.get(n, 0.0)) for n in self._names(base)]
 
-    def apply_input(self, base, t, xb, xe, ub):
+    def apply_input_parts(self, base, t, xb, xe, ub):
         on = (self.T_act0 > 0.0) | (self.dT_act != 0.0)
-        T = jnp.maximum(jnp.where(on, self.T_act0 + self.dT_act * t, 1.0), 0.5 * self.dt)
-        return self._put(ub, xe, on), (self._sel(ub) - xe) / T
+        inv = 1.0 / jnp.maximum(jnp.where(on, self.T_act0 + self.dT_act * t, 1.0), 0.5 * self.dt)
+        return self._put(ub, xe, on), tuple((ub[i] - xe[j]) * inv for j, i in enumerate(self.idx))
 
 
 class RateLimit(_InputEffect):
@@ -176,11 +177,19 @@ class RateLimit(_InputEffect):
     def extra_init(self, base, y0):
         return [float(y0.get(n, 0.0)) for n in self._names(base)]
 
-    def apply_input(self, base, t, xb, xe, ub):
+    def apply_input_parts(self, base, t, xb, xe, ub):
         on = self.T_slew > 0.0
-        rate = self.amplitude / jnp.where(on, self.T_slew, 1.0)
-        d = jnp.clip((self._sel(ub) - xe) / self.eps, -rate, rate)
+        rate = self.amplitude * (1.0 / jnp.where(on, self.T_slew, 1.0))
+        inv_eps = 1.0 / self.eps
+        d = tuple(_clip((ub[i] - xe[j]) * inv_eps, rate[j]) for j, i in enumerate(self.idx))
         return self._put(ub, xe, on), d
+
+
+def _clip(x, limit):
+    """``clip(x, -limit, limit)`` by selection: the same values, a forward-mode derivative without the
+    quotient of ``jnp.clip``'s (its min/max split the derivative at ties by dividing), which is a
+    kernel of its own in every stage on a CPU."""
+    return jnp.where(x > limit, limit, jnp.where(x < -limit, -limit, x))
 
 
 class RudderOffset(Effect):
@@ -204,8 +213,8 @@ class RudderOffset(Effect):
             return f"{base.name} already has a rudder offset parameter (delta0)"
         return f"{base.name} is not a 3-DOF ship model"
 
-    def force(self, base, t, xb, ub, uext):
-        return jnp.stack([jnp.zeros_like(self.Y0), self.Y0, self.N0])
+    def force_parts(self, base, t, xb, ub, uext):
+        return jnp.zeros_like(self.Y0), self.Y0, self.N0
 
 
 class NomotoRudderOffset(Effect):
@@ -232,5 +241,8 @@ class NomotoRudderOffset(Effect):
     def for_data(cls, base, facts: DataFacts) -> Effect:
         return cls(idx=(base.input_names.index("delta"),))
 
-    def apply_input(self, base, t, xb, xe, ub):
-        return ub.at[jnp.asarray(self.idx)].add(self.delta_off), jnp.zeros((0,), dtype=xb.dtype)
+    def apply_input_parts(self, base, t, xb, xe, ub):
+        out = list(ub)
+        for i in self.idx:
+            out[i] = out[i] + self.delta_off
+        return tuple(out), ()

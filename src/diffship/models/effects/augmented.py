@@ -32,7 +32,7 @@ import numpy as np
 from ...errors import ModelError
 from .._base import AbstractModel
 from ...params import Param, ParamSpec
-from ._base import Effect, body_velocity, is_ship3
+from ._base import Effect, body_velocity, is_ship3, parts
 from .current import Current, CurrentTrend
 from .sensor import HeadingBias
 
@@ -173,13 +173,27 @@ class Augmented(AbstractModel):
         :math:`\nu_r = \nu_g - R^\top(\psi_t) v_c` and, for a constant current,
         :math:`\dot\nu_g = \dot\nu_r + \tfrac{d}{dt}R^\top v_c = \dot\nu_r + r\,(v_{c,y}^b, -v_{c,x}^b, 0)`;
         positions follow :math:`\dot\eta_{1:2} = R(\psi_t)\nu_g` with true heading
-        :math:`\psi_t = \psi - b_\psi`."""
+        :math:`\psi_t = \psi - b_\psi`. Computed on scalar components (:meth:`vector_field_parts`)
+        and stacked once."""
+        return jnp.stack(self.vector_field_parts(t, parts(x), parts(u)))
+
+    def vector_field_parts(self, t, xs: tuple, us: tuple) -> tuple:
+        """:meth:`vector_field` on tuples of scalar components (every hook in its parts form:
+        no vector is stacked inside the time step but the result)."""
         base = self.base
-        xb, xes = self._split_x(x)
-        ub, uext = self._split_u(u)
+        nb, nu_b = len(base.state_names), len(base.input_names)
+        xb, ub = list(xs[:nb]), tuple(us[:nu_b])
+        xes, off = [], nb
+        for e in self.effects:
+            k = len(e.extra_states(base))
+            xes.append(tuple(xs[off:off + k]))
+            off += k
+        names = self.input_names
+        uext = {e.name: jnp.stack([us[names.index(n)] for n in e.extra_inputs]) if e.extra_inputs else None
+                for e in self.effects}
         cur, hb = self._kin()
         kin = (bool(cur) or hb is not None) and is_ship3(base)
-        xg = xb
+        xg = tuple(xb)
         if kin:
             ip, iu = base.state_names.index("psi"), base.state_names.index("u")
             psi_t = xb[ip] - hb.b_psi if hb is not None else xb[ip]
@@ -192,28 +206,33 @@ class Augmented(AbstractModel):
                 Ay = sum(v[1][1] for v in vels)
                 vcb_x, vcb_y = c * Vx + s * Vy, -s * Vx + c * Vy
                 acb_x, acb_y = c * Ax + s * Ay, -s * Ax + c * Ay
-                xb = xb.at[iu].add(-vcb_x).at[iu + 1].add(-vcb_y)  # through-water velocities
-        extra_dots = []
+                xb[iu] = xb[iu] + (-vcb_x)  # through-water velocities
+                xb[iu + 1] = xb[iu + 1] + (-vcb_y)
+        xb = tuple(xb)
+        extra_dots: list = []
         for e, xe in zip(self.effects, xes):
             if e.hook == "input":
-                ub, dxe = e.apply_input(base, t, xb, xe, ub)
-                extra_dots.append(dxe)
-        dx = base.vector_field(t, xb, ub)
-        forces = [e.force(base, t, xb, ub, uext[e.name]) for e in self.effects if e.hook == "force"]
+                ub, dxe = e.apply_input_parts(base, t, xb, xe, ub)
+                extra_dots.extend(dxe)
+        dx = list(base.vector_field_parts(t, xb, ub))
+        forces = [e.force_parts(base, t, xb, ub, uext[e.name]) for e in self.effects if e.hook == "force"]
         if forces:
             i = base.state_names.index("u")
-            dtau = forces[0]
+            dtau = list(forces[0])
             for f in forces[1:]:
-                dtau = dtau + f
-            dx = dx.at[i:i + 3].add(base.solve_mass(dtau))
+                dtau = [a + b for a, b in zip(dtau, f)]
+            acc = base.solve_mass_parts(*dtau)
+            for k in range(3):
+                dx[i + k] = dx[i + k] + acc[k]
         if kin:
             ug, vg, rg = body_velocity(base, xg)
-            xd, yd = c * ug - s * vg, s * ug + c * vg
-            dx = dx.at[base.state_names.index("x0")].set(xd).at[base.state_names.index("y0")].set(yd)
+            dx[base.state_names.index("x0")] = c * ug - s * vg
+            dx[base.state_names.index("y0")] = s * ug + c * vg
             if cur:
                 # d/dt (Rᵀ v_c) = Ṙᵀ v_c + Rᵀ v̇_c (the second term only for a changing current)
-                dx = dx.at[iu].add(rg * vcb_y + acb_x).at[iu + 1].add(-rg * vcb_x + acb_y)
-        return jnp.concatenate([dx] + [d for d in extra_dots if d.size]) if any(d.size for d in extra_dots) else dx
+                dx[iu] = dx[iu] + (rg * vcb_y + acb_x)
+                dx[iu + 1] = dx[iu + 1] + (-rg * vcb_x + acb_y)
+        return tuple(dx) + tuple(extra_dots)
 
     def effect_twins(self) -> dict[str, str]:
         """The base's (:meth:`AbstractModel.effect_twins`)."""

@@ -43,9 +43,9 @@ class DampingVV(_Damping):
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Nvv": 100.0}
     Nvv: jnp.ndarray = param(0.0, scale=2000.0, unit="kg", description="N_|v|v")
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
-        return jnp.stack([jnp.zeros_like(v), jnp.zeros_like(v), self.Nvv * jnp.abs(v) * v])
+        return jnp.zeros_like(v), jnp.zeros_like(v), self.Nvv * jnp.abs(v) * v
 
 
 class DampingRR(_Damping):
@@ -56,9 +56,9 @@ class DampingRR(_Damping):
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Yrr": 100.0}
     Yrr: jnp.ndarray = param(0.0, scale=2000.0, unit="kg m²", description="Y_|r|r")
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
-        return jnp.stack([jnp.zeros_like(r), self.Yrr * jnp.abs(r) * r, jnp.zeros_like(r)])
+        return jnp.zeros_like(r), self.Yrr * jnp.abs(r) * r, jnp.zeros_like(r)
 
 
 class DampingVR(_Damping):
@@ -70,10 +70,10 @@ class DampingVR(_Damping):
     Yvr: jnp.ndarray = param(0.0, scale=2000.0, unit="kg", description="Y_|v|r")
     Nvr: jnp.ndarray = param(0.0, scale=5000.0, unit="kg m", description="N_|v|r")
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
         q = jnp.abs(v) * r
-        return jnp.stack([jnp.zeros_like(q), self.Yvr * q, self.Nvr * q])
+        return jnp.zeros_like(q), self.Yvr * q, self.Nvr * q
 
 
 class DampingRV(_Damping):
@@ -85,10 +85,10 @@ class DampingRV(_Damping):
     Yrv: jnp.ndarray = param(0.0, scale=2000.0, unit="kg m", description="Y_|r|v")
     Nrv: jnp.ndarray = param(0.0, scale=5000.0, unit="kg m²", description="N_|r|v")
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
         q = jnp.abs(r) * v
-        return jnp.stack([jnp.zeros_like(q), self.Yrv * q, self.Nrv * q])
+        return jnp.zeros_like(q), self.Yrv * q, self.Nrv * q
 
 
 class SpeedDependence(_Damping):
@@ -113,11 +113,10 @@ class SpeedDependence(_Damping):
     def for_data(cls, base, facts: DataFacts) -> Effect:
         return cls(U0=facts.U0)
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         u, v, r = body_velocity(base, xb)
-        s = self.k_U * (jnp.sqrt(u * u + v * v + 1e-12) - self.U0) / self.U0
-        dl = jnp.stack([base.Xu * u, base.Yv * v + base.Yr * r, base.Nv * v + base.Nr * r])
-        return s * dl
+        s = (self.k_U * (1.0 / self.U0)) * (jnp.sqrt(u * u + v * v + 1e-12) - self.U0)
+        return s * (base.Xu * u), s * (base.Yv * v + base.Yr * r), s * (base.Nv * v + base.Nr * r)
 
 
 class NorrbinRR(Effect):

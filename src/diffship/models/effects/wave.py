@@ -101,9 +101,9 @@ class Wave(_WaveBase):
     def applicability(cls, base, runs=None) -> str:
         return "" if is_ship3(base) else f"{base.name} is not a 3-DOF ship model (a Nomoto model gets the rudder-equivalent form)"
 
-    def force(self, base, t, xb, ub, uext):
+    def force_parts(self, base, t, xb, ub, uext):
         c, s = _harmonic(self.T_w, t)
-        return jnp.stack([jnp.zeros_like(c), self.A_Yc * c + self.A_Ys * s, self.A_Nc * c + self.A_Ns * s])
+        return jnp.zeros_like(c), self.A_Yc * c + self.A_Ys * s, self.A_Nc * c + self.A_Ns * s
 
 
 class NomotoWave(_WaveBase):
@@ -129,6 +129,10 @@ class NomotoWave(_WaveBase):
     def for_data(cls, base, facts: DataFacts) -> Effect:
         return cls(idx=(base.input_names.index("delta"),))
 
-    def apply_input(self, base, t, xb, xe, ub):
+    def apply_input_parts(self, base, t, xb, xe, ub):
         c, s = _harmonic(self.T_w, t)
-        return ub.at[jnp.asarray(self.idx)].add(self.a_c * c + self.a_s * s), jnp.zeros((0,), dtype=xb.dtype)
+        a = self.a_c * c + self.a_s * s
+        out = list(ub)
+        for i in self.idx:
+            out[i] = out[i] + a
+        return tuple(out), ()
