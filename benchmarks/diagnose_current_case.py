@@ -14,7 +14,9 @@ freely (the base model started 15–30 m off the logged position). This runs the
 TRAIN.csv ... --validate VAL.csv ... --model fossen3 --vessel usv --out DIR``) as a whole process,
 figures and report included, with the compile cache of ``$DIFFSHIP_CACHE_DIR`` (a new folder: cold).
 
-Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null|_cli].md``.
+Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null|_cli].md``, with a machine probe
+(:func:`machine_probe`, under a second of fixed work) beside the timings: the same code took 80–85 s and
+111–120 s on one 2-core machine an hour apart (stop 40), so a timing is read with the probe of its run.
 """
 
 from __future__ import annotations
@@ -47,6 +49,41 @@ BEFORE = {
 }
 
 
+def machine_probe() -> str:
+    """A fixed workload timed before the diagnosis, so that timings from machines (or periods of one
+    machine) of different speed can be compared: a pure-Python loop (tracing is Python) and one XLA
+    compile and run of a fixed program (a cold diagnosis is mostly XLA compiling and running)."""
+    import jax
+    import jax.numpy as jnp
+
+    t0 = time.perf_counter()
+    s = 0
+    for i in range(3_000_000):
+        s += i * i
+    t_py = time.perf_counter() - t0
+
+    def f(x):  # a small scan with transcendental work: the shape of a simulation step
+        def step(c, _):
+            a, b = c[:8], c[8:]
+            a = a + 0.01 * jnp.sin(b) * jnp.cos(2.0 * a) + 0.001 * jnp.tanh(a * b) - 0.002 * a * jnp.abs(a)
+            b = b + 0.01 * jnp.cos(a) * jnp.exp(-b * b) - 0.003 * b / (1.0 + a * a)
+            c = jnp.concatenate([a, b])
+            return c, c[0]
+        return jax.lax.scan(step, x, None, length=2400)[1].sum()
+
+    x = jnp.linspace(0.0, 1.0, 16)
+    t0 = time.perf_counter()
+    g = jax.jit(jax.jacfwd(f)).lower(x).compile()
+    t_c = time.perf_counter() - t0
+    g(x).block_until_ready()
+    t0 = time.perf_counter()
+    for _ in range(10):
+        g(x).block_until_ready()
+    t_r = time.perf_counter() - t0
+    return (f"machine probe (`machine_probe()`: fixed work, smaller is faster): Python loop {t_py:.2f} s, "
+            f"XLA compile {t_c:.2f} s, run {t_r:.2f} s")
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=240.0, help="seconds per run")
@@ -63,6 +100,7 @@ def main(argv=None):
     effects = "all" if a.effects == "all" else a.effects.split(",")
     if a.cli:
         return cli(a, runs)
+    probe = machine_probe()
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     d = diagnose(Fossen3(), runs[:3], runs[3:], options=DiagnoseOptions(effects=effects),
@@ -78,7 +116,7 @@ def main(argv=None):
          + f"` at {commit}; 2-core machine shared "
          f"with other jobs (1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; 5-min "
          f"{load1[1]:.1f}): diagnosis wall {wall:.0f} s, CPU {cpu:.0f} s (all threads; the data simulation "
-         f"before it not counted).", "",
+         f"before it not counted).", "", probe + ".", "",
          *([f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE and not a.null else []),
          ("Truth: fossen3 test USV, no current" if a.null else "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s")
          + "; 3 training + 2 held-out runs at 10 Hz, realistic noise.", "",
@@ -94,6 +132,7 @@ def main(argv=None):
 
 def cli(a, runs) -> None:
     """The user's command on the same runs, timed as a whole process."""
+    probe = machine_probe()
     with tempfile.TemporaryDirectory() as tmp:
         paths = []
         for r in runs:
@@ -117,7 +156,7 @@ def cli(a, runs) -> None:
     L = [f"# The issue-28 current case through `python -m diffship.diagnose` ({a.duration:g} s runs)", "",
          f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g} --cli` at {commit} "
          f"(compile cache {cache}); 1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end.", "",
-         f"- whole process (figures and report included): **{wall:.1f} s**",
+         f"- whole process (figures and report included): **{wall:.1f} s**", f"- {probe}",
          f"- selected: {doc.get('selected')}; held-out E {doc.get('validation_E_before', float('nan')):.3g} → "
          f"{doc.get('validation_E_after', float('nan')):.3g}; timings [s] {doc.get('timings_s')}; current {({k: round(v, 4) for k, v in doc.get('final_params', {}).items() if k in ('Vcx', 'Vcy')})}", ""]
     text = "\n".join(L) + "\n"
