@@ -18,7 +18,7 @@ TRUTH = dict(K=0.2, T1=8.0, delta0=0.01)
 ZIGZAGS = [(10, 20), (-20, 30), (25, 40), (15, 16), (-12, 36)]
 OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 #: top-level keys of the JSON contract (``Diagnosis.to_dict()``)
-JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "path",
+JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "waiting", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "base_starts", "final_params",
              "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "timings_s"]

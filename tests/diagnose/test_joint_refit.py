@@ -93,10 +93,10 @@ def test_the_greedy_path_takes_up_to_greedy_steps_effects(monkeypatch):
                              base_values={}, ok=True)
         return rf, SimpleNamespace(E=E, E_runs={"a": E, "b": E})
 
-    def run(greedy_steps):
+    def run(greedy_steps, gate=1.1, whole=False):
         o = DiagnoseOptions(greedy_steps=greedy_steps)
         base = SimpleNamespace(E=100.0, E_runs={"a": 100.0, "b": 100.0})
-        s = Search(SimpleNamespace(effects=effs), SimpleNamespace(channels=("psi",)), base, o, lambda m: None, gate=1.1)
+        s = Search(SimpleNamespace(effects=effs), SimpleNamespace(channels=("psi",)), base, o, lambda m: None, gate=gate)
         s._refit = refit.__get__(s)
         singles = {}
         for n in names:
@@ -104,7 +104,8 @@ def test_the_greedy_path_takes_up_to_greedy_steps_effects(monkeypatch):
             singles[n] = Candidate((n,), rf, sc, s.judge(rf, base, sc, [n]))
         s._swap = lambda cur, alts: None
         s._confidence = lambda singles, accepted, by_E: (accepted[0], "medium", (), "")
-        return s.select(singles).selected
+        sel = s.select(singles)
+        return sel if whole else sel.selected
 
     from diffship.diagnose import which
     monkeypatch.setattr(which.PathStep, "between", classmethod(lambda cls, effect, *a, **k: effect))
@@ -113,6 +114,15 @@ def test_the_greedy_path_takes_up_to_greedy_steps_effects(monkeypatch):
     assert run(3) == ("damping_vr", "damping_rv", "input_delay")
     assert run(2) == ("damping_vr", "damping_rv")
     assert run(1) == ("damping_vr",)
+    # stopped at the cap with the gap left: what also passed at the last step is kept, best first
+    # (its gain against that step), for the verdict to name (the rest is not "unexplained")
+    assert [n for n, _ in run(2, whole=True).waiting] == ["input_delay", "actuator_lag"]
+    assert dict(run(2, whole=True).waiting)["input_delay"] == pytest.approx(0.20)
+    assert [n for n, _ in run(3, whole=True).waiting] == ["actuator_lag"]
+    assert [n for n, _ in run(1, whole=True).waiting] == ["damping_rv", "input_delay", "actuator_lag"]
+    # stopped because nothing passed at step 2 (a wide noise band: gate 42): nothing is waiting
+    stopped = run(2, gate=42.0, whole=True)
+    assert stopped.selected == ("damping_vr",) and stopped.waiting == ()
     with pytest.raises(Exception, match="greedy_steps"):
         DiagnoseOptions(greedy_steps=0)
     assert dataclasses.replace(DiagnoseOptions(), greedy_steps=4).greedy_steps == 4

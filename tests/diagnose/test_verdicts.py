@@ -45,6 +45,23 @@ def test_partial_explanation_is_stated_with_its_share():
     assert "Partial" not in full
 
 
+def test_a_path_stopped_at_its_cap_names_what_also_passed_instead_of_calling_the_rest_unexplained():
+    """On the KVLCC2 logs with a 0.5-s rudder clock offset, damping_vr and damping_rv took the two
+    steps the path allows and input_delay passed at step 2 behind them (+8.6 %): the verdict said
+    the rest was unexplained by the library. It now says what passed and how to test it."""
+    ranking = (_row("damping_vr", 0.5, 0.5, 51.2, verdict="attributed", conf="medium"),
+               _row("damping_rv", 0.24, 0.24, 78.4, verdict="attributed (greedy step 2)"))
+    which = verdict_lines(WHERE, GAP, ranking, ("damping_vr", "damping_rv"), 102.6, 44.5, 0.57, 1.12,
+                          waiting=(("input_delay", 0.086),), greedy_steps=2)[1]
+    assert "Partial" in which and "57 %" in which
+    assert "input_delay (+8.6 % validation gain) also passed at step 2" in which
+    assert "cap of 2 effect(s)" in which and "--greedy-steps" in which
+    assert "unexplained" not in which
+    # nothing waiting: the former wording
+    plain = verdict_lines(WHERE, GAP, ranking, ("damping_vr", "damping_rv"), 102.6, 44.5, 0.57, 1.12)[1]
+    assert "the rest is unexplained" in plain and "cap" not in plain
+
+
 def test_possible_effect_under_the_gate_is_low_confidence_with_the_settling_experiment():
     ranking = (_row("input_delay", 0.06, 0.9, 1.01, verdict="possible effect (low confidence)"),)
     which = verdict_lines(WHERE, GAP, ranking, (), 1.07, 1.07, 0.0, 1.1, possible=("input_delay",))[1]

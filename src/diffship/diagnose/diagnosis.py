@@ -80,7 +80,10 @@ class Diagnosis:
     gap gate); ``in_base`` the library effects the base model carries as a parameter of its own,
     estimated by the base fit or held at a given non-zero value (:func:`~.verdict.in_base`; a
     rudder zero error is MMG's ``delta0``), with a verdict line for the estimated ones whose 95 %
-    interval excludes 0 and the held ones.
+    interval excludes 0 and the held ones; ``waiting`` the effects that also passed at the greedy
+    path's last step when the path stopped at its cap with a structural gap left, ``(name,
+    validation gain)`` (:attr:`~.which.Selection.waiting`: a further step, ``greedy_steps``, may
+    attribute one).
     """
 
     model_name: str
@@ -114,6 +117,7 @@ class Diagnosis:
     notes: tuple[str, ...] = ()
     time_variation: TimeVariation | None = None
     in_base: dict = dataclasses.field(default_factory=dict)
+    waiting: tuple[tuple[str, float], ...] = ()
 
     @property
     def gap_gate(self) -> float:
@@ -137,6 +141,7 @@ class Diagnosis:
             "selected": list(self.selected),
             "possible": list(self.possible),
             "partial": self.partial,
+            "waiting": [{"effect": n, "validation_gain": g} for n, g in self.waiting],
             "path": [p.to_dict() for p in self.path],
             "validation_rmse_before": self.rmse_before,
             "validation_rmse_after": self.rmse_after,
@@ -386,7 +391,7 @@ def diagnose(
                    sel.rivals, sel.note, sel.possible)
     shrink = sel.shrink(before.E)
     lines = verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
-                          sel.possible, o.min_shrink)
+                          sel.possible, o.min_shrink, waiting=sel.waiting, greedy_steps=o.greedy_steps)
     possible = sel.possible
     if tv is not None and tv.possible:
         lines = (*lines, tv.line())
@@ -407,5 +412,5 @@ def diagnose(
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
-        notes=tuple(notes), time_variation=tv, in_base=twins,
+        notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting,
     )

@@ -192,7 +192,8 @@ def nearest_miss(ranking: Sequence[RankedEffect]) -> RankedEffect | None:
 
 def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[RankedEffect], selected: Sequence[str],
                   E_before: float, E_after: float, shrink: float, gap_gate: float,
-                  possible: Sequence[str] = (), min_shrink: float = 0.3) -> tuple[str, str, str]:
+                  possible: Sequence[str] = (), min_shrink: float = 0.3,
+                  waiting: Sequence[tuple[str, float]] = (), greedy_steps: int | None = None) -> tuple[str, str, str]:
     r"""Where, which, how far — one line each.
 
     *Which* says what it knows: the selected effects with their confidence, and **partial** when
@@ -201,6 +202,9 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
     candidate with the largest validation gain, its shrink and the failed parts of the rule; below
     ``min_shrink`` (:class:`~.options.DiagnoseOptions`) the line says at most a small part of the gap is of its kind);
     under the gate, a **possible** effect (low confidence) with the experiment that settles it.
+    When the greedy path stopped at its cap (``greedy_steps``) with the gap left and other effects
+    passing at its last step (``waiting``: ``(name, validation gain)``), the partial line names them
+    instead of calling the rest unexplained by the library.
     """
     pc = where.per_channel
     worst = max(pc, key=lambda c: pc[c]["share"])
@@ -249,8 +253,16 @@ def verdict_lines(where: WhereAnalysis, gap: GapBudget, ranking: Sequence[Ranked
                  + (f"; improves training only, rejected on validation: {', '.join(rej)}" if rej else "") + ".")
         if E_after >= gap_gate:
             which += (f" Partial: {'they close' if len(selected) > 1 else 'it closes'} {100 * shrink:.0f} % of the "
-                      f"structural gap; E {E_after:.2f} stays above the gate ({gap_gate:.3g}), the rest is unexplained "
-                      "(an effect outside the library, or a variant of the selected one, e.g. time-varying).")
+                      f"structural gap; E {E_after:.2f} stays above the gate ({gap_gate:.3g}), ")
+            if waiting:
+                cap = f"its cap of {greedy_steps} effect(s)" if greedy_steps else "its cap"
+                which += (f"and the path stopped at {cap} (--greedy-steps) while "
+                          + ", ".join(f"{n} ({100 * g:+.1f} % validation gain)" for n, g in waiting)
+                          + f" also passed at step {len(selected)}: a further step may attribute "
+                          + ("it" if len(waiting) == 1 else "one of them") + " (raise --greedy-steps to test).")
+            else:
+                which += ("the rest is unexplained (an effect outside the library, or a variant of the selected one, "
+                          "e.g. time-varying).")
     how = (f"How far: validation error {E_before:.2f} → {E_after:.2f} × noise floor; "
            f"{100 * shrink:.0f} % of the structural gap removed"
            + (f" ({', '.join(selected)})." if selected else "."))

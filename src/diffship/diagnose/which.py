@@ -58,7 +58,11 @@ noise floor itself, so the path stops there without the trial refits). When no s
 single candidates are refitted jointly (two effects can each fail alone yet pass together).
 With two or more effects in, a **swap** pass replaces one by an accepted alternative when that
 lowers the validation error by more than 2 % (a delay chosen first where lag + damping is the
-truth). At most :data:`~.screen.P_MAX` effect parameters are refitted at once.
+truth). At most :data:`~.screen.P_MAX` effect parameters are refitted at once. When the path stops
+at its cap (``greedy_steps``) with the validation error still at or above the gate, the effects that
+also passed the rule at its last step are kept as **waiting** (:attr:`Selection.waiting`): the
+verdict names them rather than calling the rest of the gap unexplained by the library (on the
+KVLCC2 logs with a 0.5-s rudder clock offset, input_delay passed at step 2 behind damping_rv).
 """
 
 from __future__ import annotations
@@ -117,6 +121,10 @@ class Selection:
     rivals: tuple[str, ...] = ()
     note: str = ""
     possible: tuple[str, ...] = ()
+    #: effects that passed the rule at the path's last step beside the one taken, ``(name, validation
+    #: gain)``, best first, when the path stopped at its cap (``greedy_steps``) with E still above the
+    #: gate: a further step might attribute one of them; empty otherwise
+    waiting: tuple[tuple[str, float], ...] = ()
 
     def shrink(self, E0: float) -> float:
         """Share of the structural gap S(E0) closed by the selected effects (0 if none; :mod:`.shrink`)."""
@@ -293,18 +301,30 @@ class Search:
             step = PathStep.between(name, self.base, w.score, E0, w.refit, self.validation.channels)
             cur = Selection((name,), (step,), w.score, dict(w.refit.values), w.refit.base_values, conf, rivals, note)
             cands = [n for n in by_E if n != name and singles[n].judgement.gain > 0][:3]
+            # what else passed at the step just taken (here the first: the singles that pass the rule)
+            passing = [(n, singles[n].judgement.gain) for n in by_E if n != name and singles[n].judgement.ok]
+            capped = True
             for _ in range(1, o.greedy_steps):
                 if cur.final.E < self.gate:  # no structural gap left: nothing more can be attributed
                     self.say(f"  validation E {cur.final.E:.3g} under the gap gate {self.gate:.3g}: no further effect")
+                    capped = False
                     break
-                nxt = self._greedy_step(cur, cands)
+                nxt, passing = self._greedy_step(cur, cands, others=True)
                 if nxt is None:
+                    capped = False
                     break
                 cur = nxt
             if len(cur.selected) >= 2:
                 sw = self._swap(cur, [n for n in accepted if n not in cur.selected])
                 if sw is not None:
                     cur = dataclasses.replace(sw, confidence="medium", note="after a swap of confusable effects")
+            if capped and cur.final.E >= self.gate:
+                waiting = tuple((n, g) for n, g in passing if n not in cur.selected)
+                if waiting:
+                    self.say(f"  the path stops at its cap of {o.greedy_steps} effect(s) (greedy_steps) with E "
+                             f"{cur.final.E:.3g} above the gate; also passing at its last step: "
+                             + ", ".join(f"{n} ({100 * g:+.1f} %)" for n, g in waiting))
+                    cur = dataclasses.replace(cur, waiting=waiting)
         return cur
 
     # -- confidence and ties -----------------------------------------------------------------
@@ -386,9 +406,12 @@ class Search:
         step = PathStep.between("+".join(order_ab), self.base, sc, E0, rf, self.validation.channels)
         return Selection(order_ab, (step,), sc, dict(rf.values), rf.base_values)
 
-    def _greedy_step(self, cur: Selection, cands: list[str]) -> Selection | None:
-        """The best next effect, refitted jointly with those in and judged against ``cur``."""
+    def _greedy_step(self, cur: Selection, cands: list[str], others: bool = False):
+        """The best next effect, refitted jointly with those in and judged against ``cur`` (``None``
+        when none passes). With ``others``: ``(that, [(name, validation gain)] of the other trials
+        that passed, best first)``."""
         best = None
+        passed: list[tuple[str, float, float]] = []
         trials = []
         for n in cands:
             if n in cur.selected:
@@ -416,13 +439,17 @@ class Search:
             j = self.judge(rf, cur.final, sc, [n])
             self.say(f"  + {n}: validation E {cur.final.E:.3g} → {sc.E:.3g} ({100 * j.gain:+.1f} %)"
                      + ("" if j.ok else f" — not accepted: {j.why}"))
+            if j.ok:
+                passed.append((n, j.gain, sc.E))
             if j.ok and (best is None or sc.E < best[2].E):
                 best = (n, rf, sc)
         if best is None:
-            return None
+            return (None, []) if others else None
         n, rf, sc = best
         step = PathStep.between(n, cur.final, sc, self.base.E, rf, self.validation.channels)
-        return Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values)
+        nxt = Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values)
+        rest = [(m, g) for m, g, _ in sorted(passed, key=lambda x: x[2]) if m != n]
+        return (nxt, rest) if others else nxt
 
     def _swap(self, cur: Selection, alts: list[str]) -> Selection | None:
         """With two or more effects in, a confusable alternative of an early pick may now fit
