@@ -67,7 +67,7 @@ def test_a_greedy_step_starts_the_base_where_the_previous_step_left_it():
     s = Search(SimpleNamespace(effects=effs, refit=refit), None, base, DiagnoseOptions(), said.append, gate=1.1)
     step1 = {"Nr": -0.05, "Yv": -0.3}  # the hull coefficients as step 1 left them
     cur = Selection(("damping_vr",), (), SimpleNamespace(E=50.0), {"Nvr": 3.6e4}, step1)
-    assert s._greedy_step(cur, ["input_delay"]) is None
+    assert s._greedy_step(cur, ["input_delay"]) == (None, [])
     assert seen == [step1]
     assert any("input_delay" in m and "every start blows up" in m for m in said), said
 

@@ -309,7 +309,7 @@ class Search:
                     self.say(f"  validation E {cur.final.E:.3g} under the gap gate {self.gate:.3g}: no further effect")
                     capped = False
                     break
-                nxt, passing = self._greedy_step(cur, cands, others=True)
+                nxt, passing = self._greedy_step(cur, cands)
                 if nxt is None:
                     capped = False
                     break
@@ -406,10 +406,9 @@ class Search:
         step = PathStep.between("+".join(order_ab), self.base, sc, E0, rf, self.validation.channels)
         return Selection(order_ab, (step,), sc, dict(rf.values), rf.base_values)
 
-    def _greedy_step(self, cur: Selection, cands: list[str], others: bool = False):
+    def _greedy_step(self, cur: Selection, cands: list[str]) -> tuple[Selection | None, list[tuple[str, float]]]:
         """The best next effect, refitted jointly with those in and judged against ``cur`` (``None``
-        when none passes). With ``others``: ``(that, [(name, validation gain)] of the other trials
-        that passed, best first)``."""
+        when none passes), and ``[(name, validation gain)]`` of the other trials that passed, best first."""
         best = None
         passed: list[tuple[str, float, float]] = []
         trials = []
@@ -444,12 +443,11 @@ class Search:
             if j.ok and (best is None or sc.E < best[2].E):
                 best = (n, rf, sc)
         if best is None:
-            return (None, []) if others else None
+            return None, []
         n, rf, sc = best
         step = PathStep.between(n, cur.final, sc, self.base.E, rf, self.validation.channels)
         nxt = Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values)
-        rest = [(m, g) for m, g, _ in sorted(passed, key=lambda x: x[2]) if m != n]
-        return (nxt, rest) if others else nxt
+        return nxt, [(m, g) for m, g, _ in sorted(passed, key=lambda x: x[2]) if m != n]
 
     def _swap(self, cur: Selection, alts: list[str]) -> Selection | None:
         """With two or more effects in, a confusable alternative of an early pick may now fit

@@ -65,7 +65,15 @@ from jaxtyping import Array, Float
 from ..errors import ModelError
 from ..params import Param, ParamSpec
 
-__all__ = ["AbstractModel", "LinearForm", "param", "scalar"]
+__all__ = ["AbstractModel", "LinearForm", "param", "parts", "scalar"]
+
+
+def parts(v) -> tuple:
+    """The components of a vector as a tuple of scalars (static slices); a tuple stays a tuple
+    (``None``, no vector, stays ``None``): the form of :meth:`AbstractModel.vector_field_parts`."""
+    if v is None or isinstance(v, tuple):
+        return v
+    return tuple(v[i] for i in range(v.shape[0]))
 
 
 def _as_f64(v):
@@ -254,8 +262,7 @@ class AbstractModel(eqx.Module):
         :class:`~diffship.models.effects.Augmented`); by default the array form, stacked and split.
         A model that writes this form natively keeps the integrator's time step free of stacked
         intermediate vectors, which XLA on a CPU runs as kernels of their own."""
-        v = self.vector_field(t, jnp.stack(xs), jnp.stack(us))
-        return tuple(v[i] for i in range(v.shape[0]))
+        return parts(self.vector_field(t, jnp.stack(xs), jnp.stack(us)))
 
     def effect_twins(self) -> dict[str, str]:
         """Library effects (:mod:`diffship.models.effects`) this model carries as a parameter of

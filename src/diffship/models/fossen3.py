@@ -36,7 +36,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from ._base import param
+from ._base import param, parts
 from ..particulars import FOSSEN3
 from ._rigid3 import AbstractShip3, Mass3
 from .actuators import ForceInput, WaterJet
@@ -139,8 +139,7 @@ class Fossen3(AbstractShip3):
         return self.actuator(u, nu)
 
     def vector_field(self, t, x, u):
-        return jnp.stack(self.vector_field_parts(t, tuple(x[i] for i in range(6)),
-                                                 tuple(u[i] for i in range(u.shape[0]))))
+        return jnp.stack(self.vector_field_parts(t, parts(x), parts(u)))
 
     def vector_field_parts(self, t, xs, us):
         """The vector field on scalar components (:meth:`AbstractModel.vector_field_parts`):

@@ -86,7 +86,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from ._base import param
+from ._base import param, parts
 from ..particulars import MMG
 from ._rigid3 import AbstractShip3, Mass3
 
@@ -272,7 +272,7 @@ class MMG(AbstractShip3):
         return {"rudder_offset": "delta0"}
 
     def vector_field(self, t, x, u):
-        return jnp.stack(self.vector_field_parts(t, tuple(x[i] for i in range(6)), (u[0], u[1])))
+        return jnp.stack(self.vector_field_parts(t, parts(x), parts(u)))
 
     def vector_field_parts(self, t, xs, us):
         """The vector field on scalar components (:meth:`AbstractModel.vector_field_parts`)."""

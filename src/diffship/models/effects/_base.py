@@ -32,19 +32,11 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._base import AbstractModel, _DeclaredParams, param, scalar
+from .._base import AbstractModel, _DeclaredParams, param, parts, scalar
 from .._rigid3 import AbstractShip3
 from ...params import Param
 
 __all__ = ["Effect", "DataFacts", "is_ship3", "steering_inputs", "body_velocity", "param", "parts", "scalar"]
-
-
-def parts(v) -> tuple:
-    """The components of a vector as a tuple of scalars (static slices); a tuple stays a tuple
-    (``None``, no vector, stays ``None``)."""
-    if v is None or isinstance(v, tuple):
-        return v
-    return tuple(v[i] for i in range(v.shape[0]))
 
 
 def is_ship3(model: AbstractModel) -> bool:
