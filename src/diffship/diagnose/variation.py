@@ -63,14 +63,23 @@ class TimeVariation:
         return dataclasses.asdict(self)
 
 
-def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callable[[str], None]) -> TimeVariation | None:
+def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callable[[str], None],
+                   varying: dict[str, Callable] | None = None) -> TimeVariation | None:
     """Refit the varying form of the first selected effect (else of the single candidate with the
-    largest held-out gain) and judge it against the constant one (module docstring)."""
+    largest held-out gain) and judge it against the constant one (module docstring).
+
+    ``varying``: ``{varying form: make(name) -> (workspace, validation)}``, the workspace of the base
+    and that form alone, built only when the form is refitted (:func:`.diagnosis.split_varying`: the
+    all-effects workspace does not carry the varying forms). Without it the form is refitted in
+    ``search.ws`` when that carries it."""
     name = selected[0] if selected else max(singles, key=lambda n: singles[n].judgement.gain, default=None)
     var = next((v for v, c in POSSIBLE_ONLY.items() if c == name), None)
     if name is None or var is None or name not in singles or not search.has_gap:
         return None
-    if not any(e.name == var for e in search.ws.effects):
+    if varying is not None:
+        if var not in varying:
+            return None
+    elif not any(e.name == var for e in search.ws.effects):
         return None
     const = singles[name]
     if const.score.E < search.gate:
@@ -82,12 +91,14 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
         return None
     start = {k: const.refit.values[c] for k, c in _FROM_CONSTANT[var].items()}
     start.update({k: 0.0 for k in TREND_PARAMS[var]})
+    own = varying[var](var) if varying is not None else None
+    ws = own[0] if own is not None else search.ws
     try:
-        rf = search.ws.refit([var], [start], progress=say, base_start=const.refit.base_values)
+        rf = ws.refit([var], [start], progress=say, base_start=const.refit.base_values)
     except FitError as exc:
         say(f"  refit {var} failed: {exc}")
         return None
-    sc = search.validation.refit(rf)
+    sc = (own[1] if own is not None else search.validation).refit(rf)
     o = search.options
     ref = const.score
     d = np.array([ref.E_runs[k] - sc.E_runs[k] for k in sc.E_runs])
@@ -105,7 +116,7 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
         why.append("improves fewer than half of the held-out runs")
     if not trend:
         why.append("the trend's 95 % interval includes 0")
-    eff = next(e for e in search.ws.effects if e.name == var)
+    eff = next(e for e in ws.effects if e.name == var)
     tv = TimeVariation(name, var, dict(rf.values), dict(rf.stderr), float(ref.E), float(sc.E),
                        f"{int(np.sum(d > 0))}/{d.size}", bool(ok), "; ".join(why), eff.separating)
     say(f"  time variation of {name}: held-out E {ref.E:.3g} → {sc.E:.3g}"
