@@ -58,5 +58,6 @@ def test_the_varying_form_gets_a_workspace_of_its_own_only_when_it_is_refitted()
             return SimpleNamespace(effects=[SimpleNamespace(name=name)], refit=refit), None
         search, singles, main_calls = _search(E_const)
         search.ws.effects = [SimpleNamespace(name="current")]  # the all-effects workspace: no varying form
-        assert time_variation(search, singles, ("current",), lambda s: None, varying={"current_trend": make}) is None
+        assert time_variation(search, singles, ("current",), lambda s: None,
+                              varying={"current_trend": lambda: make("current_trend")}) is None
         assert made == built and calls == [tuple(built)] * len(built) and main_calls == []

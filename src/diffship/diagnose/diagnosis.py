@@ -22,6 +22,7 @@ to 82–93 s on two cores.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Callable, Sequence
 
@@ -209,8 +210,8 @@ def split_varying(effs: Sequence) -> tuple[list, dict]:
     form is never screened nor refitted as a candidate: only :mod:`.variation` refits it, for the
     effect selected first, and only when that leaves a structural gap; it gets a workspace of its
     own then. Kept out of the all-effects workspace, every refit's simulation carries two effects
-    fewer (issue-28 current case, slow machine period: refits 57 → 50 s, whole process 129 → 118 s,
-    ``benchmarks/results/diagnose_current_case_240s.md``)."""
+    fewer (issue-28 current case, old and new code alternately, slow machine period: diagnosis
+    125 → 110 s, CPU 230 → 199 s, ``benchmarks/results/diagnose_current_case_240s.md``)."""
     return ([e for e in effs if e.name not in POSSIBLE_ONLY],
             {e.name: e for e in effs if e.name in POSSIBLE_ONLY})
 
@@ -398,12 +399,13 @@ def diagnose(
     timings["greedy"] = time.perf_counter() - t0
     t0 = time.perf_counter()
 
-    def varying_workspace(name: str):
-        """A workspace of the base and the varying form ``name`` alone, with its held-out scoring."""
-        w = Workspace(base, base_spec, [varying[name]], train, chans, scales, x0_train=x0_train,
+    def own_workspace(effect):
+        """A workspace of the base and one varying form alone, with its held-out scoring."""
+        w = Workspace(base, base_spec, [effect], train, chans, scales, x0_train=x0_train,
                       integrator=fit.integrator, max_iter=o.max_iter, stall=o.stall)
         return w, Validation(w, val, floor, chans, start_rule)
-    tv = time_variation(search, singles, sel.selected, say, varying={n: varying_workspace for n in varying})
+    tv = time_variation(search, singles, sel.selected, say,
+                        varying={n: functools.partial(own_workspace, e) for n, e in varying.items()})
     timings["time_variation"] = time.perf_counter() - t0
 
     # -- how far and verdicts --------------------------------------------------------------------

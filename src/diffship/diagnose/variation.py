@@ -68,7 +68,7 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
     """Refit the varying form of the first selected effect (else of the single candidate with the
     largest held-out gain) and judge it against the constant one (module docstring).
 
-    ``varying``: ``{varying form: make(name) -> (workspace, validation)}``, the workspace of the base
+    ``varying``: ``{varying form: build() -> (workspace, validation)}``, the workspace of the base
     and that form alone, built only when the form is refitted (:func:`.diagnosis.split_varying`: the
     all-effects workspace does not carry the varying forms). Without it the form is refitted in
     ``search.ws`` when that carries it."""
@@ -91,14 +91,13 @@ def time_variation(search, singles: dict, selected: tuple[str, ...], say: Callab
         return None
     start = {k: const.refit.values[c] for k, c in _FROM_CONSTANT[var].items()}
     start.update({k: 0.0 for k in TREND_PARAMS[var]})
-    own = varying[var](var) if varying is not None else None
-    ws = own[0] if own is not None else search.ws
+    ws, validation = varying[var]() if varying is not None else (search.ws, None)
     try:
         rf = ws.refit([var], [start], progress=say, base_start=const.refit.base_values)
     except FitError as exc:
         say(f"  refit {var} failed: {exc}")
         return None
-    sc = (own[1] if own is not None else search.validation).refit(rf)
+    sc = (validation if validation is not None else search.validation).refit(rf)
     o = search.options
     ref = const.score
     d = np.array([ref.E_runs[k] - sc.E_runs[k] for k in sc.E_runs])
