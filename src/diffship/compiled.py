@@ -48,8 +48,8 @@ import numpy as np
 
 from . import cache
 
-__all__ = ["Prefetch", "cache_size", "clear", "compiled", "compiled_many", "exported", "loaded", "prefetch",
-           "release_if_crowded"]
+__all__ = ["Prefetch", "cache_size", "clear", "compiled", "compiled_many", "compiler_options", "exported", "loaded",
+           "prefetch", "release_if_crowded"]
 
 #: Share of the kernel's limit on a process's memory maps (``vm.max_map_count``, 65 530 by default)
 #: above which the programs held here and in JAX's caches are released before compiling more.
@@ -242,16 +242,54 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
     return [_CACHE[k] for k in keys], time.perf_counter() - t0
 
 
+#: XLA's optimisation level for the machine code of diffship's programs on a CPU (LLVM's -O1; XLA's
+#: own default is 3). See :func:`compiler_options`.
+CPU_OPT_LEVEL = 1
+
+
+def compiler_options() -> dict[str, Any]:
+    r"""The XLA options every program of this module is compiled with.
+
+    On a CPU, ``xla_backend_optimization_level`` = :data:`CPU_OPT_LEVEL` (1) instead of XLA's
+    default 3. diffship's programs are long time-step loops (``while`` over the samples, RK4
+    stages inside) of small fused kernels on state-sized arrays (6–10 states × 10–40 tangent
+    columns); LLVM's -O3 unrolls and vectorises those kernels for sizes they never have. Measured
+    in one process on the same lowered program, calls interleaved (``python
+    benchmarks/compile_options.py``, two runs on the 2-core CI-like machine): the fossen3
+    output-error Jacobian (2 runs × 240 s) 24 % faster at level 1 (median 49 → 37 ms, 52 → 40 ms;
+    results identical), the diagnosis workspace's solve program (11 effects, 3 runs × 240 s)
+    11–16 % (results equal to 2·10⁻¹⁰ after six LM steps), the KVLCC2 MMG Jacobian 7–10 %
+    (equal to 4·10⁻¹⁶); compile times equal within noise. Level 2 is about level 1; level 0 is
+    ten to twenty times slower. ``jax.jit`` programs outside this module (compiled once, e.g. the
+    equation-error start) keep XLA's default.
+    ``$DIFFSHIP_XLA_OPT_LEVEL`` overrides the level (``default``: XLA's own); other backends
+    (GPU) keep XLA's defaults.
+    """
+    setting = os.environ.get("DIFFSHIP_XLA_OPT_LEVEL", "").strip().lower()
+    if setting in ("default", "xla", "none"):
+        return {}
+    level = CPU_OPT_LEVEL
+    if setting:
+        if setting not in ("0", "1", "2", "3"):
+            raise ValueError(f"DIFFSHIP_XLA_OPT_LEVEL={setting!r}: give a level 0–3, or 'default' for XLA's own")
+        level = int(setting)
+    if jax.default_backend() != "cpu":
+        return {}
+    return {"xla_backend_optimization_level": level}
+
+
 def _compile(todo: dict) -> None:
-    """Lower and compile the requests ``{key: (owner, name, args, static)}`` into the cache."""
+    """Lower and compile the requests ``{key: (owner, name, args, static)}`` into the cache
+    (with :func:`compiler_options`)."""
     hits = cache.hits()
     items = [(k, _lowered(*r)) for k, r in todo.items()]
     workers = min(len(items), os.cpu_count() or 1)
+    opts = compiler_options()
     if workers > 1:
         with ThreadPoolExecutor(workers) as pool:
-            programs = list(pool.map(lambda item: item[1][0].compile(), items))
+            programs = list(pool.map(lambda item: item[1][0].compile(compiler_options=opts), items))
     else:
-        programs = [lowered.compile() for _, (lowered, _) in items]
+        programs = [lowered.compile(compiler_options=opts) for _, (lowered, _) in items]
     for (k, (_, wrap)), program in zip(items, programs):
         _CACHE[k] = wrap(program)
     _LOADED[0] += min(cache.hits() - hits, len(items))  # programs that came from the persistent cache
