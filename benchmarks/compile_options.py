@@ -39,23 +39,12 @@ import numpy as np  # noqa: E402
 
 import diffship  # noqa: E402,F401
 import diffship.compiled as C  # noqa: E402
-from diffship.fit.kernel import Kernel, kernel_data  # noqa: E402
-from diffship.fit.output_error import channel_spread, x0_scales  # noqa: E402
-from diffship.fit.problem import make_batch  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from diagnose_current_case import oe_jacobian_request  # noqa: E402  (the machine probe's program)
 
 OUT = Path(__file__).resolve().parent / "results"
 LEVELS = (None, 0, 1, 2, 3)  # None: XLA's default (no option given)
-
-
-def _oe_jacobian(model, spec, runs, ch):
-    batch = make_batch(model, runs, ch)
-    est = model.states_for_channels(ch)
-    kern = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in ch),
-                  angle=tuple(c == "psi" for c in ch), x0_idx=tuple(model.state_names.index(s) for s in est))
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, channel_spread(batch),
-                       x0_scale=x0_scales(model, batch, est))
-    z = jnp.asarray(np.concatenate([spec.to_z(), np.zeros(len(runs) * len(est))]))
-    return (kern, "jacobian", (z, data), {}), (z, data)
 
 
 def fossen3_case():
@@ -63,7 +52,7 @@ def fossen3_case():
     from diffship.synthetic import usv_runs, usv_truth
     spec = Fossen3().spec().with_values(usv_truth().param_values())
     runs = usv_runs(2, 240.0, 0.1, noise="realistic", seed=99)
-    return _oe_jacobian(Fossen3().with_params(spec.values()), spec, runs, ("x0", "y0", "psi", "u", "v", "r"))
+    return oe_jacobian_request(Fossen3().with_params(spec.values()), spec, runs, ("x0", "y0", "psi", "u", "v", "r"))
 
 
 def workspace_case():
@@ -106,7 +95,7 @@ def mmg_case():
         runs.append(r.resample(0.2).slice(None, r.time[0] + 100.0))
     model = kvlcc2_mmg()
     spec = model.spec().only_free(list(DEFAULT_FREE))
-    return _oe_jacobian(model, spec, runs, DEFAULT_CHANNELS)
+    return oe_jacobian_request(model, spec, runs, DEFAULT_CHANNELS)
 
 
 CASES = {"fossen3": ("fossen3 jacobian", fossen3_case), "workspace": ("workspace solve (6 LM steps)", workspace_case),

@@ -49,6 +49,25 @@ BEFORE = {
 }
 
 
+def oe_jacobian_request(model, spec, runs, channels):
+    """diffship's output-error forward-mode Jacobian program of ``model`` on ``runs`` (initial
+    states estimated, zero offsets): ``((kernel, "jacobian", (z, data), {}), (z, data))`` — the
+    :mod:`diffship.compiled` request and its arguments (the machine probe; ``compile_options.py``)."""
+    import jax.numpy as jnp
+    from diffship.fit.kernel import Kernel, kernel_data
+    from diffship.fit.output_error import channel_spread, x0_scales
+    from diffship.fit.problem import make_batch
+
+    batch = make_batch(model, runs, channels)
+    est = model.states_for_channels(channels)
+    kern = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in channels),
+                  angle=tuple(c == "psi" for c in channels), x0_idx=tuple(model.state_names.index(s) for s in est))
+    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, channel_spread(batch),
+                       x0_scale=x0_scales(model, batch, est))
+    z = jnp.asarray(np.concatenate([spec.to_z(), np.zeros(len(runs) * len(est))]))
+    return (kern, "jacobian", (z, data), {}), (z, data)
+
+
 def machine_probe() -> str:
     """A fixed workload timed before the diagnosis, so that timings from machines (or periods of one
     machine) of different speed can be compared: diffship's own fossen3 output-error forward-mode
@@ -58,22 +77,12 @@ def machine_probe() -> str:
     and its solve program 21.5 s to compile, against 162 ms and 13.6 s an hour earlier on the same
     machine."""
     import jax
-    from diffship.fit.kernel import Kernel, kernel_data
-    from diffship.fit.output_error import channel_spread, x0_scales
-    from diffship.fit.problem import make_batch
     from diffship.synthetic import usv_runs
 
-    ch = ("x0", "y0", "psi", "u", "v", "r")
-    runs = usv_runs(2, 240.0, 0.1, noise="realistic", seed=99)
     spec = Fossen3().spec().with_values(usv_truth().param_values())
-    model = Fossen3().with_params(spec.values())
-    batch = make_batch(model, runs, ch)
-    est = model.states_for_channels(ch)
-    kern = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in ch),
-                  angle=tuple(c == "psi" for c in ch), x0_idx=tuple(model.state_names.index(s) for s in est))
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, channel_spread(batch),
-                       x0_scale=x0_scales(model, batch, est))
-    z = np.concatenate([spec.to_z(), np.zeros(len(runs) * len(est))])
+    runs = usv_runs(2, 240.0, 0.1, noise="realistic", seed=99)
+    (kern, _, (z, data), _), _ = oe_jacobian_request(Fossen3().with_params(spec.values()), spec, runs,
+                                                     ("x0", "y0", "psi", "u", "v", "r"))
     t0 = time.perf_counter()
     jac, _ = kern.compiled("jacobian", z, data)
     t_c = time.perf_counter() - t0
