@@ -197,8 +197,8 @@ def compiled_many(requests: list[tuple[Hashable, str, tuple, dict]]) -> tuple[li
 
     Tracing is Python and runs one program after the other; XLA's compilation releases the
     interpreter, so the programs not yet compiled are compiled in parallel threads (one per
-    core). A fit that needs its residuals, its warm-up solve and its full solve from an empty
-    cache waits for the slowest of them instead of their sum. Returns the functions, in order,
+    core). A fit that needs its residuals and its solve from an empty cache waits for the
+    slowest of them instead of their sum. Returns the functions, in order,
     and the wall seconds spent (0.0 when all came from this process's cache).
 
     A program another thread is compiling (a refit beside another, :func:`prefetch`) is waited

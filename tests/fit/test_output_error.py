@@ -220,3 +220,25 @@ def test_the_warm_up_stops_a_start_that_still_crawls_above_a_converged_one():
     assert [int(o_[2]) for o_ in out] == [4, 5, 9, 3]
     assert calls.count(2) == 2 and calls.count(1) == 1 and calls.count(3) == 1
     assert 0.5 * float(np.asarray(out[2][3]) @ np.asarray(out[2][3])) == pytest.approx(0.5)
+
+
+def test_the_warm_up_and_the_whole_runs_share_one_compiled_solve():
+    """With a growing-horizon warm-up, its horizon and its rounds' step cap are data: one compiled
+    Levenberg–Marquardt program runs the warm-up on the first quarter and the whole runs (a second
+    program of the same solve cost the issue-28 current case's base fit a 7-s compile). The fit
+    still recovers a noise-free truth from a 30 % start."""
+    from diffship import compiled
+    from diffship.fit.kernel import Kernel
+
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=2, duration=90.0, dt=0.1, noise="none")  # a warm-up of 200+ samples
+    start = {n: v * 1.3 for n, v in truth.param_values().items()}
+    compiled.clear()
+    res = fit_output_error(Nomoto1().with_params(start), runs,
+                           options=OutputErrorOptions(estimate_x0=("r",), ee_start=False, reference_priors=False))
+    assert res.info["warmup_samples"] >= 200  # a warm-up ran
+    solves = [k for k in compiled._CACHE if isinstance(k[0], Kernel) and k[1] == "solve_coded"]
+    assert len(solves) == 1, solves
+    assert res.converged, res.status
+    rel = {n: abs(res.params[n] - v) / abs(v) for n, v in truth.param_values().items() if n in res.free}
+    assert max(rel.values()) < 1e-4, rel

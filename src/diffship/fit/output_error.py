@@ -101,8 +101,9 @@ class OutputError(AbstractEstimator):
             steps while the Gauss–Newton step is still long (a mis-specified model crawls along a
             curved valley for hundreds of steps; :mod:`diffship.fit.batched`, item 6). The fit then
             reports ``RESULTS.cost_stalled`` (not converged) and says so. ``None`` (default): off.
-        warmup_round: the warm-up runs in rounds of this many Levenberg–Marquardt steps (one compiled
-            program; a start still running after a round goes on from where it is, up to
+        warmup_round: the warm-up runs in rounds of this many Levenberg–Marquardt steps (the whole
+            runs' compiled solve, with the warm-up's horizon and this step cap as data:
+            :meth:`warm_data`; a start still running after a round goes on from where it is, up to
             ``max_steps`` in all). After each round, a start still running whose cost is above that of
             a start that has converged on the warm-up is stopped there (*dominated*: it goes on to no
             whole-run solve; the starts report says so, with its cost). Measured on the issue-27 USV
@@ -158,9 +159,15 @@ class OutputError(AbstractEstimator):
         return "output error"
 
     @property
-    def warm_lm(self) -> dict:
-        """The warm-up's Levenberg–Marquardt keywords: one round of ``warmup_round`` steps."""
-        return {**self.lm, "max_steps": min(int(self.warmup_round), int(self.max_steps))}
+    def warm_cap(self) -> int:
+        """Steps of one warm-up round (``warmup_round``, at most ``max_steps``)."""
+        return min(int(self.warmup_round), int(self.max_steps))
+
+    @staticmethod
+    def warm_data(data, n_warm: int, cap: int):
+        """The first ``n_warm`` samples of ``data`` (a traced horizon) with a traced step cap of
+        ``cap`` per solve: the whole runs' compiled solve runs the warm-up's rounds."""
+        return data.head(n_warm).replace(step_cap=jnp.asarray(cap, jnp.int32))
 
     @property
     def lm(self) -> dict:
@@ -208,6 +215,10 @@ class OutputError(AbstractEstimator):
         n_x0 = len(kernel.x0_idx) * len(runs)
         n_full = batch.ts.shape[1]
         n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
+        if n_warm:
+            # the warm-up's horizon and its rounds' step cap are data (:class:`~diffship.fit.kernel.KernelData`):
+            # the warm-up and the whole runs share one compiled solve instead of compiling two
+            data = data.with_horizon().replace(step_cap=jnp.asarray(2 ** 30, jnp.int32))
         z_shape = np.zeros(n_p + n_x0)
         say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
             f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
@@ -215,9 +226,9 @@ class OutputError(AbstractEstimator):
         # the input-noise covariance term's program where the measured inputs are noisy
         meat = meat_request(kernel, data, int(batch.mask.size) * len(batch.channels), n_p + n_x0)
         lm = self.lm
-        (res_fn, solve_fn, *solve_w), compile_s = kernel.compiled_many(
-            [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})]
-            + ([("solve", z_shape, data.head(n_warm), self.warm_lm)] if n_warm else []), extra=[meat] if meat else [])
+        (res_fn, solve_fn), compile_s = kernel.compiled_many(
+            [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})],
+            extra=[meat] if meat else [])
         names = tuple(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)
         extra, notes = {}, []
         if o.ee_start and o.choose == "best":
@@ -252,24 +263,25 @@ class OutputError(AbstractEstimator):
         if n_warm:
             # Growing horizon: converge on the first part of every run, then the whole runs (a fit on
             # the first part that blows up on the whole runs is dropped: that start goes on from itself)
-            warm, dominated = warm_rounds(kernel, zs, data.head(n_warm), self.warm_lm, int(self.max_steps), say,
-                                          f"output error, first {n_warm} samples")
+            wdata = self.warm_data(data, n_warm, self.warm_cap)
+            warm, dominated = warm_rounds(kernel, zs, wdata, {"jacobian": True, **self.lm}, int(self.max_steps), say,
+                                          f"output error, first {n_warm} samples", cap=self.warm_cap)
             if dominated:
                 say(f"output error: start(s) {', '.join(str(i + 1) for i in dominated)} stopped on the first {n_warm} "
                     "samples: still running, above the cost of a start that had converged there")
             best_w = None
-            for i, (zw, _, k, rw) in enumerate(warm):
+            for i, (zw, _, k, rw, *_) in enumerate(warm):
                 steps[i] += int(k)
                 if math.isfinite(self.start_cost(problem, np.asarray(zw))):
                     zs[i] = np.asarray(zw)
-                    rw = np.asarray(kernel.split(np.asarray(rw), data.head(n_warm))[0])
+                    rw = np.asarray(kernel.split(np.asarray(rw), wdata)[0])
                     if best_w is None or rw @ rw < best_w @ best_w:
                         best_w = rw
             if best_w is not None and self.weights == "noise" and not self.channel_scales:
                 # the noise weights from the best start's first part, the same for every start (costs stay
                 # comparable) — the noise pass of the whole runs is then not repeated
                 batch = st_["batch"]
-                sigma = channel_rms(best_w, batch.mask[:, :n_warm], np.asarray(data.scales))
+                sigma = channel_rms(best_w, np.asarray(wdata.mask), np.asarray(data.scales))
                 data = data.replace(scales=jnp.asarray(np.maximum(sigma, 1e-6 * st_["spread"])))
                 st_["data"], st_["noise_done"] = data, True
             say(f"output error: first {n_warm} samples of each run fitted ({', '.join(map(str, steps))} steps); "

@@ -25,13 +25,14 @@ import optimistix as optx
 __all__ = ["warm_rounds", "same_points", "wrap_periodic"]
 
 
-def warm_rounds(kernel, zs, data, lm: dict, total: int, say, label: str):
-    """The warm-up from every start in rounds of ``lm["max_steps"]`` steps (one compiled program),
+def warm_rounds(kernel, zs, data, lm: dict, total: int, say, label: str, cap: int | None = None):
+    """The warm-up from every start in rounds of ``cap`` steps (default ``lm["max_steps"]``; a smaller
+    ``cap`` is the data's traced step cap, :class:`~diffship.fit.kernel.KernelData`), one compiled program,
     up to ``total`` steps per start: after each round a start still running (its round ended on the
     cap; a stall stops before it and is not continued) goes on from where it is, unless its cost
     ½‖r‖² is above that of a start that has converged (dominated: stopped there). Returns
     ``([(z, result, steps, residuals), ...], dominated indices)`` in start order."""
-    cap = int(lm["max_steps"])
+    cap = int(lm["max_steps"] if cap is None else cap)
     out = [list(o) for o in kernel.solve_many(np.stack(zs), data, progress=say, label=label, **lm)]
     last = [int(o[2]) for o in out]  # steps of each start's last round
     dominated: set[int] = set()
