@@ -39,6 +39,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import jax.numpy as jnp
@@ -226,14 +227,20 @@ class OutputError(AbstractEstimator):
         # the input-noise covariance term's program where the measured inputs are noisy
         meat = meat_request(kernel, data, int(batch.mask.size) * len(batch.channels), n_p + n_x0)
         lm = self.lm
-        (res_fn, solve_fn), compile_s = kernel.compiled_many(
-            [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})],
-            extra=[meat] if meat else [])
+        # the equation-error start is computed in a thread beside the compile: its Python work
+        # (filtering, tracing) runs while XLA compiles the fit's programs without the interpreter
+        ee_start = o.ee_start and o.choose == "best"
+        with ThreadPoolExecutor(1) as pool:
+            ee_job = pool.submit(equation_error_start, model, runs, spec) if ee_start else None
+            (res_fn, solve_fn), compile_s = kernel.compiled_many(
+                [("residuals", z_shape, data, {}), ("solve", z_shape, data, {"jacobian": True, **lm})],
+                extra=[meat] if meat else [])
+            if ee_job is not None and not ee_job.done():
+                say("output error: the equation-error estimate as a start...")
+            ee, note = ee_job.result() if ee_job is not None else (None, "")
         names = tuple(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)
         extra, notes = {}, []
-        if o.ee_start and o.choose == "best":
-            say("output error: the equation-error estimate as a start...")
-            ee, note = equation_error_start(model, runs, spec)
+        if ee_start:
             if ee is not None:
                 extra["the equation-error estimate"] = ee
             notes += [note] if note else []
