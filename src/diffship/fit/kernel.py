@@ -396,6 +396,8 @@ class Kernel(eqx.Module):
         if method == "threads" and free is None:
             return self._solve_threads(z0s, data, workers, per_problem, done, **lm)
         static = dict(self._lm_static(**lm), per_problem=bool(per_problem))
+        if data.step_cap is not None:  # the data's step cap (a warm-up round), as :meth:`solve` honours it
+            static["max_steps"] = min(static["max_steps"], int(np.min(np.asarray(data.step_cap))))
         free = np.ones(z0s.shape, bool) if free is None else free
 
         def start(z, d, f):
