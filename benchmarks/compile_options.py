@@ -77,7 +77,7 @@ def workspace_case():
     z = jnp.asarray(ws.z0())
     kd = ws._kd(None, ws.selection([]), ws.phi_null)
     request = ws.kernel.requests([("solve", z, kd, ws._solve_static(ws.max_iter, ws.stall))])[0]
-    kd6 = kd.replace(step_cap=jnp.asarray(6, jnp.int32), S=jnp.asarray(ws.selection(["Vcx", "Vcy"])))
+    kd6 = kd.with_step_cap(6).replace(S=jnp.asarray(ws.selection(["Vcx", "Vcy"])))
     return request, (z, kd6)
 
 

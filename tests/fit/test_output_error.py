@@ -121,20 +121,26 @@ def test_fossen3_runs_from_water_jet_commands():
         assert ee.params[n] == pytest.approx(truth.param_values()[n], rel=0.02), n
 
 
-def test_solve_many_matches_one_start_at_a_time():
-    """A batch of fits (multi-start) in threads returns, per start, exactly what the one-start
-    compiled solve returns, and every start of a noise-free Nomoto problem reaches the truth."""
+def _nomoto_kernel():
+    """``(truth, spec, kernel, data)``: the output-error kernel of a noise-free first-order Nomoto
+    problem (two 60-s zigzags, psi and r, unit channel scales)."""
     from diffship.fit.kernel import Kernel, kernel_data
     from diffship.fit.problem import make_batch
 
     truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
     runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, noise="none")
-    spec = Nomoto1().spec()
-    model = Nomoto1()
+    spec, model = Nomoto1().spec(), Nomoto1()
     batch = make_batch(model, runs, ("psi", "r"), Filter("none"))
     kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in batch.channels),
                     angle=tuple(c in model.angle_outputs for c in batch.channels))
     data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.ones(len(batch.channels)))
+    return truth, spec, kernel, data
+
+
+def test_solve_many_matches_one_start_at_a_time():
+    """A batch of fits (multi-start) in threads returns, per start, exactly what the one-start
+    compiled solve returns, and every start of a noise-free Nomoto problem reaches the truth."""
+    truth, spec, kernel, data = _nomoto_kernel()
     tv = truth.param_values()
     starts = np.stack([spec.to_z({**spec.values(), **{n: tv[n] * f for n in spec.free_names}})
                        for f in (0.5, 0.8, 1.3, 1.9)])
@@ -248,21 +254,11 @@ def test_every_layout_of_solve_many_honours_the_data_step_cap():
     """A warm-up round's step cap is data (:class:`~diffship.fit.kernel.KernelData`): the one-problem
     threads, the batched layout (a GPU's) and the free-mask layout all stop at it, so the rounds of
     the warm-up are the same on every device."""
-    import jax.numpy as jnp
-    from diffship.fit.kernel import Kernel, kernel_data
-    from diffship.fit.problem import make_batch
-
-    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
-    runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, noise="none")
-    spec, model = Nomoto1().spec(), Nomoto1()
-    batch = make_batch(model, runs, ("psi", "r"), Filter("none"))
-    kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in batch.channels),
-                    angle=tuple(c in model.angle_outputs for c in batch.channels))
-    data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, np.ones(len(batch.channels)))
+    truth, spec, kernel, data = _nomoto_kernel()
     tv = truth.param_values()
     starts = np.stack([spec.to_z({**spec.values(), **{n: tv[n] * f for n in spec.free_names}}) for f in (0.3, 3.0)])
     lm = {"max_steps": 100, "rtol": 1e-12, "atol": 1e-12}
-    capped = data.replace(step_cap=jnp.asarray(2, jnp.int32))
+    capped = data.with_step_cap(2)
     free = np.ones(starts.shape, bool)
     for kw in ({"method": "threads"}, {"method": "batched"}, {"method": "threads", "free": free}):
         out = kernel.solve_many(starts, capped, workers=2, **kw, **lm)

@@ -162,7 +162,7 @@ class Workspace:
         kd = kernel_data(self.model, b.ts, b.us, b.ys, b.mask, x0, self.scales, x0_scale=self.x0_scale,
                          S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo,
                          hi=self.hi).with_horizon()  # the warm-up's horizon is data: one compiled solve
-        kd = kd.replace(step_cap=jnp.asarray(2 ** 30, jnp.int32))  # so is the step cap (:meth:`jacobian`)
+        kd = kd.with_step_cap()  # so is the step cap (:meth:`jacobian`)
         return dict(batch=b, x0=x0, kd=kd)
 
     def data(self, runs):
@@ -224,7 +224,7 @@ class Workspace:
         kd = self._kd(data, S, phi0, model)
         if not self.refits:
             return np.asarray(self.kernel.call("jacobian", z, kd))
-        out = self.kernel.call("solve", z, kd.replace(step_cap=jnp.asarray(1, jnp.int32)),
+        out = self.kernel.call("solve", z, kd.with_step_cap(1),
                                **self._solve_static(self.max_iter, self.stall))
         return np.asarray(out[4])
 

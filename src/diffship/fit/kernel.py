@@ -150,6 +150,11 @@ class KernelData(eqx.Module):
         keep = jnp.arange(N) < n
         return dataclasses.replace(self, mask=self.mask & keep, horizon=jnp.asarray(n))
 
+    def with_step_cap(self, n: int | None = None) -> KernelData:
+        """These data with a traced step cap of ``n`` (default: none below the solve's static
+        ``max_steps``, still as data, so capped and uncapped solves share one compiled program)."""
+        return dataclasses.replace(self, step_cap=jnp.asarray(2 ** 30 if n is None else int(n), jnp.int32))
+
 
 class Kernel(eqx.Module):
     """Static structure of an output-error problem (hashable: the compile-cache key).

@@ -168,7 +168,7 @@ class OutputError(AbstractEstimator):
     def warm_data(data, n_warm: int, cap: int):
         """The first ``n_warm`` samples of ``data`` (a traced horizon) with a traced step cap of
         ``cap`` per solve: the whole runs' compiled solve runs the warm-up's rounds."""
-        return data.head(n_warm).replace(step_cap=jnp.asarray(cap, jnp.int32))
+        return data.head(n_warm).with_step_cap(cap)
 
     @property
     def lm(self) -> dict:
@@ -219,7 +219,7 @@ class OutputError(AbstractEstimator):
         if n_warm:
             # the warm-up's horizon and its rounds' step cap are data (:class:`~diffship.fit.kernel.KernelData`):
             # the warm-up and the whole runs share one compiled solve instead of compiling two
-            data = data.with_horizon().replace(step_cap=jnp.asarray(2 ** 30, jnp.int32))
+            data = data.with_horizon().with_step_cap()
         z_shape = np.zeros(n_p + n_x0)
         say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
             f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
