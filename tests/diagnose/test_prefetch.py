@@ -33,9 +33,9 @@ def test_the_start_models_workspace_has_the_fitted_workspaces_programs():
     o = DiagnoseOptions()
     chans = diagnosis_channels(model, train)
     before = workspace_programs(model, spec, train, val, chans, o, Diffrax())
-    # residuals and the refits' solve on the training runs, the start rule's two and the simulations of the base
-    # and of the workspace model on the held-out runs (one length)
-    assert len(before) == 6
+    # residuals and the refits' solve on the training runs, the start rule's one (residuals and Jacobian) and the
+    # simulations of the base and of the workspace model on the held-out runs (one length)
+    assert len(before) == 5
     # the workspace diagnose() builds after the fit: other values, other noise scales, fitted initial states
     fitted = {n: 1.3 * v + 0.01 for n, v in spec.nudged({p.name: p.value for p in spec.params})[0].items()}
     base = model.with_params(fitted)
@@ -46,12 +46,12 @@ def test_the_start_models_workspace_has_the_fitted_workspaces_programs():
                    x0_train=[np.full(len(base.state_names), 0.01) for _ in train], integrator=Diffrax(),
                    max_iter=o.max_iter, stall=o.stall)
     after = ws.programs(val)
-    assert [compiled._key(*r) for r in before[:4]] == [compiled._key(*r) for r in after]
+    assert [compiled._key(*r) for r in before[:3]] == [compiled._key(*r) for r in after]
     # the held-out simulations a Validation runs: the base's and a refit's model (other values)
     from diffship.simulate import simulation_request
     sims = [simulation_request(m, val[0], np.full(len(m.state_names), 0.2), Diffrax())
             for m in (ws.base, ws.model_with({e.param_names[0]: 0.1 for e in effs[:1]}, fitted))]
-    assert [compiled._key(*r) for r in before[4:]] == [compiled._key(*r) for r in sims]
+    assert [compiled._key(*r) for r in before[3:]] == [compiled._key(*r) for r in sims]
     # a refit's own call asks for exactly the prefetched solve (its static options included)
     solve = [r for r in after if r[1] == "solve_coded"]
     assert solve and solve[0][3] == Workspace._solve_static(o.max_iter, o.stall)

@@ -77,6 +77,6 @@ def test_projected_lm_solves_a_bounded_least_squares_problem():
     A = rng.normal(size=(40, 6))
     y = rng.normal(size=40) * 3
     lo, hi = -0.3 * np.ones(3), 0.3 * np.ones(3)
-    d = bounded_offsets(lambda d: A @ d - y, lambda d: A, 2, lo, hi, max_steps=200)
+    d = bounded_offsets(lambda d: (A @ d - y, A), 2, lo, hi, max_steps=200, tol=1e-14)
     ref = lsq_linear(A, y, bounds=(np.tile(lo, 2), np.tile(hi, 2))).x
     assert np.allclose(d, ref, atol=1e-6)

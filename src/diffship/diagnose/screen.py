@@ -198,7 +198,7 @@ class Workspace:
         if val_runs:
             v = self.data(val_runs)
             d = np.zeros(self.n_x0(v))
-            out += self.x0_kernel.requests([("residuals", d, v["kd"], {}), ("jacobian", d, v["kd"], {})])
+            out += self.x0_kernel.requests([("residuals_and_jacobian", d, v["kd"], {})])
         return out
 
     # -- evaluation helpers ------------------------------------------------------------

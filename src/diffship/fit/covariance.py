@@ -335,7 +335,9 @@ def covariance(J: np.ndarray, r: np.ndarray, *, dof: int | None = None, rtol: fl
         kind = "white" if white is None or white.white else "hac"
     if p == 0:
         return Covariance(np.zeros((0, 0)), s2, np.zeros(0), 0, (), kind, (), white)
-    _, sv, vt = np.linalg.svd(J, full_matrices=False)
+    # the singular values and right vectors of J are those of R in J = QR (a tall J: the thin QR
+    # first is 2-3x faster than the SVD of J itself, 43 218 x 34: 20 ms against 47 ms)
+    _, sv, vt = np.linalg.svd(np.linalg.qr(J, mode="r") if m > 2 * p else J, full_matrices=False)
     tol = (sv[0] if sv.size else 0.0) * (rtol if rtol is not None else max(m, p) * np.finfo(float).eps * 1e3)
     keep = sv > tol
     inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]

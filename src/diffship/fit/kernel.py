@@ -249,6 +249,19 @@ class Kernel(eqx.Module):
         jac = self.own_jacobian()
         return jac(z, data)[0] if jac is not None else jax.jacfwd(self.residuals)(z, data)
 
+    def residuals_and_jacobian(self, z: Float[Array, " n_z"], data: KernelData
+                               ) -> tuple[Float[Array, " m"], Float[Array, "m n_z"]]:
+        """``(r, J)``: :meth:`residuals` and their forward-mode Jacobian from one program (the
+        primal of the Jacobian's JVPs is the residual vector): a solver that needs both at every
+        trial point (the held-out start rule, :mod:`diffship.diagnose.start`) compiles one
+        program instead of two."""
+        jac = self.own_jacobian()
+        if jac is not None:
+            J, r = jac(z, data)
+            return r, J
+        return jax.vmap(lambda t: jax.jvp(lambda x: self.residuals(x, data), (z,), (t,)),
+                        out_axes=(None, 1))(jnp.eye(z.shape[0], dtype=z.dtype))
+
     def own_jacobian(self) -> Callable | None:
         """``(z, data) -> (J, r)`` the LM and :meth:`jacobian` use: :meth:`blocked_jacobian` for
         this kernel's residuals; ``None`` (forward mode over every unknown) for a subclass with
