@@ -246,21 +246,13 @@ class Kernel(eqx.Module):
 
     def jacobian(self, z: Float[Array, " n_z"], data: KernelData) -> Float[Array, "m n_z"]:
         """Forward-mode Jacobian of :meth:`residuals` (:meth:`blocked_jacobian` where it applies)."""
-        jac = self.own_jacobian()
-        return jac(z, data)[0] if jac is not None else jax.jacfwd(self.residuals)(z, data)
+        return self.residuals_and_jacobian(z, data)[1]
 
-    def residuals_and_jacobian(self, z: Float[Array, " n_z"], data: KernelData
-                               ) -> tuple[Float[Array, " m"], Float[Array, "m n_z"]]:
-        """``(r, J)``: :meth:`residuals` and their forward-mode Jacobian from one program (the
-        primal of the Jacobian's JVPs is the residual vector): a solver that needs both at every
-        trial point (the held-out start rule, :mod:`diffship.diagnose.start`) compiles one
-        program instead of two."""
-        jac = self.own_jacobian()
-        if jac is not None:
-            J, r = jac(z, data)
-            return r, J
-        return jax.vmap(lambda t: jax.jvp(lambda x: self.residuals(x, data), (z,), (t,)),
-                        out_axes=(None, 1))(jnp.eye(z.shape[0], dtype=z.dtype))
+    def residuals_and_jacobian(self, z: Float[Array, " n_z"], data: KernelData) -> tuple[Array, Array]:
+        """``(r, J)`` from one program (the Jacobian's JVP primal is ``r``): a solver needing both at
+        every trial point (the held-out start rule, :mod:`diffship.diagnose.start`) compiles one."""
+        jac = self.own_jacobian() or (lambda z, d: (jax.jacfwd(self.residuals)(z, d), self.residuals(z, d)))
+        return jac(z, data)[::-1]
 
     def own_jacobian(self) -> Callable | None:
         """``(z, data) -> (J, r)`` the LM and :meth:`jacobian` use: :meth:`blocked_jacobian` for
@@ -342,8 +334,7 @@ class Kernel(eqx.Module):
         lm = self._lm_static(max_steps=max_steps, rtol=rtol, atol=atol, ftol=ftol, jacobian=jacobian, gntol=gntol,
                              variance=variance, gn_params=gn_params, stall_steps=stall_steps, stall_rtol=stall_rtol)
         z0 = jnp.asarray(z0)[None]
-        free = jnp.ones(z0.shape, bool)
-        st = self.batch_start(z0, data, free, **lm)
+        st = self.batch_start(z0, data, jnp.ones(z0.shape, bool), **lm)
         cap = lm["max_steps"] if data.step_cap is None else jnp.minimum(data.step_cap, lm["max_steps"])
         st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **dict(lm, max_steps=cap))
         result = jax.tree_util.tree_unflatten(_RESULT_TREE, [st["status"][0]])
@@ -361,8 +352,7 @@ class Kernel(eqx.Module):
         """The batched LM advanced until at most ``stop_below`` problems are unfinished
         (:func:`diffship.fit.batched.lm_advance`)."""
         return lm_advance(self.residuals, state, data, stop_below, data_axis=0 if per_problem else None,
-                          jac=self.own_jacobian(),
-                          penalty=PENALTY, **lm)
+                          jac=self.own_jacobian(), penalty=PENALTY, **lm)
 
     def solve_coded(self, z0: Float[Array, " n_z"], data: KernelData, **lm):
         """:meth:`solve` with the optimistix result as its integer code (plain arrays out: the
@@ -451,8 +441,7 @@ class Kernel(eqx.Module):
             d = jax.tree_util.tree_map(lambda a: a[b], data) if per_problem else data
             t0 = time.perf_counter()
             out = jax.block_until_ready(fn(jnp.asarray(z0s[b], dtype=jnp.float64), d))
-            r = np.asarray(out[3])
-            done(b, int(out[2]), 0.5 * float(r @ r), time.perf_counter() - t0)
+            done(b, int(out[2]), 0.5 * float(np.sum(np.square(out[3]))), time.perf_counter() - t0)
             return out
         return _pool(one, range(z0s.shape[0]), workers)
 
@@ -487,12 +476,10 @@ def default_threads() -> int:
     per core. A process that shares the cores with others of its kind (a fleet worker,
     :mod:`diffship.fleet`) sets it to its share, so that the processes do not oversubscribe the cores;
     the answers do not depend on it (every start is its own program call)."""
-    env = os.environ.get("DIFFSHIP_THREADS", "").strip()
-    if env:
-        n = int(env) if env.isdigit() else 0
-        if n < 1:
+    if env := os.environ.get("DIFFSHIP_THREADS", "").strip():
+        if not env.isdigit() or int(env) < 1:
             raise ValueError(f"DIFFSHIP_THREADS must be a positive integer, got {env!r}")
-        return n
+        return int(env)
     return os.cpu_count() or 1
 
 
