@@ -106,7 +106,7 @@ def bounded_offsets(rj, n_runs: int, lo: np.ndarray, hi: np.ndarray, max_steps: 
     :math:`g^\top s + \tfrac12 s^\top (J^\top J + \lambda D) s` (:math:`g = J^\top r`,
     :math:`D` the diagonal of :math:`J^\top J`) exactly over the box (:func:`_box_step`), so a
     trial point is never a clipped copy of an earlier one (a clipped unconstrained step took
-    25–40 residual and Jacobian calls per held-out score on the issue-28 current case, this 6–12,
+    25–40 residual and Jacobian calls per held-out score on the issue-28 current case, this 3–12,
     to the same minima). :math:`\lambda` starts at 0.1, shrinks tenfold after an accepted step whose cost fell by at
     least ¾ of the model's prediction (threefold after another accepted one) and grows fourfold
     after a rejected one. The cost over the box is not convex (a heading offset turns the whole track): an

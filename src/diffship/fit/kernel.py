@@ -251,7 +251,7 @@ class Kernel(eqx.Module):
     def residuals_and_jacobian(self, z: Float[Array, " n_z"], data: KernelData) -> tuple[Array, Array]:
         """``(r, J)`` from one program (the Jacobian's JVP primal is ``r``): a solver needing both at
         every trial point (the held-out start rule, :mod:`diffship.diagnose.start`) compiles one."""
-        jac = self.own_jacobian() or (lambda z, d: (jax.jacfwd(self.residuals)(z, d), self.residuals(z, d)))
+        jac = self.own_jacobian() or jax.jacfwd(lambda x, d: (self.residuals(x, d),) * 2, has_aux=True)
         return jac(z, data)[::-1]
 
     def own_jacobian(self) -> Callable | None:
