@@ -91,8 +91,12 @@ def integrate(
 
     steps = (ts[:-1], ts[1:], us[:-1], us[1:])
     n = ts.shape[0] - 1
+    # the carried "still finite" flag starts True, computed from x0 so that under vmap it is batched
+    # like the states from the start: JAX's scan batching rule then traces the body once, not twice
+    # (a NaN in x0 gives False here, as the first interval's test would)
+    good0 = jnp.all(x0 == x0)
     if horizon is None or n < 2 * BLOCK:
-        (_, _), (xs, valid) = jax.lax.scan(interval, (x0, jnp.array(True)), steps)
+        (_, _), (xs, valid) = jax.lax.scan(interval, (x0, good0), steps)
     else:
         # blocks of BLOCK intervals; a block wholly after the horizon is skipped (one cond per
         # block, not per step: a cond in every step cost 20 % of a Jacobian). The last block is
@@ -119,7 +123,7 @@ def integrate(
                 return c, (jnp.broadcast_to(x, (BLOCK,) + x.shape), jnp.broadcast_to(g, (BLOCK,)))
             return jax.lax.cond(j * BLOCK + 1 < jnp.asarray(horizon).astype(j.dtype), run, hold, carry)
 
-        (_, _), (xs, valid) = jax.lax.scan(block, (x0, jnp.array(True)), (jnp.arange(nb), blocks))
+        (_, _), (xs, valid) = jax.lax.scan(block, (x0, good0), (jnp.arange(nb), blocks))
         xs, valid = xs.reshape((nb * BLOCK,) + xs.shape[2:])[:n], valid.reshape(-1)[:n]
     return jnp.concatenate([x0[None], xs], axis=0), jnp.concatenate([jnp.array([True]), valid])
 

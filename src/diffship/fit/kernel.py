@@ -254,6 +254,10 @@ class Kernel(eqx.Module):
         jac = self.own_jacobian() or jax.jacfwd(lambda x, d: (self.residuals(x, d),) * 2, has_aux=True)
         return jac(z, data)[::-1]
 
+    def n_rows(self, data: KernelData) -> int | None:
+        """Length of :meth:`residuals` without tracing it (``None``: a subclass's own residuals)."""
+        return int(np.prod(data.ys.shape)) + data.n_prior if type(self).residuals is Kernel.residuals else None
+
     def own_jacobian(self) -> Callable | None:
         """``(z, data) -> (J, r)`` the LM and :meth:`jacobian` use: :meth:`blocked_jacobian` for
         this kernel's residuals; ``None`` (forward mode over every unknown) for a subclass with
@@ -346,7 +350,7 @@ class Kernel(eqx.Module):
         """State of the batched LM (:func:`diffship.fit.batched.lm_start`) from ``B`` starts;
         ``data`` shared, or with a leading batch axis on every array when ``per_problem``."""
         return lm_start(self.residuals, z0s, data, free, data_axis=0 if per_problem else None, penalty=PENALTY,
-                        jac=self.own_jacobian(), **lm)
+                        jac=self.own_jacobian(), rows=self.n_rows(data) if not per_problem else None, **lm)
 
     def batch_advance(self, state: dict, data: KernelData, stop_below, *, per_problem: bool = False, **lm) -> dict:
         """The batched LM advanced until at most ``stop_below`` problems are unfinished
@@ -507,14 +511,8 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
     default; priors with all weights zero are dropped, so they cost nothing)."""
     if prior_w is not None and not np.any(np.asarray(prior_w)):
         prior_mean = prior_w = None
-    f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
-    empty = np.zeros((0,))
+    f = lambda a: jnp.asarray(np.zeros((0,)) if a is None else a, dtype=jnp.float64)  # noqa: E731
     return KernelData(
-        model=model, ts=f(ts), us=f(us), ys=f(ys), mask=jnp.asarray(mask, dtype=bool), x0=f(x0),
-        x0_scale=f(empty if x0_scale is None else x0_scale), scales=f(scales),
-        S=f(np.zeros((0, 0)) if S is None else S), phi0=f(empty if phi0 is None else phi0),
-        phi_scale=f(empty if phi_scale is None else phi_scale), lo=f(empty if lo is None else lo),
-        hi=f(empty if hi is None else hi), prior_mean=f(empty if prior_mean is None else prior_mean),
-        prior_w=f(empty if prior_w is None else prior_w), x0_prior_w=f(empty if x0_prior_w is None else x0_prior_w),
-        horizon=None, step_cap=None,
-    )
+        model=model, ts=f(ts), us=f(us), ys=f(ys), mask=jnp.asarray(mask, dtype=bool), x0=f(x0), x0_scale=f(x0_scale),
+        scales=f(scales), S=f(np.zeros((0, 0)) if S is None else S), phi0=f(phi0), phi_scale=f(phi_scale), lo=f(lo),
+        hi=f(hi), prior_mean=f(prior_mean), prior_w=f(prior_w), x0_prior_w=f(x0_prior_w), horizon=None, step_cap=None)
