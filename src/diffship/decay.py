@@ -321,6 +321,6 @@ def decay_run(model: Decay1 | Decay2, duration: float, dt: float, x0, *, noise: 
 
 
 if __name__ == "__main__":
-    import sys
+    from .cli_options import exit_now
 
-    sys.exit(main())
+    exit_now(main())

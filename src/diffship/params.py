@@ -227,13 +227,7 @@ class ParamSpec:
         kind, lo, hi, s = self._free_arrays()
         if kind.size == 0:
             return jnp.zeros((0,), dtype=z.dtype)
-        # Clamp the exponent argument so that a wild trial step cannot overflow to inf.
-        ez = jnp.exp(jnp.clip(z, -50.0, 50.0))
-        lin = s * z
-        lower = lo + s * ez
-        upper = hi - s * ez
-        both = lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0))))
-        return jnp.where(kind == _LINEAR, lin, jnp.where(kind == _LOWER, lower, jnp.where(kind == _UPPER, upper, both)))
+        return values_from_z(z, kind, lo, hi, s)
 
     def dtheta_dz(self, z: np.ndarray) -> np.ndarray:
         """Derivative of each free value with respect to its scaled variable (NumPy)."""
@@ -251,6 +245,25 @@ class ParamSpec:
         if idx.size == 0:
             return base
         return base.at[idx].set(self.from_z(z))
+
+
+def values_from_z(z: Float[Array, " n_free"], kind, lo, hi, s) -> Float[Array, " n_free"]:
+    r"""The map from the scaled vector to parameter values, with the spec's arrays as arguments.
+
+    Per free parameter of scale :math:`s`: linear :math:`\theta = s z`; a lower bound
+    :math:`\theta = l + s e^{z}`; an upper bound :math:`\theta = h - s e^{z}`; both
+    :math:`\theta = l + (h - l)\,\sigma(z)`. ``kind``, ``lo``, ``hi`` and ``s`` are
+    :meth:`ParamSpec._free_arrays` (NumPy constants in :meth:`ParamSpec.from_z`; arrays that a
+    compiled program takes as data where one program serves several spaces, e.g. the equation-error
+    fit's linear and bounded spaces). Jittable.
+    """
+    # Clamp the exponent argument so that a wild trial step cannot overflow to inf.
+    ez = jnp.exp(jnp.clip(z, -50.0, 50.0))
+    lin = s * z
+    lower = lo + s * ez
+    upper = hi - s * ez
+    both = lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0))))
+    return jnp.where(kind == _LINEAR, lin, jnp.where(kind == _LOWER, lower, jnp.where(kind == _UPPER, upper, both)))
 
 
 def parse_assignments(items: Sequence[str] | None, what: str = "--fix") -> dict[str, float]:

@@ -186,4 +186,6 @@ def _diagnose(args, say):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..cli_options import exit_now
+
+    exit_now(main())

@@ -128,4 +128,6 @@ def _run(args) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..cli_options import exit_now
+
+    exit_now(main())

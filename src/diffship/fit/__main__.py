@@ -13,6 +13,7 @@ if __name__ == "__main__":
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)
         sys.exit(2)
+    from ..cli_options import exit_now
     from .cli import main
 
-    sys.exit(main())
+    exit_now(main())

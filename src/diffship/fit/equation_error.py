@@ -58,7 +58,7 @@ from jaxtyping import Array, Float
 from ..data import Run
 from ..errors import DiffshipError, FitError, ModelError
 from ..models import AbstractModel
-from ..params import ParamSpec
+from ..params import ParamSpec, values_from_z
 from ..preprocess import Filter, auto_cutoff, smooth_and_derivative
 from ..simulate import initial_state, model_inputs
 from . import status as st
@@ -202,13 +202,35 @@ def _unbounded(spec: ParamSpec) -> ParamSpec:
     return ParamSpec(tuple(dataclasses.replace(p, value=0.0, lower=-math.inf, upper=math.inf) for p in spec.params))
 
 
-def _ee_residuals(z, w, prior_mean, prior_w, model, samples, spec):
+class _Space(NamedTuple):
+    """A spec's scaled space as data (:func:`diffship.params.values_from_z`): the linear space θ/scale
+    and the bounded space are then one compiled program each for the solve, the residuals and the
+    Jacobian, not two (the spaces differ only in these arrays; the free parameters are the same)."""
+
+    idx: tuple[int, ...]  # positions of the free parameters among the spec's (static)
+    n: int  # number of parameters in the spec (static)
+    kind: Array
+    lo: Array
+    hi: Array
+    s: Array
+
+    @classmethod
+    def of(cls, spec: ParamSpec) -> _Space:
+        kind, lo, hi, s = spec._free_arrays()
+        return cls(tuple(int(i) for i in spec.free_index()), len(spec.params),
+                   *(jnp.asarray(a) for a in (kind, lo, hi, s)))
+
+    def from_z(self, z):
+        return values_from_z(z, self.kind, self.lo, self.hi, self.s)
+
+
+def _ee_residuals(z, w, prior_mean, prior_w, model, samples, space: _Space):
     """Weighted equation residuals at the scaled unknowns ``z`` (then the prior rows)."""
-    theta = spec.full_values(z, model.theta()[: len(spec.params)])
-    m = model.with_params(jnp.concatenate([theta, model.theta()[len(spec.params):]]))
+    theta = model.theta()[: space.n].at[np.asarray(space.idx, dtype=np.int64)].set(space.from_z(z))
+    m = model.with_params(jnp.concatenate([theta, model.theta()[space.n:]]))
     e = (equation_residuals(m, samples) / w).reshape(-1)
     if prior_w.shape[0]:
-        e = jnp.concatenate([e, prior_w * (spec.from_z(z) - prior_mean)])
+        e = jnp.concatenate([e, prior_w * (space.from_z(z) - prior_mean)])
     return e
 
 
@@ -216,18 +238,18 @@ _ee_residuals_jit = eqx.filter_jit(_ee_residuals)
 
 
 @eqx.filter_jit
-def _ee_solve(z0, w, prior_mean, prior_w, model, samples, spec, max_steps):
+def _ee_solve(z0, w, prior_mean, prior_w, model, samples, space, max_steps):
     """The one Levenberg–Marquardt (:class:`~diffship.fit._lm.MaterialisedLM`) on the equation residuals."""
     solver = MaterialisedLM(rtol=1e-8, atol=1e-10, norm=rms_norm, ftol=1e-10, gntol=float("inf"))
-    sol = optx.least_squares(lambda z, a: _ee_residuals(z, *a, model, samples, spec), solver, z0,
+    sol = optx.least_squares(lambda z, a: _ee_residuals(z, *a, model, samples, space), solver, z0,
                              args=(w, prior_mean, prior_w), max_steps=max_steps, throw=False)
     return sol.value, sol.result, sol.stats["num_steps"], _ee_residuals(sol.value, w, prior_mean, prior_w, model,
-                                                                        samples, spec)
+                                                                        samples, space)
 
 
 @eqx.filter_jit
-def _ee_jacobian(z, w, prior_mean, prior_w, model, samples, spec):
-    return jax.jacfwd(_ee_residuals)(z, w, prior_mean, prior_w, model, samples, spec)
+def _ee_jacobian(z, w, prior_mean, prior_w, model, samples, space):
+    return jax.jacfwd(_ee_residuals)(z, w, prior_mean, prior_w, model, samples, space)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -290,14 +312,16 @@ class EquationError(AbstractEstimator):
         return Problem(
             model=model, spec=spec, runs=tuple(runs), channels=eq_names, n_nuisance=0, nuisance_names=(),
             priors=priors, compile_seconds=0.0,
-            state=dict(samples=samples, spec_s=spec.structural(), spec_lin=_unbounded(spec), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
+            state=dict(samples=samples, spec_s=spec.structural(), spec_lin=_unbounded(spec), space_s=_Space.of(spec),
+                       space_lin=_Space.of(_unbounded(spec)), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
                        pw=jnp.asarray(p_w), messages=messages, x0_flt=x0_flt, cut=cut, flt_text=flt_text,
                        smoother=smoother, n_rows=int(samples.z.shape[0]) * len(eq_names), prep_s=time.perf_counter() - t0,
                        extra_starts={"the linear-regression estimate": regression} if regression else {}))
 
     def _args(self, problem, w, space="spec_s"):
         s = problem.state
-        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"], s[space])
+        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"],
+                s["space_" + space.removeprefix("spec_")])
 
     def _solve(self, problem, z, w):
         """LM from ``z`` (the spec's scaled space): first in the unbounded linear space θ/scale (a linear

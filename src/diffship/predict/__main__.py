@@ -147,4 +147,6 @@ def _cross(args, pred):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from ..cli_options import exit_now
+
+    exit_now(main())
