@@ -486,3 +486,17 @@ def test_readme_kvlcc2_commands_give_the_study_numbers(tmp_path, capsys):
     for h in pred["cross_manoeuvre"]["heldout"]:
         fo = h["metrics"]["first_overshoot"]
         assert abs(fo["error"]) < 1.0 and fo["interval_95"][0] <= fo["measured"] <= fo["interval_95"][1], (h["run"], fo)
+
+
+def test_exit_now_flushes_and_keeps_the_status():
+    """``exit_now`` (every command's last call) ends the process at once: the status is the command's,
+    and everything printed is there (the streams are flushed first; a pipe is block-buffered, so a
+    lost flush loses the tail). Under a profiler it is the ordinary exit, ``atexit`` handlers included."""
+    fast = ("import atexit; from diffship.cli_options import exit_now\n"
+            "atexit.register(lambda: print('atexit ran'))\n"
+            "print('x' * 100001, end=''); print('tail', file=__import__('sys').stderr, end=''); exit_now(3)\n")
+    p = subprocess.run([sys.executable, "-c", fast], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 3 and p.stdout == "x" * 100001 and p.stderr == "tail", (len(p.stdout), p.stderr[-500:])
+    profiled = "import sys; sys.setprofile(lambda *a: None)\n" + fast.replace("exit_now(3)", "exit_now(4)")
+    p = subprocess.run([sys.executable, "-c", profiled], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 4 and p.stdout == "x" * 100001 + "atexit ran\n", (len(p.stdout), p.stderr[-500:])

@@ -121,3 +121,25 @@ def test_rov_equation_error_with_the_automatic_cutoff_is_within_its_own_interval
     assert all(0.5 < cut[r][c] < 3.0 for r in cut for c in ("p", "q"))
     assert any("cut-offs [Hz]" in m for m in res.messages)
     assert res.info["covariance"] in ("white", "hac")
+
+
+def test_linear_and_bounded_spaces_are_data_of_one_program():
+    """The LM runs first in the unbounded linear space θ/scale, then (where that optimum leaves a bound)
+    in the bounded space: both are the same compiled solve with different arrays. The map from the
+    scaled vector is the spec's own, to the bit, in each space, and the two spaces' static parts (what
+    a compile is keyed on) are equal."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from diffship.fit.equation_error import _Space, _unbounded
+
+    spec = Fossen3().spec()
+    kinds = {p.kind for p in spec.params if p.free}
+    assert len(kinds) >= 2  # sign-bounded and free coefficients: the test sees more than one map
+    z = jnp.asarray(np.random.default_rng(3).normal(size=len(spec.free_names)) * 2.0)
+    spaces = (spec, _unbounded(spec))
+    for sp in spaces:
+        np.testing.assert_array_equal(np.asarray(_Space.of(sp).from_z(z)), np.asarray(sp.from_z(z)))
+    bounded, linear = (_Space.of(sp) for sp in spaces)
+    assert not np.array_equal(np.asarray(bounded.kind), np.asarray(linear.kind))
+    assert eqx.partition(bounded, eqx.is_array)[1] == eqx.partition(linear, eqx.is_array)[1]
