@@ -11,7 +11,8 @@ same names, meanings, defaults and checks in every command:
 * **bootstrap**: ``--bootstrap``, ``--bootstrap-method`` (fit, discover);
 * **output**: ``--out``, ``--json``, ``--quiet``.
 
-Every command also leaves the same way: :func:`exit_now`.
+Every command also leaves the same way: :func:`exit_now` (``fleet`` excepted: its Dask workers' clean-up
+runs at the ordinary exit).
 
 Rules (issue 26): a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
 fixes both: ``action="extend"``); a malformed item (``--fix A``, ``--fix A=x``, ``--columns psi``,

@@ -53,6 +53,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    from ..cli_options import exit_now
-
-    exit_now(main())
+    sys.exit(main())  # the ordinary exit (not exit_now): Dask's own clean-up of its workers runs at exit
