@@ -190,7 +190,9 @@ class ParamSpec:
         return ParamSpec(tuple(dataclasses.replace(p, free=p.name in names) for p in self.params))
 
     # -- scaled space -----------------------------------------------------------------
-    def _free_arrays(self):
+    def free_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(kind, lower, upper, scale)`` of the free parameters, in order (NumPy; an infinite bound
+        is 0, its kind says it is absent): the arrays of :func:`values_from_z`."""
         free = [p for p in self.params if p.free]
         kind = np.array([p.kind for p in free], dtype=np.int64)
         lo = np.array([p.lower if math.isfinite(p.lower) else 0.0 for p in free])
@@ -224,14 +226,14 @@ class ParamSpec:
 
     def from_z(self, z: Float[Array, " n_free"]) -> Float[Array, " n_free"]:
         """Free parameter values (model units) from the scaled vector; jittable."""
-        kind, lo, hi, s = self._free_arrays()
+        kind, lo, hi, s = self.free_arrays()
         if kind.size == 0:
             return jnp.zeros((0,), dtype=z.dtype)
         return values_from_z(z, kind, lo, hi, s)
 
     def dtheta_dz(self, z: np.ndarray) -> np.ndarray:
         """Derivative of each free value with respect to its scaled variable (NumPy)."""
-        kind, lo, hi, s = self._free_arrays()
+        kind, lo, hi, s = self.free_arrays()
         z = np.asarray(z, dtype=np.float64)
         ez = np.exp(np.clip(z, -50, 50))
         sig = 1.0 / (1.0 + np.exp(-np.clip(z, -50, 50)))
@@ -253,7 +255,7 @@ def values_from_z(z: Float[Array, " n_free"], kind, lo, hi, s) -> Float[Array, "
     Per free parameter of scale :math:`s`: linear :math:`\theta = s z`; a lower bound
     :math:`\theta = l + s e^{z}`; an upper bound :math:`\theta = h - s e^{z}`; both
     :math:`\theta = l + (h - l)\,\sigma(z)`. ``kind``, ``lo``, ``hi`` and ``s`` are
-    :meth:`ParamSpec._free_arrays` (NumPy constants in :meth:`ParamSpec.from_z`; arrays that a
+    :meth:`ParamSpec.free_arrays` (NumPy constants in :meth:`ParamSpec.from_z`; arrays that a
     compiled program takes as data where one program serves several spaces, e.g. the equation-error
     fit's linear and bounded spaces). Jittable.
     """

@@ -216,7 +216,7 @@ class _Space(NamedTuple):
 
     @classmethod
     def of(cls, spec: ParamSpec) -> _Space:
-        kind, lo, hi, s = spec._free_arrays()
+        kind, lo, hi, s = spec.free_arrays()
         return cls(tuple(int(i) for i in spec.free_index()), len(spec.params),
                    *(jnp.asarray(a) for a in (kind, lo, hi, s)))
 
