@@ -29,7 +29,7 @@ from jaxtyping import Array, Float
 
 from .errors import ModelError
 
-__all__ = ["Param", "ParamSpec", "parse_assignments"]
+__all__ = ["Param", "ParamSpec", "parse_assignments", "values_from_z"]
 
 _LINEAR, _LOWER, _UPPER, _BOTH = 0, 1, 2, 3
 
