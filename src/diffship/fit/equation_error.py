@@ -223,10 +223,14 @@ class _Space(NamedTuple):
     def from_z(self, z):
         return values_from_z(z, self.kind, self.lo, self.hi, self.s)
 
+    def full_values(self, z, base):
+        """As :meth:`diffship.params.ParamSpec.full_values`: ``base`` with the free entries from ``z``."""
+        return base.at[np.asarray(self.idx, dtype=np.int64)].set(self.from_z(z))
+
 
 def _ee_residuals(z, w, prior_mean, prior_w, model, samples, space: _Space):
     """Weighted equation residuals at the scaled unknowns ``z`` (then the prior rows)."""
-    theta = model.theta()[: space.n].at[np.asarray(space.idx, dtype=np.int64)].set(space.from_z(z))
+    theta = space.full_values(z, model.theta()[: space.n])
     m = model.with_params(jnp.concatenate([theta, model.theta()[space.n:]]))
     e = (equation_residuals(m, samples) / w).reshape(-1)
     if prior_w.shape[0]:
@@ -309,19 +313,19 @@ class EquationError(AbstractEstimator):
         if not np.any(p_w):
             p_mean = p_w = np.zeros(0)
         regression = _regression_start(model, samples)
+        lin = _unbounded(spec)
         return Problem(
             model=model, spec=spec, runs=tuple(runs), channels=eq_names, n_nuisance=0, nuisance_names=(),
             priors=priors, compile_seconds=0.0,
-            state=dict(samples=samples, spec_s=spec.structural(), spec_lin=_unbounded(spec), space_s=_Space.of(spec),
-                       space_lin=_Space.of(_unbounded(spec)), n_eq=len(eq_names), pm=jnp.asarray(p_mean),
+            state=dict(samples=samples, spec_s=spec.structural(), spec_lin=lin,
+                       spaces={"spec_s": _Space.of(spec), "spec_lin": _Space.of(lin)}, n_eq=len(eq_names), pm=jnp.asarray(p_mean),
                        pw=jnp.asarray(p_w), messages=messages, x0_flt=x0_flt, cut=cut, flt_text=flt_text,
                        smoother=smoother, n_rows=int(samples.z.shape[0]) * len(eq_names), prep_s=time.perf_counter() - t0,
                        extra_starts={"the linear-regression estimate": regression} if regression else {}))
 
     def _args(self, problem, w, space="spec_s"):
         s = problem.state
-        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"],
-                s["space_" + space.removeprefix("spec_")])
+        return (jnp.asarray(w, dtype=jnp.float64), s["pm"], s["pw"], problem.model, s["samples"], s["spaces"][space])
 
     def _solve(self, problem, z, w):
         """LM from ``z`` (the spec's scaled space): first in the unbounded linear space θ/scale (a linear
