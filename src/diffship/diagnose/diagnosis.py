@@ -364,7 +364,14 @@ def diagnose(
         rf = ws.refit([], [{}], progress=say, finish=True)
         return rf, (validation.refit(rf) if rf.ok and rf.train_cost < sinfo["train_cost"] else None)
     search = Search(ws, validation, None, o, say, gate=gate.value)
-    refits, (ref, before) = search.refit_singles(refit_order(scr, o), extra=[reference, validation.base])
+    def reference_score(extras):  # what candidates are judged against (as below), from the extras' results
+        rf_ref, base_score = extras
+        if isinstance(base_score, Exception):
+            return None
+        return base_score if isinstance(rf_ref, Exception) or rf_ref[1] is None else rf_ref[1]
+    refits, (ref, before) = search.refit_singles(refit_order(scr, o), extra=[reference, validation.base],
+                                                 reference=reference_score,
+                                                 shares={s.effect: s.predicted_fraction for s in scr})
     if isinstance(before, Exception):
         raise before
     search.set_base(before)
@@ -410,7 +417,7 @@ def diagnose(
 
     # -- how far and verdicts --------------------------------------------------------------------
     ranking = rank(scr, singles, ws.effects, sel.selected, sinfo["train_cost"], skipped, o, sel.confidence,
-                   sel.rivals, sel.note, sel.possible)
+                   sel.rivals, sel.note, sel.possible, not_refitted=search.not_refitted)
     shrink = sel.shrink(before.E)
     lines = verdict_lines(where, gap, ranking, sel.selected, before.E, sel.final.E, shrink, gate.value,
                           sel.possible, o.min_shrink, waiting=sel.waiting, greedy_steps=o.greedy_steps)

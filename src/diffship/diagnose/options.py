@@ -28,7 +28,12 @@ class DiagnoseOptions:
     Effort:
         max_refits: candidates refitted by screening rank, plus up to ``max_absorbed`` of those
             the base parameters absorb (o_k < 0.1), which the screen under-rates.
-        refit_all: refit every candidate instead.
+        refit_all: refit every candidate instead (``decided_share`` then does not apply).
+        decided_share: when the first candidate by screening rank, refitted before the others,
+            passes the rule and alone brings the held-out E under the gap gate, the candidates
+            whose screened share f_k is below this fraction of its share are not refitted (under
+            the gate no effect can lower E by more than the noise band; :meth:`~.which.Search.refit_singles`).
+            0: refit them all.
         greedy_steps: effects on the greedy path at most (after the first, each must pass the
             rule against the previous step; the path stops earlier under the gap gate). On real
             model-basin logs the base model's own structural gap (two damping couplings on the
@@ -80,6 +85,7 @@ class DiagnoseOptions:
     max_refits: int = 4
     max_absorbed: int = 3
     refit_all: bool = False
+    decided_share: float = 0.05
     greedy_steps: int = 2
     max_pairs: int = 3
     max_iter: int = 30
@@ -105,6 +111,9 @@ class DiagnoseOptions:
                                 f"choose from: {', '.join(EFFECT_NAMES)}")
         if not (int(self.greedy_steps) == self.greedy_steps and self.greedy_steps >= 1):
             raise DataError(f"greedy_steps: a whole number of effects >= 1, got {self.greedy_steps!r}")
+        if not 0 <= self.decided_share < 1:
+            raise DataError(f"decided_share: a fraction in [0, 1) of the first candidate's screened share, "
+                            f"got {self.decided_share!r}")
         if not self.start_bound > 0:
             raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
         if self.channels is not None:

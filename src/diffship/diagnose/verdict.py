@@ -86,11 +86,13 @@ def _verdict(s: ScreenResult, c: Candidate, e: Effect, selected: Sequence[str], 
 def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects: Sequence[Effect],
          selected: Sequence[str], train_cost: float, skipped: dict[str, str],
          options: DiagnoseOptions, confidence: str = "", rivals: Sequence[str] = (),
-         note: str = "", possible: Sequence[str] = ()) -> tuple[RankedEffect, ...]:
+         note: str = "", possible: Sequence[str] = (),
+         not_refitted: dict[str, str] | None = None) -> tuple[RankedEffect, ...]:
     """Every screened candidate with its verdict: selected first, then by validation gain; the
     effects that do not apply last. ``train_cost``: the base fit's cost on the training runs;
     ``confidence``, ``rivals``, ``note``: how sure the first selected effect is
-    (:meth:`~.which.Search._confidence`)."""
+    (:meth:`~.which.Search._confidence`); ``not_refitted``: candidates left out because another
+    closed the gap alone, with the reason (:meth:`~.which.Search.refit_singles`)."""
     by_name = {e.name: e for e in effects}
     winner = singles[selected[0]] if selected else None
     rows = []
@@ -106,6 +108,8 @@ def rank(screen: Sequence[ScreenResult], singles: dict[str, Candidate], effects:
                            "effect, see time_variation")
             elif s.orthogonal_fraction == 0.0 and s.predicted_fraction == 0.0:
                 verdict = "not identifiable from these runs (no effect on the fitted channels)"
+            elif n in (not_refitted or {}):
+                verdict = not_refitted[n]
             else:
                 verdict = "not refitted (screen negligible)"
             rows.append(RankedEffect(**common, params={}, stderr={}, verdict=verdict))
