@@ -7,6 +7,14 @@ which the screen under-rates), or all of them, are refitted with warm starts (sm
 from the null, non-smooth ones from the probe magnitude × 1, 0.3, 3) and scored on the
 validation runs (:mod:`.shrink`).
 
+**Decided early.** The first candidate by screening rank is refitted first, beside the no-effect
+reference. When it passes the rule below and alone brings the held-out E under the gap gate, the
+gap is closed: the candidates screened under ``decided_share`` (5 %) of its predicted fraction are
+not refitted, and their rows say so (under the gate no further effect can lower E by more than the
+noise band, so the selection would not change; the confidence line counts them). Otherwise every
+candidate above is refitted as before. The decision depends on results only, not on timing
+(:meth:`Search.refit_singles`); ``refit_all`` or ``decided_share=0`` refit them all.
+
 **Acceptance rule** for an effect (all must hold):
 
 * the structural gap exists: :math:`E_{base} \ge` the gate (E normalised by the noise floor, so
