@@ -7,13 +7,9 @@ which the screen under-rates), or all of them, are refitted with warm starts (sm
 from the null, non-smooth ones from the probe magnitude × 1, 0.3, 3) and scored on the
 validation runs (:mod:`.shrink`).
 
-**Decided early.** The first candidate by screening rank is refitted first, beside the no-effect
-reference. When it passes the rule below and alone brings the held-out E under the gap gate, the
-gap is closed: the candidates screened under ``decided_share`` (5 %) of its predicted fraction are
-not refitted, and their rows say so (under the gate no further effect can lower E by more than the
-noise band, so the selection would not change; the confidence line counts them). Otherwise every
-candidate above is refitted as before. The decision depends on results only, not on timing
-(:meth:`Search.refit_singles`); ``refit_all`` or ``decided_share=0`` refit them all.
+**Decided early** (:mod:`.decided`): the first candidate by screening rank is refitted first; when
+it alone passes the rule below and brings the held-out E under the gap gate, the candidates screened
+under 5 % of its share are not refitted, and their rows say so.
 
 **Acceptance rule** for an effect (all must hold):
 
@@ -84,6 +80,7 @@ import numpy as np
 from ..errors import FitError
 from ..models import AbstractModel
 from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
+from .decided import remaining
 from .options import DiagnoseOptions
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace, parallel
 from .shrink import PathStep, Score, Validation, structural_shrink
@@ -271,16 +268,9 @@ class Search:
         independent jobs ``extra`` (callables) run in the same pool: ``({name: (rf, score) or
         exception}, [results of extra])``.
 
-        **Decided early.** With ``reference`` (the extras' results → the score candidates are judged
-        against, or ``None``) and ``shares`` (each candidate's screened fraction f_k), the first
-        candidate in ``names`` is refitted first, beside the extras. When it passes the acceptance
-        rule against the reference, which has a structural gap, and brings the held-out E under
-        the gap gate, it has closed the gap: the candidates whose screened share is below
-        ``decided_share`` of its own are then not refitted (:attr:`not_refitted` says why) — under
-        the gate none can lower E by more than the noise band, so the selection would not change.
-        On the issue-28 USV current case the six such refits were 28 of the 39 s of refits
-        (screened shares 0.0004–0.0023 against the current's 0.71). The decision depends only on
-        results, never on which refit finished first: the other candidates wait for it.
+        With ``reference`` (the extras' results → the score candidates are judged against, or
+        ``None``) and ``shares`` (screened fractions f_k), the first candidate is refitted first and
+        may decide the rest (:mod:`.decided`; :attr:`not_refitted` says why).
         """
         o = self.options
         decide = (reference is not None and shares is not None and names and o.decided_share > 0
@@ -294,26 +284,7 @@ class Search:
         out = parallel(run, jobs)
         extras, got = out[:len(extra)], dict(zip(first or names, out[len(extra):]))
         if decide:
-            rest = list(names[1:])
-            head = got[names[0]]
-            ref = reference(extras)
-            if ref is not None and not isinstance(head, Exception):
-                rf, sc = head
-                j = self.judge(rf, ref, sc, [names[0]], base=ref)
-                if j.ok and j.shrink >= o.min_shrink and sc.E < self.gate:
-                    cut = o.decided_share * shares.get(names[0], 0.0)
-                    skip = [n for n in rest if shares.get(n, 0.0) < cut]
-                    for n in skip:
-                        self.not_refitted[n] = (
-                            f"not refitted: {names[0]} alone brought the held-out E under the gap gate "
-                            f"({sc.E:.3g} < {self.gate:.3g}); screened share {shares.get(n, 0.0):.2g} below "
-                            f"{100 * o.decided_share:.0f} % of its {shares.get(names[0], 0.0):.2g}")
-                    if skip:
-                        self.decided = names[0]
-                        self.say(f"  {names[0]} closes the gap (validation E {ref.E:.3g} → {sc.E:.3g}, under the "
-                                 f"gate {self.gate:.3g}): {len(skip)} candidate(s) screened under "
-                                 f"{100 * o.decided_share:.0f} % of its share not refitted ({', '.join(skip)})")
-                    rest = [n for n in rest if n not in skip]
+            rest = remaining(self, names, got[names[0]], reference(extras), shares)
             got.update(zip(rest, parallel(run, [("single", n) for n in rest])))
         return {n: got[n] for n in names if n in got}, extras
 

@@ -1,6 +1,7 @@
-"""Decided early (:meth:`diffship.diagnose.which.Search.refit_singles`): when the first candidate by
-screening rank passes the rule and alone brings the held-out E under the gap gate, the candidates
-screened far below it are not refitted — and only then (no simulation: canned refits and scores)."""
+"""Decided early (:mod:`diffship.diagnose.decided`, :meth:`diffship.diagnose.which.Search.refit_singles`):
+when the first candidate by screening rank passes the rule and alone brings the held-out E under the
+gap gate, the candidates screened far below it are not refitted — and only then (no simulation:
+canned refits and scores)."""
 
 import threading
 from types import SimpleNamespace
