@@ -57,8 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skip-sign-check", action="store_true",
                    help="do not stop when the heading turns against the rudder (or yaw moment) in a run")
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
-    p.add_argument("--refit-all", action="store_true", help="refit every candidate, not only the screen's best (also when the first "
-                   "one already closed the gap alone)")
+    p.add_argument("--refit-all", action="store_true",
+                   help="refit every candidate, not only the screen's best (also when the first one closed the gap alone)")
     p.add_argument("--greedy-steps", type=positive_int, default=DiagnoseOptions.greedy_steps, metavar="N",
                    help="effects on the greedy path at most (default %(default)s; each after the first must pass the "
                         "rule against the previous step, and the path stops under the gap gate)")

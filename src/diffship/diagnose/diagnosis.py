@@ -355,9 +355,10 @@ def diagnose(
     # effect's validation gain is never the credit for extra iterations of the base parameters.
     # It, the held-out base score and the candidates' refits are independent: one pool of threads
     # runs them (:func:`.screen.parallel`) — the first screened candidate beside the reference first,
-    # and the others only when it does not close the gap alone (:meth:`.which.Search.refit_singles`). (Candidates started at the reference's solution instead
-    # of the base fit took more steps on the issue-28 current case — 87 instead of 50 for the
-    # current: the reference stops in a crawl that they continue — so they start at the base fit.)
+    # and the others only when it does not close the gap alone (:mod:`.decided`). (Candidates started
+    # at the reference's solution instead of the base fit took more steps on the issue-28 current
+    # case — 87 instead of 50 for the current: the reference stops in a crawl that they continue —
+    # so they start at the base fit.)
     t0 = time.perf_counter()
     say(f"gap gate {gate.value:.3f} ({gate.method})")
 

@@ -206,7 +206,7 @@ class Search:
         (``base``: the score the structural gap is measured from, default the search's base)."""
         o = self.options
         base = base if base is not None else self.base
-        has_gap = base.E >= self.gate if base is not self.base else self.has_gap
+        has_gap = base.E >= self.gate  # :attr:`has_gap` for the search's own base
         E_ref, E = ref.E, new.E
         gain = (E_ref - E) / E_ref if E_ref > 0 else 0.0
         d = np.array([ref.E_runs[k] - new.E_runs[k] for k in new.E_runs])
@@ -275,14 +275,14 @@ class Search:
         o = self.options
         decide = (reference is not None and shares is not None and names and o.decided_share > 0
                   and not o.refit_all)
-        first = list(names[:1]) if decide else []
-        jobs = [("extra", f) for f in extra] + [("single", n) for n in (first or names)]  # the long reference refit first
+        now = list(names[:1] if decide else names)  # the first alone when it may decide the rest
+        jobs = [("extra", f) for f in extra] + [("single", n) for n in now]  # the long reference refit first
 
         def run(job):
             kind, x = job
             return self._refit([x], self.single_starts(x)) if kind == "single" else x()
         out = parallel(run, jobs)
-        extras, got = out[:len(extra)], dict(zip(first or names, out[len(extra):]))
+        extras, got = out[:len(extra)], dict(zip(now, out[len(extra):]))
         if decide:
             rest = remaining(self, names, got[names[0]], reference(extras), shares)
             got.update(zip(rest, parallel(run, [("single", n) for n in rest])))
