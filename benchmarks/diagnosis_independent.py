@@ -130,7 +130,9 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
             "possible": "+".join(d.possible) or "none", "possible_hit": possible_hit, "partial": d.partial,
             "nearest_miss": nearest, "family_named": named,
             "confidence": getattr(row, "confidence", "") if row is not None else "",
-            "verdict": d.verdict[1], "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
+            "verdict": d.verdict[1],
+            "in_data": "+".join(f"{k}={f.value:.4g}" for k, f in d.in_data.items() if f.found) or "none",
+            "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
             "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall,
             "finished_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()), "commit": COMMIT}
 
@@ -176,6 +178,10 @@ def summarise(rows) -> list[str]:
         f"- partial (a structural gap remains after the selected effects, stated in the verdict): "
         f"{sum(1 for r in rows if r.get('partial') is True)}/{sum(1 for r in rows if r['first'] != 'none')} attributions",
         f"- null cases: false alarms {pct([not r['top1'] for r in none])} (target ≤ 10 %)",
+        (f"- in the data (the data-consistency findings, `Diagnosis.in_data`, beside the model search; NOT in the "
+         f"headline): null cases with a finding {sum(1 for r in none if r.get('in_data', 'none') != 'none')}/{len(none)}; "
+         "scenarios with one: " + (", ".join(f"{r['scenario']} ({r['in_data']})" for r in rows
+                                             if r.get("in_data", "none") not in ("none", "")) or "none")),
         (f"- out of family: right family first {pct([r['top1'] for r in out])} (target ≥ 60 %), "
          f"right family in the top 3 {pct([r['top3'] for r in out])}; right family named with partial "
          f"explanations counted (NOT the headline) {pct([bool(r.get('family_named', r['top1'])) for r in out])}"),
@@ -270,12 +276,12 @@ def write_md(rows, stem: str, command: str, wall: float):
           "## Confusion matrix, in family and null cases (rows: hidden effect, columns: first selected)", "",
           *confusion(rows, ("in", "none")), "", "## Confusion matrix, out of family", "", *confusion(rows, ("out",)), "",
           f"![confusion]({stem}_confusion.png)", "", "## Scenarios", "",
-          "| scenario | selected | top-1 | top-3 | possible | nearest miss | E base | E after | E truth | shrink | confidence | screen CPU s | commit |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "| scenario | selected | top-1 | top-3 | possible | nearest miss | E base | E after | E truth | shrink | confidence | in the data | screen CPU s | commit |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         md.append(f"| {r['scenario']} | {r['selected']} | {r['top1']} | {r['top3']} | {r.get('possible', '-')} | "
                   f"{r.get('nearest_miss', '-')} | {r['E_base']:.2f} | {r['E_after']:.2f} | "
-                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r['screen_cpu_s']:.1f} | {r.get('commit') or 'before diag5'} |")
+                  f"{r['E_truth']:.2f} | {r['shrink']:.2f} | {r['confidence']} | {r.get('in_data', '-')} | {r['screen_cpu_s']:.1f} | {r.get('commit') or 'before diag5'} |")
     md += ["", "## Verdicts (which)", ""] + [f"- {r['scenario']}: {r['verdict']}" for r in rows]
     (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
 

@@ -58,6 +58,11 @@ scenario's own (injected) training logs as a user would make it, its ten core co
   diagnosis' own rudder-offset candidate (a constant sway force and yaw moment on 3-DOF models)
   has nothing left to find: the base fit's δ_0 minus the none row's, within ±30 % of the
   injected zero error, is counted as **found in the base fit**, in its own column and count.
+- *in the data check*: a measurement error the diagnosis settles from the logs alone, with no
+  hull coefficient (:mod:`diffship.diagnose.consistency`, ``Diagnosis.in_data``: the heading
+  against the track and over-ground u, v; the time the motion follows the logged rudder) — when
+  the check states it as a finding and its estimate minus the none row's lies within ±30 % of
+  the injected size, it is counted as **found in the data check**, in its own column and count.
 
 Usage::
 
@@ -109,6 +114,8 @@ MEASURE = {"input_delay": ("tau_d",), "rudder_offset": ("delta_off",), "heading_
            "current": ("Vcx", "Vcy")}
 #: a base-model coefficient that is the injected effect itself (MMG's rudder neutral angle)
 IN_BASE = {"rudder_offset": "delta0"}
+#: the data-consistency check that measures the injected effect (:mod:`diffship.diagnose.consistency`)
+IN_DATA = {"heading_bias": "heading_bias", "input_delay": "rudder_timing"}
 UNIT = {"input_delay": (1.0, "s"), "rudder_offset": (D, "°"), "heading_bias": (D, "°"), "current": (1.0, "m/s")}
 
 
@@ -171,6 +178,11 @@ def estimates(d, model_params) -> dict:
             out["base:" + eff] = {"value": [float(f.params[name])],
                                   "half95": [1.96 * float(f.stderr.get(name, float("nan")))],
                                   "source": f"base fit's own {name}"}
+    for eff, check in IN_DATA.items():
+        f = d.in_data.get(check)
+        if f is not None:
+            out["data:" + eff] = {"value": [float(f.value)], "half95": [float(f.half95())], "found": bool(f.found),
+                                  "source": f"data check {check} ({'a finding' if f.found else 'not a finding: ' + f.reason})"}
     return out
 
 
@@ -187,7 +199,7 @@ def judge(row: dict, none_row: dict | None) -> dict:
     names = MEASURE.get(exp, ())
     single = (row.get("ranking", {}).get(exp) or {}).get("params", {})
     final = [row["params"][n] for n in names] if names and all(n in row["params"] for n in names) else None
-    for key, tag in ((exp, ""), ("base:" + exp, "_in_base")):
+    for key, tag in ((exp, ""), ("base:" + exp, "_in_base"), ("data:" + exp, "_in_data")):
         est = row["estimates"].get(key)
         if est is None:
             continue
@@ -207,7 +219,7 @@ def judge(row: dict, none_row: dict | None) -> dict:
         res[f"delta{tag}"] = [float(x) / s for x in delta]
         res[f"rel_error{tag}"] = round(err, 3)
         res[f"ci_covers{tag}"] = covers
-        res[f"size_ok{tag}"] = err <= TOL
+        res[f"size_ok{tag}"] = err <= TOL and est.get("found", True)
         res[f"raw{tag}"] = [float(x) / s for x in est["value"]]
         res[f"none{tag}"] = [float(x) / s for x in ref["value"]] if ref else None
         res[f"source{tag}"] = est["source"] + (
@@ -220,6 +232,7 @@ def judge(row: dict, none_row: dict | None) -> dict:
     res["unit"] = u
     res["found"] = bool(res["selected_any"] and res.get("size_ok", False))
     res["found_in_base"] = bool(res.get("size_ok_in_base", False))
+    res["found_in_data"] = bool(res.get("size_ok_in_data", False))
     return res
 
 
@@ -333,7 +346,9 @@ def run_scenario(sc: str, prep: dict, a) -> dict:
                        for r in d.ranking},
            "seconds": round(secs, 1), "seconds_study_fit": round(t_base, 1),
            "verdict_where": d.verdict[0], "verdict_which": d.verdict[1],
-           "verdict_in_base": next((v for v in d.verdict if v.startswith("In the base")), ""), "in_base": d.in_base}
+           "verdict_in_base": next((v for v in d.verdict if v.startswith("In the base")), ""), "in_base": d.in_base,
+           "verdict_in_data": next((v for v in d.verdict if v.startswith("In the data")), ""),
+           "in_data": {k: f.to_dict() for k, f in d.in_data.items()}}
     print(f"{sc}: expected {exp}, selected {d.selected}, E {d.E_before:.3g} → {d.E_after:.3g}, {secs:.0f} s",
           flush=True)
     return row
@@ -360,6 +375,7 @@ def write(rows, a):
     anyk = sum(r["judge"]["selected_any"] for r in inj)
     found = sum(r["judge"]["found"] for r in inj)
     in_base = sum(r["judge"]["found_in_base"] and not r["judge"]["found"] for r in inj)
+    in_data = sum(r["judge"]["found_in_data"] and not (r["judge"]["found"] or r["judge"]["found_in_base"]) for r in inj)
     # named by the verdict as passing at the capped path's last step (not selected: not counted as found)
     waiting = sum(r["expected"] in r.get("waiting", "").split("+") and not r["judge"]["selected_any"] for r in inj)
     cmd = (f"python benchmarks/withheld_real.py --model {a.model} --base {a.base} --horizon {a.horizon:g} --dt {a.dt:g}"
@@ -376,9 +392,13 @@ def write(rows, a):
           "selected effects (first or at a later greedy step); *size* = fitted size minus the none row's estimate of "
           f"the same effect, within ±{TOL:.0%} of the injected size; **found** = selected and size right; "
           "**found in the base fit** = the base model's own coefficient for the effect (MMG's rudder neutral angle δ_0) "
-          "moved by the injected size (±30 %) against the none row, the diagnosis' candidate having nothing left."), "",
+          "moved by the injected size (±30 %) against the none row, the diagnosis' candidate having nothing left; "
+          "**found in the data check** = the diagnosis' data-consistency check (`Diagnosis.in_data`, "
+          "`diffship.diagnose.consistency`: the heading against the track and over-ground u, v; the time the motion "
+          "follows the logged rudder) states it as a finding, its size minus the none row's within ±30 %."), "",
          f"**Of {len(inj)} injected scenarios: first selected {first}; selected at any step {anyk}; found (selected, "
-         f"size right) {found}; found in the base fit only {in_base}; not found {len(inj) - found - in_base}"
+         f"size right) {found}; found in the base fit only {in_base}; found in the data check only {in_data}; "
+         f"not found {len(inj) - found - in_base - in_data}"
          f" (of which named by the verdict as also passing at the path's cap, *waiting*: {waiting}).**"
          + ("".join(f" Extra row {r['scenario']} (stronger than basins see, not counted): "
                     f"{'found' if r['judge']['found'] else 'not found'}." for r in inj_all if r["scenario"] in EXTRA)), "",
@@ -395,18 +415,22 @@ def write(rows, a):
                  f"{r['possible']} | {r.get('waiting', '')} | {r['E_before']} | {r['E_after']} | {r['shrink']} | {r.get('seconds_study_fit', 0)} | "
                  f"{r['seconds']} |")
     L += ["", "Fitted against injected (fitted minus the none row's estimate; units as shown):", "",
-          "| scenario | injected | fitted (raw) | none row | fitted Δ (diagnosis) | rel. error | 95 % covers | source | final model Δ (rel. error) | base Δ (own coefficient) | rel. error | largest E gain possible | found | found in base |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "| scenario | injected | fitted (raw) | none row | fitted Δ (diagnosis) | rel. error | 95 % covers | source | final model Δ (rel. error) | base Δ (own coefficient) | rel. error | data check Δ (raw; none row) | rel. error | largest E gain possible | found | found in base | found in data check |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in inj_all:
         j = r["judge"]
         s, u = UNIT[r["expected"]]
         injv = [x / s for x in injected_vector(r["scenario"])]
+        data_raw = f" ({_fmt(j['raw_in_data'])}; {_fmt(j.get('none_in_data'))})" if "raw_in_data" in j else ""
         L.append(f"| {r['scenario']} | {_fmt(injv)} {u} | {_fmt(j.get('raw'))} | {_fmt(j.get('none'))} | {_fmt(j.get('delta'))} | {j.get('rel_error', '')} | "
                  f"{j.get('ci_covers', '')} | {j.get('source', 'not refitted (screen negligible or not applicable)')} | "
                  f"{_fmt(j.get('final'))}{'' if 'final' not in j else ' (' + str(j['rel_error_final']) + ')'} | "
                  f"{_fmt(j.get('delta_in_base'))} | {j.get('rel_error_in_base', '')} | "
+                 f"{_fmt(j.get('delta_in_data'))}{data_raw} | "
+                 f"{j.get('rel_error_in_data', '')} | "
                  f"{'' if gain_ceiling(r) is None else f'{gain_ceiling(r):.1%}'} | {'yes' if j['found'] else 'no'} | "
-                 f"{'yes' if j['found_in_base'] else ('no' if 'delta_in_base' in j else '—')} |")
+                 f"{'yes' if j['found_in_base'] else ('no' if 'delta_in_base' in j else '—')} | "
+                 f"{'yes' if j['found_in_data'] else ('no' if 'delta_in_data' in j else '—')} |")
     L += ["", ("The injected effect's own candidate in each scenario (its single refit against the no-effect refit; "
                "the verdict as the diagnosis states it):"), "",
           "| scenario | candidate | validation gain | verdict |", "|---|---|---|---|"]
@@ -421,7 +445,14 @@ def write(rows, a):
             continue
         sel = r["selected"].split("+") if r["selected"] else []
         c = gain_ceiling(r)
-        if j["found_in_base"]:
+        if j["found_in_data"] and not j["found_in_base"]:
+            f = (r.get("in_data") or {}).get(IN_DATA[r["expected"]], {})
+            why = (f"the data-consistency check states it: {_fmt(j['delta_in_data'])} {j['unit']} against the none row "
+                   f"(raw {_fmt(j['raw_in_data'])}, none row {_fmt(j.get('none_in_data'))}; {f.get('method', '')}); "
+                   "the model search, judged on held-out E, "
+                   + ("selects it too" if j["selected_any"] else "does not select it")
+                   + (f" (its refit: {k.get('verdict', 'not refitted')})" if not j["selected_any"] else ""))
+        elif j["found_in_base"]:
             why = (f"the base model's own coefficient is the effect: it moved by {_fmt(j['delta_in_base'])} {j['unit']} "
                    f"(injected {_fmt([x / UNIT[r['expected']][0] for x in injected_vector(r['scenario'])])} {j['unit']}); "
                    "the diagnosis' own candidate of that name has nothing left to find")
@@ -455,6 +486,18 @@ def write(rows, a):
     L += ["", "In the base (the verdict's line for an effect the base model carries as a parameter of its own, "
           "`Diagnosis.in_base`; rows run before stop 37 did not record it):", ""] + \
         [f"- {r['scenario']}: {r.get('verdict_in_base') or ('—' if 'verdict_in_base' in r else 'not recorded')}" for r in rows]
+    L += ["", "In the data (the verdict's line for the data-consistency findings, `Diagnosis.in_data`; every check's "
+          "estimate in the table below, a finding or not):", ""] + \
+        [f"- {r['scenario']}: {r.get('verdict_in_data') or ('—' if 'verdict_in_data' in r else 'not recorded')}" for r in rows]
+    L += ["", "| scenario | check | estimate | 95 % half-width | finding | held-out misfit without → with | why |",
+          "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        for k, f in (r.get("in_data") or {}).items():
+            sc_ = 180 / math.pi if f["unit"] == "rad" else 1.0
+            un = "°" if f["unit"] == "rad" else f["unit"]
+            L.append(f"| {r['scenario']} | {k} | {sc_ * f['value']:.3g} {un} | {sc_ * f['half95']:.2g} {un} | "
+                     f"{'yes' if f['found'] else 'no'} | {f['heldout'][0]:.3g} → {f['heldout'][1]:.3g} {f['misfit_unit']} | "
+                     f"{f['reason']} |")
     (OUT / f"{stem}.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
 

@@ -21,7 +21,7 @@ OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "waiting", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "base_starts", "final_params",
-             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "timings_s"]
+             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "in_data", "timings_s"]
 
 
 def _runs(truth, seed):
@@ -65,6 +65,10 @@ def test_hidden_actuator_lag_is_attributed_and_recovered(lag_case, tmp_path):
     assert ph["transient"]["E"] > ph["approach"]["E"]
     d2 = d.to_dict()
     assert list(d2) == JSON_KEYS
+    # the data check sees the motion follow the logged rudder; it does not tell a lag from a clock offset and
+    # says so, the model search does (a lag attributed above)
+    rt = d2["in_data"]["rudder_timing"]
+    assert rt["value"] > 0.5 and (not rt["found"] or "steering lag" in d.verdict[-1])
     assert d2["validation_rmse_after"]["psi"] < d2["validation_rmse_before"]["psi"]
     assert d2["shrink_total_error"] == pytest.approx((d.E_before - d.E_after) / d.E_before)
     # ranking rows: refitted candidates carry validation numbers, inapplicable ones only the reason

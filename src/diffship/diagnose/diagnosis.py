@@ -44,6 +44,7 @@ from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
 from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, in_base, in_base_line, rank, verdict_lines
+from .consistency import DataFinding, data_checks, in_data_line
 from .floors import physical_position_floor
 from .periodic import training_period
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
@@ -84,7 +85,9 @@ class Diagnosis:
     interval excludes 0 and the held ones; ``waiting`` the effects that also passed at the greedy
     path's last step when the path stopped at its cap with a structural gap left, ``(name,
     validation gain)`` (:attr:`~.which.Selection.waiting`: a further step, ``greedy_steps``, may
-    attribute one).
+    attribute one); ``in_data`` the data-consistency checks (:mod:`.consistency`: the heading
+    against the track and over-ground u, v; the time the motion follows the logged rudder), each
+    with its estimate, interval and whether it is a finding (then a verdict line "In the data").
     """
 
     model_name: str
@@ -119,6 +122,7 @@ class Diagnosis:
     time_variation: TimeVariation | None = None
     in_base: dict = dataclasses.field(default_factory=dict)
     waiting: tuple[tuple[str, float], ...] = ()
+    in_data: dict[str, DataFinding] = dataclasses.field(default_factory=dict)
 
     @property
     def gap_gate(self) -> float:
@@ -163,6 +167,7 @@ class Diagnosis:
             "notes": list(self.notes),
             "time_variation": self.time_variation.to_dict() if self.time_variation else None,
             "in_base": self.in_base,
+            "in_data": {k: f.to_dict() for k, f in self.in_data.items()},
             "timings_s": self.timings,
         }
 
@@ -282,6 +287,12 @@ def diagnose(
     t0 = time.perf_counter()
     spec = spec or model.spec()
     notes = []
+    # measurement errors settled from the logs alone, before any model (:mod:`.consistency`)
+    in_data = data_checks(train, val)
+    for f in in_data.values():
+        say(f"data check {f.effect}: {f.shown()} — " + ("found" if f.found else f"not a finding: {f.reason}"))
+    timings["data_checks"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same
     # rudder angle offset): the base fit holds it at 0 and the candidate is the offset
     # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is a sway force and yaw moment
@@ -430,6 +441,8 @@ def diagnose(
     twins = in_base(fit, base)
     if (line := in_base_line(twins)) is not None:
         lines = (*lines, line)
+    if (line := in_data_line(in_data)) is not None:
+        lines = (*lines, line)
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
@@ -443,5 +456,5 @@ def diagnose(
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
-        notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting,
+        notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting, in_data=in_data,
     )

@@ -21,6 +21,13 @@ __all__ = ["to_markdown", "plot_all", "write_json", "write_report"]
 def to_markdown(d) -> str:
     L = ["# Gap diagnosis: " + d.model_name, ""]
     L += [f"> {x}  " for x in d.verdict] + [""]
+    checks = getattr(d, "in_data", None) or {}
+    if checks:
+        L += ["## In the data (consistency of the logs, no hull coefficient)", "",
+              "| check | estimate (95 %) | finding | held-out misfit without → with | method | why |",
+              "|---|---|---|---|---|---|"]
+        L += [f"| {k} | {f.shown()} | {'yes' if f.found else 'no'} | {f.heldout[0]:.3g} → {f.heldout[1]:.3g} "
+              f"{f.misfit_unit} | {f.method} | {f.reason} |" for k, f in checks.items()] + [""]
     L += ["## Gap budget (validation, normalised by the noise floor)", "",
           "| total E | noise | parameter | structural |", "|---|---|---|---|",
           f"| {d.gap.E_total:.3g} | {d.gap.E_noise:.3g} | {d.gap.E_param:.3g} | {d.gap.E_struct:.3g} |", ""]

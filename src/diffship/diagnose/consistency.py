@@ -1,0 +1,330 @@
+r"""Data consistency: measurement errors settled from the logs alone, before any hydrodynamic model.
+
+Some effects are errors of the *measurement*, not of the model: a heading sensor misaligned
+against the track, a logging clock offset between the rudder and the motion. A hydrodynamic
+model fitted to such logs bends its coefficients to them (on the HSVA KVLCC2 zigzags a 1°
+heading bias is absorbed by the base fit: the held-out error is *lower* with the bias than
+without, ``benchmarks/results/withheld_real_mmg.md``), so the held-out test that judges model
+effects cannot find them. Aircraft system identification settles them first, by *data
+compatibility analysis* (Klein & Morelli 2006, *Aircraft System Identification*, ch. 10;
+Mulder et al. 1999, flight-path reconstruction): relations that hold whatever the dynamics are.
+
+**Heading against the track** (:func:`heading_consistency`). Over-ground body velocities
+:math:`(u, v)` and the logged track obey :math:`\dot x = u\cos\psi - v\sin\psi`,
+:math:`\dot y = u\sin\psi + v\cos\psi` exactly. With a heading that reads :math:`\psi + b`, the
+track dead-reckoned from the logged :math:`(u, v, \psi)`, :math:`D(t) = \int R(\psi_{log})\,(u, v)\,dt`,
+is the logged track turned by :math:`b`. Per run, the angle of the best rotation between the two
+centred tracks (two-dimensional Procrustes, :math:`\theta = \operatorname{atan2}(\sum D\times P,
+\sum D\cdot P)`) gives :math:`b = -\theta`, in closed form; the pooled estimate is the mean of the
+training runs', its standard error their spread over :math:`\sqrt n` (all runs), and the held-out
+runs judge it: their track misfit with :math:`b` against without. It needs :math:`u, v` measured
+over ground apart from the heading (a tracker's velocities, GNSS velocity over ground); where
+:math:`u, v` were computed from the track *with* the logged heading, the relation holds for any
+:math:`b` and the check finds nothing — the line says what it used. A uniform current does not
+enter (over-ground velocities are consistent with the track whatever the water does).
+
+**Rudder timing** (:func:`rudder_timing`). The yaw acceleration answers the rudder at once
+(the rudder's lift acts on the hull without delay). Per shift :math:`\tau` on a grid of one sample
+interval, the equation error of a polynomial yaw equation in the prime system's scaling
+(:func:`_yaw_series`) with the rudder shifted, :math:`\delta_{log}(t-\tau)`, is fitted by least
+squares on the training runs; the :math:`\tau` of its least residual (parabola through the three
+grid points around it) is the time the motion follows the logged rudder. :math:`\dot r` comes from
+a Savitzky–Golay cubic over about 1 s (zero phase: it shifts nothing). The standard error is the
+spread of the runs' own shifts; the held-out runs judge it by their equation error with the
+training coefficients at :math:`\tau` against at 0. The equation error holds no hull coefficient
+of the model under diagnosis, so a structural gap of that model does not bend it (on the HSVA
+zigzags with a 0.5-s clock offset: 0.41 s here, 0.50 s above the unshifted logs' −0.09 s, where
+the output-error refit of the delay beside the missing damping terms gave 0.31 s). What it
+cannot do on zigzags is tell a pure shift from a steering-gear lag or delay (measured: on
+independent synthetic ships a first-order lag fits as well as a shift, training residuals equal
+to 0.3 %): the line says "a logging-clock offset or a steering lag", and the model search
+(:mod:`.which`) tells the actuator effects apart. A motion that *leads* the logged rudder is
+reported but never claimed: it is what a yaw equation missing a term shows (measured on the
+independent ships without their nonlinear damping: −0.48 s).
+
+A check *finds* an error when its estimate is at least the effect's smallest relevant size
+(:attr:`~diffship.models.effects.Effect.MIN_RELEVANT`), its 95 % interval (Student t over the
+runs) excludes 0, and the held-out runs agree (their misfit falls). Findings are reported — the
+verdict's "In the data" line, :attr:`~.diagnosis.Diagnosis.in_data`, the JSON's ``in_data`` —
+beside the model search, which runs on the logs as given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.signal import savgol_filter
+from scipy.stats import t as student_t
+
+from ..data import Run
+
+__all__ = ["DataFinding", "heading_consistency", "rudder_timing", "data_checks", "in_data_line"]
+
+DEG = math.pi / 180
+#: smallest sizes worth reporting: the library effects' own (``HeadingBias``, ``InputDelay``)
+MIN_HEADING = 0.2 * DEG
+MIN_TIMING = 0.2  # s
+
+
+@dataclasses.dataclass(frozen=True)
+class DataFinding:
+    """One consistency check's result.
+
+    ``effect``/``parameter``: what it measures (``heading_bias`` ``b_psi`` [rad], the library
+    effect of that name; ``rudder_timing`` ``tau_d`` [s], the time the motion follows the logged
+    rudder, the library's ``input_delay`` when it is a clock offset; negative when the logged
+    rudder lags the motion); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
+    error over all runs (``per_run``); ``heldout`` the held-out runs' misfit without and with it
+    (``misfit_unit``); ``found`` whether it is an error of the logs (module docstring) and
+    ``reason`` why or why not.
+    """
+
+    effect: str
+    parameter: str
+    value: float
+    stderr: float
+    unit: str
+    per_run: dict[str, float]
+    heldout: tuple[float, float]
+    misfit_unit: str
+    method: str
+    found: bool
+    reason: str
+
+    def half95(self) -> float:
+        n = len(self.per_run)
+        return float(student_t.ppf(0.975, n - 1) * self.stderr) if n > 1 and math.isfinite(self.stderr) else math.inf
+
+    def shown(self) -> str:
+        k, unit = (1 / DEG, "°") if self.unit == "rad" else (1.0, f" {self.unit}")
+        return f"{k * self.value:.3g} ± {k * self.half95():.2g}{unit}"
+
+    @property
+    def library_effect(self) -> str:
+        """The library effect whose parameter this measures (``input_delay`` for the rudder timing)."""
+        return {"rudder_timing": "input_delay"}.get(self.effect, self.effect)
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["half95"] = self.half95()
+        d["library_effect"] = self.library_effect
+        return d
+
+
+def _uniform(run: Run, names: Sequence[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    t = np.asarray(run.time, dtype=float)
+    dt = float(np.median(np.diff(t)))
+    tt = np.arange(t[0], t[-1] + 0.5 * dt, dt)
+    return tt, {c: np.interp(tt, t, np.asarray(run[c], dtype=float)) for c in names}
+
+
+def _verdict(value: float, stderr: float, n: int, minimum: float, before: float, after: float,
+             what: str, unit: str) -> tuple[bool, str]:
+    if n < 2 or not math.isfinite(stderr):
+        return False, f"too few runs to give {what} an interval ({n})"
+    half = float(student_t.ppf(0.975, n - 1) * stderr)
+    if abs(value) < minimum:
+        k, u = (1 / DEG, "°") if unit == "rad" else (1.0, f" {unit}")
+        return False, f"smaller than the smallest relevant size ({k * minimum:.3g}{u})"
+    if abs(value) <= half:
+        return False, "its 95 % interval includes 0"
+    if not (math.isfinite(before) and math.isfinite(after)):
+        return False, "no held-out run to judge it"
+    if not after < before:
+        return False, "the held-out runs do not agree (their misfit does not fall)"
+    return True, "interval excludes 0, above the smallest relevant size, the held-out misfit falls"
+
+
+# -- heading against the track -------------------------------------------------------------------
+
+def _rotation(run: Run) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(b, D, P)``: the heading bias of one run and its centred dead-reckoned and logged tracks."""
+    t = np.asarray(run.time, dtype=float)
+    psi, u, v = (np.asarray(run[c], dtype=float) for c in ("psi", "u", "v"))
+    xd, yd = u * np.cos(psi) - v * np.sin(psi), u * np.sin(psi) + v * np.cos(psi)
+    dt = np.diff(t)
+    D = np.stack([np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)]) for w in (xd, yd)])
+    P = np.stack([np.asarray(run[c], dtype=float) for c in ("x0", "y0")])
+    D, P = D - D.mean(1, keepdims=True), P - P.mean(1, keepdims=True)
+    theta = math.atan2(float(np.sum(D[0] * P[1] - D[1] * P[0])), float(np.sum(D[0] * P[0] + D[1] * P[1])))
+    return -theta, D, P
+
+
+def _track_misfit(runs: Sequence[Run], b: float) -> float:
+    """RMS [m] of the logged track against the dead-reckoned one with the heading ψ − b (centred)."""
+    sq, n = 0.0, 0
+    c, s = math.cos(-b), math.sin(-b)
+    for r in runs:
+        _, D, P = _rotation(r)
+        Dr = np.stack([c * D[0] - s * D[1], s * D[0] + c * D[1]])
+        Dr = Dr - Dr.mean(1, keepdims=True)
+        sq += float(np.sum((Dr - P) ** 2))
+        n += P.shape[1]
+    return math.sqrt(sq / max(n, 1))
+
+
+def heading_consistency(train: Sequence[Run], val: Sequence[Run]) -> DataFinding | None:
+    """The heading bias the track and the over-ground velocities imply (module docstring), or
+    ``None`` where a run lacks ``x0, y0, psi, u, v`` or is too short (under 10 samples)."""
+    runs = list(train) + list(val)
+    if not runs or not all(r.has("x0", "y0", "psi", "u", "v") and r.n >= 10 for r in runs):
+        return None
+    per = {r.name: _rotation(r)[0] for r in runs}
+    b = float(np.mean([per[r.name] for r in train]))
+    vals = np.array(list(per.values()))
+    se = float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) > 1 else math.nan
+    held = (_track_misfit(val, 0.0), _track_misfit(val, b))
+    found, reason = _verdict(b, se, len(vals), MIN_HEADING, *held, "the heading bias", "rad")
+    return DataFinding("heading_bias", "b_psi", b, se, "rad", per, held, "m",
+                       "track dead-reckoned from the logged u, v and heading against the logged track "
+                       "(over-ground u, v assumed)", found, reason)
+
+
+# -- rudder timing ------------------------------------------------------------------------------
+
+def _yaw_series(run: Run, window_s: float = 1.0):
+    r"""``(t, hull features, rudder, U, ṙ)`` of one run on a uniform grid, or ``None``.
+
+    The hull terms scale as the forces of a manoeuvring model in the prime system do
+    (:math:`U r, U v, r^3/U, v^3/U, v^2 r/U, v r^2/U` and a constant; :math:`r, r^3` and a constant
+    without sway), the rudder's as its lift in a propeller slipstream, :math:`\sin\delta` and
+    :math:`U^2\sin\delta` (:func:`_rudder_cols`). On the HSVA KVLCC2 zigzags these terms brought the
+    runs' own shifts together (their spread ±0.12 s → ±0.04 s) and the held-out equation error
+    down by a third against unscaled odd polynomials."""
+    if not run.has("delta") or not (run.has("r") or run.has("psi")):
+        return None
+    names = [c for c in ("u", "v", "r", "psi", "delta") if run.has(c)]
+    t, g = _uniform(run, names)
+    dt = t[1] - t[0] if len(t) > 1 else 0.0
+    w = max(7, int(round(window_s / dt)) | 1) if dt > 0 else 0
+    if len(t) < 3 * w:
+        return None
+    r = g["r"] if "r" in g else savgol_filter(np.unwrap(g["psi"]), w, 3, deriv=1, delta=dt)
+    rdot = savgol_filter(r, w, 3, deriv=1, delta=dt)
+    one = np.ones_like(r)
+    if "u" in g:
+        U = np.hypot(g["u"], g.get("v", 0.0 * one))
+        U = np.maximum(U, 0.1 * max(float(U.max()), 1e-9))
+    else:
+        U = one
+    if "v" in g and "u" in g:
+        v = g["v"]
+        cols = [U * r, U * v, r ** 3 / U, v ** 3 / U, v ** 2 * r / U, v * r ** 2 / U,
+                r * np.abs(r), v * np.abs(v), one]
+    else:
+        cols = [U * r, r * np.abs(r), r ** 3 / U, one]
+    return t, np.stack(cols, 1), g["delta"], U, rdot
+
+
+def _rudder_cols(d: np.ndarray, U: np.ndarray) -> np.ndarray:
+    s = np.sin(d)
+    return np.stack([s, s * U ** 2], 1)
+
+
+def _shifted(t, d, tau):
+    return np.interp(t - tau, t, d)
+
+
+def _design(series, edge: float, transform):
+    """Stacked regression rows (interior samples: ``edge`` s in from each end) of the runs' yaw
+    equations with the rudder transformed by ``transform(t, delta)``."""
+    F, y = [], []
+    for t, X, d, u2, rdot in series:
+        keep = (t >= t[0] + edge) & (t <= t[-1] - edge)
+        F.append(np.concatenate([X, _rudder_cols(transform(t, d), u2)], 1)[keep])
+        y.append(rdot[keep])
+    return np.concatenate(F), np.concatenate(y)
+
+
+def _fit(series, edge, transform):
+    F, y = _design(series, edge, transform)
+    c = np.linalg.lstsq(F, y, rcond=None)[0]
+    return c, float(np.mean((y - F @ c) ** 2))
+
+
+def _heldout(series, edge, transform, c) -> float:
+    if not series:
+        return math.nan
+    F, y = _design(series, edge, transform)
+    return float(np.sqrt(np.mean((y - F @ c) ** 2)))
+
+
+def _best_shift(series, edge, taus) -> float:
+    ssr = np.array([_fit(series, edge, lambda t, d, a=a: _shifted(t, d, a))[1] for a in taus])
+    i = int(np.argmin(ssr))
+    if 0 < i < len(taus) - 1:
+        a, b, c = ssr[i - 1], ssr[i], ssr[i + 1]
+        den = a - 2 * b + c
+        if den > 0:
+            return float(taus[i] + 0.5 * (a - c) / den * (taus[1] - taus[0]))
+    return float(taus[i])
+
+
+def rudder_timing(train: Sequence[Run], val: Sequence[Run], max_shift: float = 4.0) -> DataFinding | None:
+    """The time the yaw acceleration follows the logged rudder (module docstring), or ``None``
+    where a run lacks ``delta`` and a yaw rate (``r`` or ``psi``), is too short, or the rudder
+    hardly moves in any training run (its spread under 0.5°; such runs are left out)."""
+    series = {r.name: _yaw_series(r) for r in list(train) + list(val)}
+    # runs whose rudder moves (a straight run or a free decay says nothing about timing)
+    series = {k: v for k, v in series.items() if v is not None and np.std(v[2]) >= 0.5 * DEG}
+    train = [r for r in train if r.name in series]
+    val = [r for r in val if r.name in series]
+    runs = train + val
+    if not train:
+        return None
+    dt = min(s[0][1] - s[0][0] for s in series.values())
+    span = min(s[0][-1] - s[0][0] for s in series.values())
+    m = min(max_shift, span / 10)
+    edge = m + dt
+    taus = np.arange(-m, m + 0.5 * dt, dt)
+    tr = [series[r.name] for r in train]
+    vl = [series[r.name] for r in val]
+    tau = _best_shift(tr, edge, taus)
+    per = {r.name: _best_shift([series[r.name]], edge, taus) for r in runs}
+    vals = np.array(list(per.values()))
+    se = float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) > 1 else math.nan
+
+    def shift(a):
+        return lambda t, d: _shifted(t, d, a)
+    c0 = _fit(tr, edge, shift(0.0))[0]
+    c1 = _fit(tr, edge, shift(tau))[0]
+    held = (_heldout(vl, edge, shift(0.0), c0), _heldout(vl, edge, shift(tau), c1))
+    found, reason = _verdict(tau, se, len(vals), MIN_TIMING, *held, "the rudder timing", "s")
+    if found and tau < 0:
+        found, reason = False, ("the motion leads the logged rudder: what a yaw equation missing a term shows "
+                                "(measured on independent synthetic ships without their nonlinear damping), not claimed")
+    return DataFinding("rudder_timing", "tau_d", tau, se, "s", per, held, "rad/s² (yaw-acceleration equation error)",
+                       f"equation error of a polynomial yaw equation with the rudder shifted, {len(taus)} shifts in "
+                       f"±{m:.3g} s", found, reason)
+
+
+def data_checks(train: Sequence[Run], val: Sequence[Run]) -> dict[str, DataFinding]:
+    """Every check that applies to these runs, by library effect name."""
+    out = {}
+    for check in (heading_consistency, rudder_timing):
+        f = check(train, val)
+        if f is not None:
+            out[f.effect] = f
+    return out
+
+
+def in_data_line(findings: dict[str, DataFinding]) -> str | None:
+    """The verdict's line for the findings (``found`` only), or ``None``."""
+    parts = []
+    for f in findings.values():
+        if not f.found:
+            continue
+        if f.effect == "heading_bias":
+            parts.append(f"heading_bias b_psi = {f.shown()} (the logged heading against the track and u, v; "
+                         f"held-out track misfit {f.heldout[0]:.3g} → {f.heldout[1]:.3g} m)")
+        else:
+            parts.append(f"rudder timing (input_delay) tau_d = {f.shown()} (the motion follows the logged rudder by that time: a "
+                         f"logging-clock offset, or a steering lag or delay — the model search tells them apart; "
+                         f"held-out yaw equation error {f.heldout[0]:.3g} → {f.heldout[1]:.3g} rad/s²)")
+    if not parts:
+        return None
+    return ("In the data: " + "; ".join(parts) + ". Settled from the logs alone, with no hull coefficient: "
+            "correct the logs for a measurement error, then refit (the base coefficients absorb it otherwise).")
