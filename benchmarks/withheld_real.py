@@ -105,8 +105,10 @@ SCENARIOS = {  # name: (expected effect, magnitude, needs positions)
     # extra rows, stronger than basins see (run with --only): is the size or the data the limit?
     "heading_bias_5deg": ("heading_bias", 5.0 * D, True),
     "water_drift_5cm": ("current", 0.05, True),
+    # the other sign: the rudder logged 0.5 s late (the motion leads it; no delay model can represent it)
+    "clock_offset_late": ("input_delay", -0.5, False),
 }
-EXTRA = ("heading_bias_5deg", "water_drift_5cm")
+EXTRA = ("heading_bias_5deg", "water_drift_5cm", "clock_offset_late")
 DRIFT_DIR = 0.8  # rad, NED direction the basin water moves towards
 TOL = 0.30  # relative tolerance of a found magnitude
 #: the effect's parameter(s) that measure the injected size (a vector for the current)

@@ -66,9 +66,9 @@ def test_heading_check_needs_velocities_and_leaves_logs_unchanged():
     assert heading_consistency(no_v[:3], no_v[3:]) is None
 
 
-def _nomoto_runs(tau: float, n: int = 6, seed: int = 0) -> list[Run]:
+def _nomoto_runs(tau: float, n: int = 6, seed: int = 0, r_noise: float = 0.01 * D) -> list[Run]:
     """A first-order Nomoto ship (T = 8 s, K = 0.1 1/s) whose hull answers the logged rudder ``tau`` s
-    later (a logging clock offset when tau > 0); zigzag-like rudder through a 4°/s gear; noise on r."""
+    later (a logging clock offset when tau > 0); zigzag-like rudder through a 10°/s gear; a fibre-optic gyro's 0.01°/s noise on r."""
     rng = np.random.default_rng(seed)
     K, T, dt = 0.1, 8.0, 0.01
     out = []
@@ -79,7 +79,7 @@ def _nomoto_runs(tau: float, n: int = 6, seed: int = 0) -> list[Run]:
         d = np.empty_like(t)
         d[0] = 0.0
         for k in range(1, len(t)):  # rate-limited steering gear
-            d[k] = d[k - 1] + np.clip(cmd[k] - d[k - 1], -4 * D * dt, 4 * D * dt)
+            d[k] = d[k - 1] + np.clip(cmd[k] - d[k - 1], -10 * D * dt, 10 * D * dt)
         dh = np.interp(t - tau, t, d, left=0.0)  # what the hull answers
         r = np.zeros_like(t)
         for k in range(1, len(t)):
@@ -87,7 +87,7 @@ def _nomoto_runs(tau: float, n: int = 6, seed: int = 0) -> list[Run]:
         psi = np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * dt)])
         k = slice(None, None, 10)
         m = len(t[k])
-        out.append(Run(f"zz{i}", t[k], {"delta": d[k], "r": r[k] + rng.normal(0, 0.02 * D, m),
+        out.append(Run(f"zz{i}", t[k], {"delta": d[k], "r": r[k] + rng.normal(0, r_noise, m),
                                           "psi": psi[k] + rng.normal(0, 0.1 * D, m)}))
     return out
 
@@ -102,11 +102,19 @@ def test_rudder_timing_recovers_a_clock_offset():
     assert f.to_dict()["library_effect"] == "input_delay"
 
 
-def test_rudder_timing_claims_nothing_without_offset_nor_a_lead():
+def test_rudder_timing_claims_nothing_without_offset_finds_a_late_rudder():
     f0 = rudder_timing(*_split(_nomoto_runs(0.0, seed=3)))
     assert not f0.found and abs(f0.value) < 0.15
-    lead = rudder_timing(*_split(_nomoto_runs(-0.8, seed=4)))  # the rudder logged late: reported, not claimed
-    assert lead.value < -0.6 and not lead.found and "leads" in lead.reason
+    late = rudder_timing(*_split(_nomoto_runs(-0.8, seed=4)))  # the rudder logged late: the motion leads it
+    assert late.found and abs(late.value + 0.8) < 0.15
+
+
+def test_rudder_timing_not_claimed_where_the_yaw_equation_is_mostly_noise():
+    """A yaw rate logged with a MEMS gyro's 0.1°/s noise: the shift is estimated, but the held-out equation
+    error hardly falls (under the 5 % the model search asks of an effect), so it is left to the model search."""
+    f = rudder_timing(*_split(_nomoto_runs(0.8, seed=6, r_noise=0.1 * D)))
+    assert abs(f.value - 0.8) < 0.3
+    assert not f.found and "only" in f.reason
 
 
 def _split(runs):

@@ -288,7 +288,7 @@ def diagnose(
     spec = spec or model.spec()
     notes = []
     # measurement errors settled from the logs alone, before any model (:mod:`.consistency`)
-    in_data = data_checks(train, val)
+    in_data = data_checks(train, val, min_fall=o.min_gain)
     for f in in_data.values():
         say(f"data check {f.effect}: {f.shown()} — " + ("found" if f.found else f"not a finding: {f.reason}"))
     timings["data_checks"] = time.perf_counter() - t0
