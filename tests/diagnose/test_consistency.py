@@ -151,3 +151,14 @@ def test_real_hsva_zigzags_injected_errors_recovered(hsva):
     early = [r.with_channels(delta=np.interp(r.time + 0.5, r.time, r["delta"])) for r in hsva]
     rt = rudder_timing(early[:4], early[4:])
     assert rt.found and abs(rt.value - base["rudder_timing"].value - 0.5) < 0.05
+
+
+def test_figure_draws_every_check(tmp_path):
+    from diffship.diagnose.report import plot_data_checks
+
+    runs, zz = _track_runs(b=1.5 * D), _nomoto_runs(0.8)
+    checks = {**data_checks(runs[:4], runs[4:]), **data_checks(zz[:4], zz[4:])}
+    assert set(checks) == {"heading_bias", "rudder_timing"}
+    assert len(checks["rudder_timing"].curve[0]) == len(checks["rudder_timing"].curve[1]) > 10
+    path = plot_data_checks(checks, tmp_path / "data_checks.png")
+    assert path.exists() and path.stat().st_size > 10_000

@@ -84,7 +84,8 @@ class DataFinding:
     rudder lags the motion); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
     error over all runs (``per_run``); ``heldout`` the held-out runs' misfit without and with it
     (``misfit_unit``); ``found`` whether it is an error of the logs (module docstring) and
-    ``reason`` why or why not.
+    ``reason`` why or why not; ``curve`` what the figure draws (the rudder timing: the shifts and
+    the training runs' RMS equation error at each).
     """
 
     effect: str
@@ -98,6 +99,7 @@ class DataFinding:
     method: str
     found: bool
     reason: str
+    curve: tuple[tuple[float, ...], tuple[float, ...]] = ((), ())
 
     def half95(self) -> float:
         n = len(self.per_run)
@@ -262,15 +264,17 @@ def _heldout(series, edge, transform, c) -> float:
     return float(np.sqrt(np.mean((y - F @ c) ** 2)))
 
 
-def _best_shift(series, edge, taus) -> float:
+def _best_shift(series, edge, taus) -> tuple[float, np.ndarray]:
+    """The shift of least equation error (parabola through its grid neighbours) and the mean square
+    error at every shift of ``taus``."""
     ssr = np.array([_fit(series, edge, lambda t, d, a=a: _shifted(t, d, a))[1] for a in taus])
     i = int(np.argmin(ssr))
     if 0 < i < len(taus) - 1:
         a, b, c = ssr[i - 1], ssr[i], ssr[i + 1]
         den = a - 2 * b + c
         if den > 0:
-            return float(taus[i] + 0.5 * (a - c) / den * (taus[1] - taus[0]))
-    return float(taus[i])
+            return float(taus[i] + 0.5 * (a - c) / den * (taus[1] - taus[0])), ssr
+    return float(taus[i]), ssr
 
 
 def rudder_timing(train: Sequence[Run], val: Sequence[Run], max_shift: float = 4.0,
@@ -293,8 +297,8 @@ def rudder_timing(train: Sequence[Run], val: Sequence[Run], max_shift: float = 4
     taus = np.arange(-m, m + 0.5 * dt, dt)
     tr = [series[r.name] for r in train]
     vl = [series[r.name] for r in val]
-    tau = _best_shift(tr, edge, taus)
-    per = {r.name: _best_shift([series[r.name]], edge, taus) for r in runs}
+    tau, ssr = _best_shift(tr, edge, taus)
+    per = {r.name: _best_shift([series[r.name]], edge, taus)[0] for r in runs}
     vals = np.array(list(per.values()))
     se = float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) > 1 else math.nan
 
@@ -306,7 +310,8 @@ def rudder_timing(train: Sequence[Run], val: Sequence[Run], max_shift: float = 4
     found, reason = _verdict(tau, se, len(vals), MIN_TIMING, *held, "the rudder timing", "s", min_fall)
     return DataFinding("rudder_timing", "tau_d", tau, se, "s", per, held, "rad/s² (yaw-acceleration equation error)",
                        f"equation error of a polynomial yaw equation with the rudder shifted, {len(taus)} shifts in "
-                       f"±{m:.3g} s", found, reason)
+                       f"±{m:.3g} s", found, reason,
+                       (tuple(float(x) for x in taus), tuple(float(x) for x in np.sqrt(ssr))))
 
 
 def data_checks(train: Sequence[Run], val: Sequence[Run], min_fall: float = 0.05) -> dict[str, DataFinding]:

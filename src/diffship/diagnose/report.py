@@ -82,7 +82,8 @@ def to_markdown(d) -> str:
 
 
 def plot_all(d, out: Path) -> list[Path]:
-    """Residuals with phases shaded, ACF/CCF panels, regime heatmap, before/after overlays, waterfall."""
+    """Residuals with phases shaded, ACF/CCF panels, regime heatmap, before/after overlays, waterfall,
+    and the data-consistency checks (:func:`plot_data_checks`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -191,7 +192,49 @@ def plot_all(d, out: Path) -> list[Path]:
     files.append(out / "waterfall.png")
     fig.savefig(files[-1], dpi=90)
     plt.close(fig)
+    checks = getattr(d, "in_data", None) or {}
+    if checks:
+        files.append(plot_data_checks(checks, out / "data_checks.png"))
     return files
+
+
+def plot_data_checks(checks, path: Path) -> Path:
+    """The data-consistency checks (:mod:`.consistency`): per run, the heading bias the track implies
+    with the pooled estimate and its 95 % band; the yaw equation error against the rudder shift, the
+    shift of least error and the runs' own."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(checks), figsize=(5.5 * len(checks), 3.8), squeeze=False)
+    for ax, (name, f) in zip(axes[0], checks.items()):
+        k, unit = (180 / np.pi, "°") if f.unit == "rad" else (1.0, f.unit)
+        verdict = "finding" if f.found else "not a finding"
+        if f.curve[0]:
+            ax.plot(f.curve[0], f.curve[1], color="k", lw=1)
+            ax.axvline(f.value, color="C3", lw=1.2, label=f"least error: {f.shown()}")
+            ax.axvline(0.0, color="0.6", lw=0.8, ls="--")
+            for v in f.per_run.values():
+                ax.axvline(v, color="C0", lw=0.6, alpha=0.6, ymax=0.12)
+            ax.set_xlabel(f"rudder shift tau [{unit}] (blue ticks: each run's own)")
+            ax.set_ylabel(f"training RMS equation error [{f.misfit_unit.split(' ')[0]}]")
+        else:
+            names = list(f.per_run)
+            ax.plot(range(len(names)), [k * v for v in f.per_run.values()], "o", color="C0")
+            ax.axhline(k * f.value, color="C3", lw=1.2, label=f"pooled: {f.shown()}")
+            h = k * f.half95()
+            if np.isfinite(h):
+                ax.axhspan(k * f.value - h, k * f.value + h, color="C3", alpha=0.15)
+            ax.axhline(0.0, color="0.6", lw=0.8, ls="--")
+            ax.set_xticks(range(len(names)), names, rotation=30, ha="right", fontsize=7)
+            ax.set_ylabel(f"{f.parameter} [{unit}]")
+        ax.set_title(f"{name}: {verdict}\nheld-out misfit {f.heldout[0]:.3g} → {f.heldout[1]:.3g}", fontsize=9)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
 
 
 def _jsonable(x):
