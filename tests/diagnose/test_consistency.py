@@ -10,7 +10,7 @@ import pytest
 
 import diffship  # noqa: F401
 from diffship.data import Run
-from diffship.diagnose.consistency import data_checks, heading_consistency, in_data_line, rudder_timing
+from diffship.diagnose.consistency import corrected, data_checks, heading_consistency, in_data_line, rudder_timing
 
 D = math.pi / 180
 
@@ -162,3 +162,52 @@ def test_figure_draws_every_check(tmp_path):
     assert len(checks["rudder_timing"].curve[0]) == len(checks["rudder_timing"].curve[1]) > 10
     path = plot_data_checks(checks, tmp_path / "data_checks.png")
     assert path.exists() and path.stat().st_size > 10_000
+
+
+def test_corrected_takes_out_only_the_findings_and_leaves_the_logs():
+    runs = _track_runs(b=1.5 * D, n=4)
+    checks = data_checks(runs[:3], runs[3:])
+    fixed = corrected(runs, checks)
+    assert all(np.allclose(f["psi"], r["psi"] - checks["heading_bias"].value) for f, r in zip(fixed, runs))
+    assert heading_consistency(fixed[:3], fixed[3:]).found is False  # nothing left to find
+    clean = _track_runs(n=4, seed=2)
+    assert all(a is b for a, b in zip(corrected(clean, data_checks(clean[:3], clean[3:])), clean))
+    zz = _nomoto_runs(0.8, n=4)
+    rt = data_checks(zz[:3], zz[3:])
+    again = rudder_timing(corrected(zz[:3], rt), corrected(zz[3:], rt))
+    assert abs(again.value) < 0.1 and not again.found
+
+
+def test_diagnose_corrects_the_logs_when_asked():
+    """``DiagnoseOptions(correct_data=True)``: the rudder timing found in the data is taken out before the base
+    fit, the diagnosis says so and reports the finding; with a given base fit it refuses in one line."""
+    from diffship.diagnose import DiagnoseOptions, diagnose
+    from diffship.errors import DataError
+    from diffship.models import Nomoto1
+
+    zz = _nomoto_runs(0.8, n=4)
+    o = DiagnoseOptions(correct_data=True, effects=("input_delay", "actuator_lag"))
+    d = diagnose(Nomoto1(), zz[:3], zz[3:], options=o)
+    assert d.in_data["rudder_timing"].found and any("corrected" in n for n in d.notes)
+    assert d.E_before < d.gate.value and not d.selected  # nothing left for the model search
+    with pytest.raises(DataError, match="correct_data"):
+        diagnose(Nomoto1(), zz[:3], zz[3:], fit=d.base_fit, options=o)
+
+
+def test_cli_correct_data(tmp_path):
+    """``python -m diffship.diagnose ... --correct-data``: the finding taken out before the command's own base
+    fit, said in the JSON's notes, and the data checks reported in ``in_data``."""
+    import json
+
+    from diffship.diagnose.__main__ import main as diagnose_main
+
+    paths = []
+    for r in _nomoto_runs(0.8, n=4):
+        paths.append(str(tmp_path / f"{r.name}.csv"))
+        r.to_dataframe().to_csv(paths[-1], index=False)
+    js = tmp_path / "d.json"
+    assert diagnose_main(paths[:3] + ["--validate", paths[3], "--model", "nomoto1", "--effects", "input_delay",
+                                      "--correct-data", "--json", str(js), "--quiet"]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["in_data"]["rudder_timing"]["found"] and abs(doc["in_data"]["rudder_timing"]["value"] - 0.8) < 0.15
+    assert any("corrected" in n for n in doc["notes"]) and not doc["selected"]

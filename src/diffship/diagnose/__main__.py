@@ -59,6 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
     p.add_argument("--refit-all", action="store_true",
                    help="refit every candidate, not only the screen's best (also when the first one closed the gap alone)")
+    p.add_argument("--correct-data", action="store_true",
+                   help="take the data checks' findings (a heading bias against the track and u, v; the time the "
+                        "motion follows the logged rudder) out of the logs before the base fit; they are reported "
+                        "either way")
     p.add_argument("--greedy-steps", type=positive_int, default=DiagnoseOptions.greedy_steps, metavar="N",
                    help="effects on the greedy path at most (default %(default)s; each after the first must pass the "
                         "rule against the previous step, and the path stops under the gap gate)")
@@ -133,6 +137,7 @@ def _diagnose(args, say):
     from ..preprocess import Filter
     from ..usability import verdict
     from ..vessel import model_spec
+    from .consistency import correction_note, corrected, data_checks
     from .diagnosis import DiagnoseOptions, diagnose, diagnosis_channels, prefetch_workspace
 
     effects = "all" if args.effects == "all" else [e.strip() for e in args.effects.split(",") if e.strip()]
@@ -162,7 +167,13 @@ def _diagnose(args, say):
     if args.prior_file:
         priors = load_priors(args.prior_file).merged(priors)
     options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans,
-                              greedy_steps=args.greedy_steps)
+                              greedy_steps=args.greedy_steps, correct_data=args.correct_data)
+    checked = None
+    if args.correct_data:  # as diagnose(correct_data=True), before this command's own base fit
+        checked = data_checks(train, val, min_fall=options.min_gain)
+        if (note := correction_note(checked)) is not None:
+            train, val = corrected(train, checked), corrected(val, checked)
+            say(note)
     opts = OutputErrorOptions(max_steps=args.max_steps or options.fit_steps, estimate_x0=model.states_for_channels(chans),
                               integrator=get_integrator(args.solver, hold=args.input_hold), flt=Filter.parse(args.filter),
                               priors=priors if len(priors) else None, reference_priors=not args.no_prior,
@@ -182,7 +193,7 @@ def _diagnose(args, say):
         return None, "; ".join(v.reasons) or v.label
     for line in v.lines()[1:]:
         print(f"warning (base fit):{line[1:]}", file=sys.stderr)
-    d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say)
+    d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say, checked=checked)
     return d, fit
 
 

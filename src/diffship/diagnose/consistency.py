@@ -66,7 +66,8 @@ from scipy.stats import t as student_t
 
 from ..data import Run
 
-__all__ = ["DataFinding", "heading_consistency", "rudder_timing", "data_checks", "in_data_line"]
+__all__ = ["DataFinding", "heading_consistency", "rudder_timing", "data_checks", "in_data_line", "corrected",
+           "correction_note"]
 
 DEG = math.pi / 180
 #: smallest sizes worth reporting: the library effects' own (``HeadingBias``, ``InputDelay``)
@@ -342,3 +343,30 @@ def in_data_line(findings: dict[str, DataFinding]) -> str | None:
         return None
     return ("In the data: " + "; ".join(parts) + ". Settled from the logs alone, with no hull coefficient: "
             "correct the logs for a measurement error, then refit (the base coefficients absorb it otherwise).")
+
+
+def corrected(runs: Sequence[Run], findings: dict[str, DataFinding]) -> list[Run]:
+    r"""The runs with the *found* measurement errors taken out (new runs; the given ones are not
+    changed): the heading :math:`\psi_{log} - b`; the rudder re-timed to when the hull answers it,
+    :math:`\delta(t) = \delta_{log}(t - \tau)` (held at the first or last logged value past the ends)."""
+    hb = findings.get("heading_bias")
+    rt = findings.get("rudder_timing")
+    out = []
+    for r in runs:
+        new = {}
+        if hb is not None and hb.found and r.has("psi"):
+            new["psi"] = np.asarray(r["psi"], dtype=float) - hb.value
+        if rt is not None and rt.found and r.has("delta"):
+            t = np.asarray(r.time, dtype=float)
+            new["delta"] = np.interp(t - rt.value, t, np.asarray(r["delta"], dtype=float))
+        out.append(r.with_channels(**new) if new else r)
+    return out
+
+
+def correction_note(findings: dict[str, DataFinding]) -> str | None:
+    """What :func:`corrected` takes out, in words (``None``: nothing found)."""
+    parts = [f"{f.effect} {f.parameter} = {f.shown()}" for f in findings.values() if f.found]
+    if not parts:
+        return None
+    return ("the logs were corrected for the data findings before the base fit (--correct-data): "
+            + "; ".join(parts) + " taken out")

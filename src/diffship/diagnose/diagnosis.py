@@ -44,7 +44,7 @@ from .shrink import PathStep, Validation, rmse_per_channel
 from .start import StartRule
 from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, in_base, in_base_line, rank, verdict_lines
-from .consistency import DataFinding, data_checks, in_data_line
+from .consistency import DataFinding, corrected, correction_note, data_checks, in_data_line
 from .floors import physical_position_floor
 from .periodic import training_period
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
@@ -263,6 +263,7 @@ def diagnose(
     spec: ParamSpec | None = None,
     options: DiagnoseOptions | None = None,
     progress: Callable[[str], None] | None = None,
+    checked: dict[str, DataFinding] | None = None,
 ) -> Diagnosis:
     """Diagnose the gap of ``model`` (the rules are in :mod:`.which` and :class:`DiagnoseOptions`).
 
@@ -275,6 +276,11 @@ def diagnose(
         spec: free/fixed parameters of the base fit.
         options: candidates, effort and acceptance rule (default: :class:`DiagnoseOptions()`).
         progress: called with one line per step.
+        checked: the data checks (:func:`~.consistency.data_checks`) already made on the logs as
+            logged, when ``train`` and ``val`` are those logs corrected for their findings
+            (:func:`~.consistency.corrected`; ``python -m diffship.diagnose --correct-data``): they are
+            reported, not made again. Without it, ``DiagnoseOptions.correct_data`` corrects the logs
+            here, before the base fit (not with a given ``fit``: it was made on the logs as logged).
     """
     say = progress or (lambda s: None)
     o = options or DiagnoseOptions()
@@ -288,9 +294,18 @@ def diagnose(
     spec = spec or model.spec()
     notes = []
     # measurement errors settled from the logs alone, before any model (:mod:`.consistency`)
-    in_data = data_checks(train, val, min_fall=o.min_gain)
+    in_data = checked if checked is not None else data_checks(train, val, min_fall=o.min_gain)
     for f in in_data.values():
         say(f"data check {f.effect}: {f.shown()} — " + ("found" if f.found else f"not a finding: {f.reason}"))
+    if checked is None and o.correct_data and (note := correction_note(in_data)) is not None:
+        if fit is not None:
+            raise DataError("correct_data: the given base fit was made on the logs as logged; correct the logs "
+                            "(diffship.diagnose.consistency.corrected) and fit them, or leave correct_data off")
+        train, val = corrected(train, in_data), corrected(val, in_data)
+        notes.append(note)
+        say(note)
+    elif checked is not None and (note := correction_note(in_data)) is not None:
+        notes.append(note)
     timings["data_checks"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same

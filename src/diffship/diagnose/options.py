@@ -75,6 +75,11 @@ class DiagnoseOptions:
             winner's validation error are reported as confusable.
         tie_share: a passing candidate whose validation error is within this share of the
             winner's gain is a rival: refitted jointly with the winner to decide, else a tie.
+
+    Data (:mod:`.consistency`):
+        correct_data: take the data checks' findings (a heading bias, a rudder timing) out of
+            the logs before the base fit; they are reported either way. A finding also needs the
+            held-out misfit to fall by ``min_gain``.
     """
 
     effects: Sequence[str] | str = "all"
@@ -99,6 +104,7 @@ class DiagnoseOptions:
     min_shrink: float = 0.3
     confusable_margin: float = 0.05
     tie_share: float = 0.1
+    correct_data: bool = False
 
     def __post_init__(self):
         if self.effects != "all":
