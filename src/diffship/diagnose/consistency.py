@@ -73,6 +73,8 @@ DEG = math.pi / 180
 #: smallest sizes worth reporting: the library effects' own (``HeadingBias``, ``InputDelay``)
 MIN_HEADING = 0.2 * DEG
 MIN_TIMING = 0.2  # s
+#: the least match (cosine of the turned tracks) of a run the heading check uses
+MIN_MATCH = 0.9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,8 +155,9 @@ def _verdict(value: float, stderr: float, n: int, minimum: float, before: float,
 
 # -- heading against the track -------------------------------------------------------------------
 
-def _rotation(run: Run) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(b, D, P)``: the heading bias of one run and its centred dead-reckoned and logged tracks."""
+def _rotation(run: Run) -> tuple[float, np.ndarray, np.ndarray, float]:
+    """``(b, D, P, match)``: the heading bias of one run, its centred dead-reckoned and logged
+    tracks, and how well they match once turned (1: exactly; the cosine of the Procrustes fit)."""
     t = np.asarray(run.time, dtype=float)
     psi, u, v = (np.asarray(run[c], dtype=float) for c in ("psi", "u", "v"))
     xd, yd = u * np.cos(psi) - v * np.sin(psi), u * np.sin(psi) + v * np.cos(psi)
@@ -162,8 +165,9 @@ def _rotation(run: Run) -> tuple[float, np.ndarray, np.ndarray]:
     D = np.stack([np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * dt)]) for w in (xd, yd)])
     P = np.stack([np.asarray(run[c], dtype=float) for c in ("x0", "y0")])
     D, P = D - D.mean(1, keepdims=True), P - P.mean(1, keepdims=True)
-    theta = math.atan2(float(np.sum(D[0] * P[1] - D[1] * P[0])), float(np.sum(D[0] * P[0] + D[1] * P[1])))
-    return -theta, D, P
+    cross, dot = float(np.sum(D[0] * P[1] - D[1] * P[0])), float(np.sum(D[0] * P[0] + D[1] * P[1]))
+    norm = math.sqrt(float(np.sum(D * D)) * float(np.sum(P * P)))
+    return -math.atan2(cross, dot), D, P, (math.hypot(cross, dot) / norm if norm > 0 else 0.0)
 
 
 def _track_misfit(runs: Sequence[Run], b: float) -> float:
@@ -171,7 +175,7 @@ def _track_misfit(runs: Sequence[Run], b: float) -> float:
     sq, n = 0.0, 0
     c, s = math.cos(-b), math.sin(-b)
     for r in runs:
-        _, D, P = _rotation(r)
+        _, D, P, _ = _rotation(r)
         Dr = np.stack([c * D[0] - s * D[1], s * D[0] + c * D[1]])
         Dr = Dr - Dr.mean(1, keepdims=True)
         sq += float(np.sum((Dr - P) ** 2))
@@ -181,11 +185,19 @@ def _track_misfit(runs: Sequence[Run], b: float) -> float:
 
 def heading_consistency(train: Sequence[Run], val: Sequence[Run], min_fall: float = 0.05) -> DataFinding | None:
     """The heading bias the track and the over-ground velocities imply (module docstring), or
-    ``None`` where a run lacks ``x0, y0, psi, u, v`` or is too short (under 10 samples)."""
+    ``None`` where a run lacks ``x0, y0, psi, u, v``, is too short (under 10 samples), or no
+    training run's dead-reckoned track matches its logged one however turned (:data:`MIN_MATCH`)."""
     runs = list(train) + list(val)
     if not runs or not all(r.has("x0", "y0", "psi", "u", "v") and r.n >= 10 for r in runs):
         return None
-    per = {r.name: _rotation(r)[0] for r in runs}
+    # a run whose dead-reckoned track does not match the logged one however turned (a craft holding
+    # station, u, v in other units or through the water in a current) says nothing about the heading
+    rot = {r.name: _rotation(r) for r in runs}
+    ok = {k for k, v in rot.items() if v[3] >= MIN_MATCH}
+    train, val = [r for r in train if r.name in ok], [r for r in val if r.name in ok]
+    if not train:
+        return None
+    per = {r.name: rot[r.name][0] for r in train + val}
     b = float(np.mean([per[r.name] for r in train]))
     vals = np.array(list(per.values()))
     se = float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) > 1 else math.nan
@@ -193,7 +205,9 @@ def heading_consistency(train: Sequence[Run], val: Sequence[Run], min_fall: floa
     found, reason = _verdict(b, se, len(vals), MIN_HEADING, *held, "the heading bias", "rad", min_fall)
     return DataFinding("heading_bias", "b_psi", b, se, "rad", per, held, "m",
                        "track dead-reckoned from the logged u, v and heading against the logged track "
-                       "(over-ground u, v assumed)", found, reason)
+                       "(over-ground u, v assumed)" + (f"; {len(runs) - len(ok)} run(s) left out, their tracks do "
+                                                       f"not match (under {MIN_MATCH})" if len(ok) < len(runs) else ""),
+                       found, reason)
 
 
 # -- rudder timing ------------------------------------------------------------------------------
