@@ -131,7 +131,7 @@ def run_one(sc, options: DiagnoseOptions, say=None) -> dict:
             "nearest_miss": nearest, "family_named": named,
             "confidence": getattr(row, "confidence", "") if row is not None else "",
             "verdict": d.verdict[1],
-            "in_data": "+".join(f"{k}={f.value:.4g}" for k, f in d.in_data.items() if f.found) or "none",
+            "in_data": "+".join(f"{k}={f.shown()}" for k, f in d.in_data.items() if f.found) or "none",
             "screen_cpu_s": d.timings.get("screen_cpu", float("nan")),
             "screen_s": d.timings["screen"], "n_candidates": len(d.screen), "cpu_s": cpu, "wall_s": wall,
             "finished_utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()), "commit": COMMIT}

@@ -109,6 +109,8 @@ SCENARIOS = {  # name: (expected effect, magnitude, needs positions)
     "clock_offset_late": ("input_delay", -0.5, False),
 }
 EXTRA = ("heading_bias_5deg", "water_drift_5cm", "clock_offset_late")
+EXTRA_WHY = {"heading_bias_5deg": "stronger than basins see", "water_drift_5cm": "stronger than basins see",
+             "clock_offset_late": "the other sign: the rudder logged late"}
 DRIFT_DIR = 0.8  # rad, NED direction the basin water moves towards
 TOL = 0.30  # relative tolerance of a found magnitude
 #: the effect's parameter(s) that measure the injected size (a vector for the current)
@@ -402,8 +404,10 @@ def write(rows, a):
          f"size right) {found}; found in the base fit only {in_base}; found in the data check only {in_data}; "
          f"not found {len(inj) - found - in_base - in_data}"
          f" (of which named by the verdict as also passing at the path's cap, *waiting*: {waiting}).**"
-         + ("".join(f" Extra row {r['scenario']} (stronger than basins see, not counted): "
-                    f"{'found' if r['judge']['found'] else 'not found'}." for r in inj_all if r["scenario"] in EXTRA)), "",
+         + ("".join(f" Extra row {r['scenario']} ({EXTRA_WHY[r['scenario']]}, not counted): "
+                    + ("found" if r["judge"]["found"] else "found in the base fit" if r["judge"]["found_in_base"]
+                       else "found in the data check" if r["judge"].get("found_in_data") else "not found") + "."
+                    for r in inj_all if r["scenario"] in EXTRA)), "",
          "| scenario | injected | size | first selected | selected | possible | waiting | E before | E after | shrink | study fit s | total s |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -412,7 +416,7 @@ def write(rows, a):
             continue
         s, u = UNIT.get(r["expected"], (1.0, ""))
         size = f"{r['magnitude'] / s:.3g} {u}" if r["expected"] != "none" else "—"
-        size += " (extra, stronger than basins see)" if r["scenario"] in EXTRA else ""
+        size += f" (extra, {EXTRA_WHY[r['scenario']]})" if r["scenario"] in EXTRA else ""
         L.append(f"| {r['scenario']} | {r['expected']} | {size} | {r['first_selected']} | {r['selected']} | "
                  f"{r['possible']} | {r.get('waiting', '')} | {r['E_before']} | {r['E_after']} | {r['shrink']} | {r.get('seconds_study_fit', 0)} | "
                  f"{r['seconds']} |")

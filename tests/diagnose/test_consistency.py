@@ -107,6 +107,7 @@ def test_rudder_timing_claims_nothing_without_offset_finds_a_late_rudder():
     assert not f0.found and abs(f0.value) < 0.15
     late = rudder_timing(*_split(_nomoto_runs(-0.8, seed=4)))  # the rudder logged late: the motion leads it
     assert late.found and abs(late.value + 0.8) < 0.15
+    assert "logged late" in in_data_line({"rudder_timing": late})
 
 
 def test_rudder_timing_not_claimed_where_the_yaw_equation_is_mostly_noise():

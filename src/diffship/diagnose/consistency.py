@@ -350,9 +350,11 @@ def in_data_line(findings: dict[str, DataFinding]) -> str | None:
             parts.append(f"heading_bias b_psi = {f.shown()} (the logged heading against the track and u, v; "
                          f"held-out track misfit {f.heldout[0]:.3g} → {f.heldout[1]:.3g} m)")
         else:
-            parts.append(f"rudder timing (input_delay) tau_d = {f.shown()} (the motion follows the logged rudder by that time: a "
-                         f"logging-clock offset, or a steering lag or delay — the model search tells them apart; "
-                         f"held-out yaw equation error {f.heldout[0]:.3g} → {f.heldout[1]:.3g} rad/s²)")
+            side = ("the motion follows the logged rudder by that time" if f.value > 0 else
+                    f"the logged rudder follows the motion by {-f.value:.3g} s: logged late")
+            parts.append(f"rudder timing (input_delay) tau_d = {f.shown()} ({side}: a logging-clock offset"
+                         + (", or a steering lag or delay — the model search tells them apart" if f.value > 0 else "")
+                         + f"; held-out yaw equation error {f.heldout[0]:.3g} → {f.heldout[1]:.3g} rad/s²)")
     if not parts:
         return None
     return ("In the data: " + "; ".join(parts) + ". Settled from the logs alone, with no hull coefficient: "
