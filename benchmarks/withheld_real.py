@@ -390,7 +390,7 @@ def write(rows, a):
         cmd += f" --only {','.join(present)}"
     base = rows[0].get("base", "") if rows else ""
     L = [f"# Real logs with withheld effects ({a.model}, HSVA KVLCC2 zigzags, {a.horizon:g} s at {a.dt:g} s)", "",
-         f"Command: `{cmd}` (timings under load: a 2-core machine shared with two other jobs). Base: {base}.", "",
+         f"Command: `{cmd}` (timings on a 2-core machine). Base: {base}.", "",
          (f"Train {', '.join(TRAIN)}; validate {', '.join(VALIDATE)}. Every candidate effect of the library, "
           "nothing told. Definitions (module docstring of `benchmarks/withheld_real.py`): *selected* = among the "
           "selected effects (first or at a later greedy step); *size* = fitted size minus the none row's estimate of "
