@@ -27,7 +27,8 @@ enter (over-ground velocities are consistent with the track whatever the water d
 (the rudder's lift acts on the hull without delay). Per shift :math:`\tau` on a grid of one sample
 interval, the equation error of a polynomial yaw equation in the prime system's scaling
 (:func:`_yaw_series`) with the rudder shifted, :math:`\delta_{log}(t-\tau)`, is fitted by least
-squares on the training runs; the :math:`\tau` of its least residual (parabola through the three
+squares on the training runs (at most 81 shifts, one sample interval apart or wider on fast logs);
+the :math:`\tau` of its least residual (parabola through the three
 grid points around it) is the time the motion follows the logged rudder. :math:`\dot r` comes from
 a Savitzky–Golay cubic over about 1 s (zero phase: it shifts nothing). The standard error is the
 spread of the runs' own shifts; the held-out runs judge it by their equation error with the
@@ -75,6 +76,8 @@ MIN_HEADING = 0.2 * DEG
 MIN_TIMING = 0.2  # s
 #: the least match (cosine of the turned tracks) of a run the heading check uses
 MIN_MATCH = 0.9
+#: the rudder-timing grid's shifts at most (one sample interval apart, or wider on fast logs)
+MAX_SHIFTS = 80
 
 
 @dataclasses.dataclass(frozen=True)
@@ -308,8 +311,9 @@ def rudder_timing(train: Sequence[Run], val: Sequence[Run], max_shift: float = 4
     dt = min(s[0][1] - s[0][0] for s in series.values())
     span = min(s[0][-1] - s[0][0] for s in series.values())
     m = min(max_shift, span / 10)
-    edge = m + dt
-    taus = np.arange(-m, m + 0.5 * dt, dt)
+    step = max(dt, 2 * m / MAX_SHIFTS)  # fast logs: at most MAX_SHIFTS + 1 shifts, the parabola refines
+    edge = m + step
+    taus = np.arange(-m, m + 0.5 * step, step)
     tr = [series[r.name] for r in train]
     vl = [series[r.name] for r in val]
     tau, ssr = _best_shift(tr, edge, taus)
