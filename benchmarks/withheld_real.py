@@ -18,6 +18,11 @@ water_drift         basin water moving at v_c (NED): positions       current (v_
                     + v_c t, over-ground u, v + Rᵀ(ψ) v_c
 ==================  ===============================================  ===========================  ============
 
+Extra rows (run with ``--only``, not counted): stronger versions (``heading_bias_5deg``,
+``water_drift_5cm``), the other sign of the clock offset (``clock_offset_late``: the rudder logged
+0.5 s late) and a rate-gyro zero error (``gyro_zero``: r + 0.05°/s, which no library effect carries;
+the data check's own ``rate_bias``).
+
 Magnitudes: logging clocks of separate acquisition systems drift or are offset by 0.1–1 s;
 rudder indicators are set to about ±0.5–1°; heading references (gyro, optical tracking)
 are aligned to about 0.5–1°; residual basin circulation after a run is 1–3 cm/s at model
@@ -107,10 +112,13 @@ SCENARIOS = {  # name: (expected effect, magnitude, needs positions)
     "water_drift_5cm": ("current", 0.05, True),
     # the other sign: the rudder logged 0.5 s late (the motion leads it; no delay model can represent it)
     "clock_offset_late": ("input_delay", -0.5, False),
+    # a rate-gyro zero error (no library effect carries it; the data check does)
+    "gyro_zero": ("rate_bias", 0.05 * D, False),
 }
-EXTRA = ("heading_bias_5deg", "water_drift_5cm", "clock_offset_late")
+EXTRA = ("heading_bias_5deg", "water_drift_5cm", "clock_offset_late", "gyro_zero")
 EXTRA_WHY = {"heading_bias_5deg": "stronger than basins see", "water_drift_5cm": "stronger than basins see",
-             "clock_offset_late": "the other sign: the rudder logged late"}
+             "clock_offset_late": "the other sign: the rudder logged late",
+             "gyro_zero": "a rate-gyro zero error, r + 0.05°/s: no library effect, the data check's own"}
 DRIFT_DIR = 0.8  # rad, NED direction the basin water moves towards
 TOL = 0.30  # relative tolerance of a found magnitude
 #: the effect's parameter(s) that measure the injected size (a vector for the current)
@@ -119,8 +127,9 @@ MEASURE = {"input_delay": ("tau_d",), "rudder_offset": ("delta_off",), "heading_
 #: a base-model coefficient that is the injected effect itself (MMG's rudder neutral angle)
 IN_BASE = {"rudder_offset": "delta0"}
 #: the data-consistency check that measures the injected effect (:mod:`diffship.diagnose.consistency`)
-IN_DATA = {"heading_bias": "heading_bias", "input_delay": "rudder_timing"}
-UNIT = {"input_delay": (1.0, "s"), "rudder_offset": (D, "°"), "heading_bias": (D, "°"), "current": (1.0, "m/s")}
+IN_DATA = {"heading_bias": "heading_bias", "input_delay": "rudder_timing", "rate_bias": "rate_bias"}
+UNIT = {"input_delay": (1.0, "s"), "rudder_offset": (D, "°"), "heading_bias": (D, "°"), "current": (1.0, "m/s"),
+        "rate_bias": (D, "°/s")}
 
 
 def injected_vector(scenario: str) -> np.ndarray:
@@ -142,6 +151,8 @@ def inject(run: Run, scenario: str) -> Run:
         ch["delta"] = ch["delta"] - a
     elif kind == "heading_bias":
         ch["psi"] = ch["psi"] + a
+    elif kind == "rate_bias":
+        ch["r"] = ch["r"] + a
     elif kind == "current":
         vx, vy = injected_vector(scenario)
         tt = t - t[0]
@@ -499,8 +510,8 @@ def write(rows, a):
           "|---|---|---|---|---|---|---|"]
     for r in rows:
         for k, f in (r.get("in_data") or {}).items():
-            sc_ = 180 / math.pi if f["unit"] == "rad" else 1.0
-            un = "°" if f["unit"] == "rad" else f["unit"]
+            sc_ = 180 / math.pi if f["unit"] in ("rad", "rad/s") else 1.0
+            un = {"rad": "°", "rad/s": "°/s"}.get(f["unit"], f["unit"])
             L.append(f"| {r['scenario']} | {k} | {sc_ * f['value']:.3g} {un} | {sc_ * f['half95']:.2g} {un} | "
                      f"{'yes' if f['found'] else 'no'} | {f['heldout'][0]:.3g} → {f['heldout'][1]:.3g} {f['misfit_unit']} | "
                      f"{f['reason']} |")

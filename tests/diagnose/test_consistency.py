@@ -124,7 +124,7 @@ def _split(runs):
 
 def test_checks_that_do_not_apply_are_absent():
     runs = _nomoto_runs(0.0, n=3)
-    assert set(data_checks(runs[:2], runs[2:])) == {"rudder_timing"}  # no u, v, track: no heading check
+    assert set(data_checks(runs[:2], runs[2:])) == {"rate_bias", "rudder_timing"}  # no u, v, track: no heading check
     flat = [Run(r.name, r.time, {"delta": 0 * r["delta"], "r": r["r"]}) for r in runs]
     assert rudder_timing(flat[:2], flat[2:]) is None  # a rudder that never moves says nothing
 
@@ -159,7 +159,7 @@ def test_figure_draws_every_check(tmp_path):
 
     runs, zz = _track_runs(b=1.5 * D), _nomoto_runs(0.8)
     checks = {**data_checks(runs[:4], runs[4:]), **data_checks(zz[:4], zz[4:])}
-    assert set(checks) == {"heading_bias", "rudder_timing"}
+    assert set(checks) == {"heading_bias", "rate_bias", "rudder_timing"}
     assert len(checks["rudder_timing"].curve[0]) == len(checks["rudder_timing"].curve[1]) > 10
     path = plot_data_checks(checks, tmp_path / "data_checks.png")
     assert path.exists() and path.stat().st_size > 10_000
@@ -212,3 +212,18 @@ def test_cli_correct_data(tmp_path):
     doc = json.loads(js.read_text())
     assert doc["in_data"]["rudder_timing"]["found"] and abs(doc["in_data"]["rudder_timing"]["value"] - 0.8) < 0.15
     assert any("corrected" in n for n in doc["notes"]) and not doc["selected"]
+
+
+def test_rate_gyro_zero_error_recovered_and_taken_out():
+    """A yaw rate that reads r + 0.05°/s drifts away from the logged heading: recovered to 0.005°/s, judged on the
+    held-out runs, taken out by ``corrected``; nothing on the logs as they are."""
+    from diffship.diagnose.consistency import rate_consistency
+
+    zz = _nomoto_runs(0.0, n=5, seed=7)
+    assert not rate_consistency(zz[:3], zz[3:]).found
+    biased = [r.with_channels(r=r["r"] + 0.05 * D) for r in zz]
+    f = rate_consistency(biased[:3], biased[3:])
+    assert f.found and abs(f.value / D - 0.05) < 0.005 and f.library_effect is None
+    assert f"rate_bias b_r = {f.value / D:.3g} ±" in in_data_line({"rate_bias": f})
+    fixed = corrected(biased, {"rate_bias": f})
+    assert abs(rate_consistency(fixed[:3], fixed[3:]).value) < 0.005 * D

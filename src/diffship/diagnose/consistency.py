@@ -23,6 +23,15 @@ over ground apart from the heading (a tracker's velocities, GNSS velocity over g
 :math:`b` and the check finds nothing — the line says what it used. A uniform current does not
 enter (over-ground velocities are consistent with the track whatever the water does).
 
+**Yaw rate against the heading** (:func:`rate_consistency`). A rate gyro that reads
+:math:`r + b_r` integrates away from the logged heading at :math:`b_r`:
+:math:`\psi(t) - \psi(t_0) - \int r_{log}\,dt = -b_r (t - t_0)`. Per run, the slope of that
+difference (least squares with an offset) gives :math:`b_r`; pooled, judged and stated as the
+heading bias is (held-out misfit: the RMS of the difference without and with it). No library
+effect carries it (the models' yaw rate is a state): :func:`corrected` takes it out of ``r``.
+Where ``r`` was derived from the heading the two agree by construction (the HSVA zigzags: under
+0.0004°/s) and the check finds nothing.
+
 **Rudder timing** (:func:`rudder_timing`). The yaw acceleration answers the rudder at once
 (the rudder's lift acts on the hull without delay). Per shift :math:`\tau` on a grid of one sample
 interval, the equation error of a polynomial yaw equation in the prime system's scaling
@@ -67,13 +76,15 @@ from scipy.stats import t as student_t
 
 from ..data import Run
 
-__all__ = ["DataFinding", "heading_consistency", "rudder_timing", "data_checks", "in_data_line", "corrected",
-           "correction_note"]
+__all__ = ["DataFinding", "heading_consistency", "rate_consistency", "rudder_timing", "data_checks", "in_data_line",
+           "corrected", "correction_note"]
 
 DEG = math.pi / 180
 #: smallest sizes worth reporting: the library effects' own (``HeadingBias``, ``InputDelay``)
 MIN_HEADING = 0.2 * DEG
 MIN_TIMING = 0.2  # s
+#: a rate-gyro zero error worth reporting: it turns the integrated heading 1° in 100 s
+MIN_RATE = 0.01 * DEG
 #: the least match (cosine of the turned tracks) of a run the heading check uses
 MIN_MATCH = 0.9
 #: the rudder-timing grid's shifts at most (one sample interval apart, or wider on fast logs)
@@ -87,7 +98,7 @@ class DataFinding:
     ``effect``/``parameter``: what it measures (``heading_bias`` ``b_psi`` [rad], the library
     effect of that name; ``rudder_timing`` ``tau_d`` [s], the time the motion follows the logged
     rudder, the library's ``input_delay`` when it is a clock offset; negative when the logged
-    rudder lags the motion); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
+    rudder lags the motion; ``rate_bias`` ``b_r`` [rad/s], a rate-gyro zero error, no library effect); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
     error over all runs (``per_run``); ``heldout`` the held-out runs' misfit without and with it
     (``misfit_unit``); ``found`` whether it is an error of the logs (module docstring) and
     ``reason`` why or why not; ``curve`` what the figure draws (the rudder timing: the shifts and
@@ -112,13 +123,14 @@ class DataFinding:
         return float(student_t.ppf(0.975, n - 1) * self.stderr) if n > 1 and math.isfinite(self.stderr) else math.inf
 
     def shown(self) -> str:
-        k, unit = (1 / DEG, "°") if self.unit == "rad" else (1.0, f" {self.unit}")
+        k, unit = {"rad": (1 / DEG, "°"), "rad/s": (1 / DEG, "°/s")}.get(self.unit, (1.0, f" {self.unit}"))
         return f"{k * self.value:.3g} ± {k * self.half95():.2g}{unit}"
 
     @property
-    def library_effect(self) -> str:
-        """The library effect whose parameter this measures (``input_delay`` for the rudder timing)."""
-        return {"rudder_timing": "input_delay"}.get(self.effect, self.effect)
+    def library_effect(self) -> str | None:
+        """The library effect whose parameter this measures (``input_delay`` for the rudder timing;
+        ``None`` for the rate bias, which no effect carries)."""
+        return {"rudder_timing": "input_delay", "rate_bias": None}.get(self.effect, self.effect)
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -140,7 +152,7 @@ def _verdict(value: float, stderr: float, n: int, minimum: float, before: float,
         return False, f"too few runs to give {what} an interval ({n})"
     half = float(student_t.ppf(0.975, n - 1) * stderr)
     if abs(value) < minimum:
-        k, u = (1 / DEG, "°") if unit == "rad" else (1.0, f" {unit}")
+        k, u = {"rad": (1 / DEG, "°"), "rad/s": (1 / DEG, "°/s")}.get(unit, (1.0, f" {unit}"))
         return False, f"smaller than the smallest relevant size ({k * minimum:.3g}{u})"
     if abs(value) <= half:
         return False, "its 95 % interval includes 0"
@@ -211,6 +223,45 @@ def heading_consistency(train: Sequence[Run], val: Sequence[Run], min_fall: floa
                        "(over-ground u, v assumed)" + (f"; {len(runs) - len(ok)} run(s) left out, their tracks do "
                                                        f"not match (under {MIN_MATCH})" if len(ok) < len(runs) else ""),
                        found, reason)
+
+
+# -- yaw rate against the heading ---------------------------------------------------------------
+
+def _rate_drift(run: Run) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(b_r, t − t0, d)``: the rate bias of one run and the heading minus the integrated rate."""
+    t = np.asarray(run.time, dtype=float)
+    psi, r = np.unwrap(np.asarray(run["psi"], dtype=float)), np.asarray(run["r"], dtype=float)
+    d = psi - psi[0] - np.concatenate([[0.0], np.cumsum(0.5 * (r[1:] + r[:-1]) * np.diff(t))])
+    tt = t - t[0]
+    slope = np.polyfit(tt, d, 1)[0]
+    return -float(slope), tt, d
+
+
+def _rate_misfit(runs: Sequence[Run], b: float) -> float:
+    """RMS [rad] of the heading minus the integrated rate corrected by ``b`` (each run's offset removed)."""
+    sq, n = 0.0, 0
+    for r in runs:
+        _, tt, d = _rate_drift(r)
+        e = d + b * tt
+        sq += float(np.sum((e - e.mean()) ** 2))
+        n += len(e)
+    return math.sqrt(sq / max(n, 1)) if n else math.nan
+
+
+def rate_consistency(train: Sequence[Run], val: Sequence[Run], min_fall: float = 0.05) -> DataFinding | None:
+    """The rate-gyro zero error the heading implies (module docstring), or ``None`` where a run
+    lacks ``psi`` or ``r`` or is too short (under 10 samples)."""
+    runs = list(train) + list(val)
+    if not train or not all(r.has("psi", "r") and r.n >= 10 for r in runs):
+        return None
+    per = {r.name: _rate_drift(r)[0] for r in runs}
+    b = float(np.mean([per[r.name] for r in train]))
+    vals = np.array(list(per.values()))
+    se = float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) > 1 else math.nan
+    held = (_rate_misfit(val, 0.0), _rate_misfit(val, b)) if val else (math.nan, math.nan)
+    found, reason = _verdict(b, se, len(vals), MIN_RATE, *held, "the rate bias", "rad/s", min_fall)
+    return DataFinding("rate_bias", "b_r", b, se, "rad/s", per, held, "rad (heading minus integrated rate)",
+                       "the logged heading against the integrated logged yaw rate", found, reason)
 
 
 # -- rudder timing ------------------------------------------------------------------------------
@@ -337,7 +388,7 @@ def data_checks(train: Sequence[Run], val: Sequence[Run], min_fall: float = 0.05
     """Every check that applies to these runs, by name; ``min_fall``: the smallest relative fall of
     the held-out misfit a finding needs (the model search's ``DiagnoseOptions.min_gain``)."""
     out = {}
-    for check in (heading_consistency, rudder_timing):
+    for check in (heading_consistency, rate_consistency, rudder_timing):
         f = check(train, val, min_fall=min_fall)
         if f is not None:
             out[f.effect] = f
@@ -350,7 +401,11 @@ def in_data_line(findings: dict[str, DataFinding]) -> str | None:
     for f in findings.values():
         if not f.found:
             continue
-        if f.effect == "heading_bias":
+        if f.effect == "rate_bias":
+            parts.append(f"rate_bias b_r = {f.shown()} (a yaw-rate zero error: the logged heading against the "
+                         f"integrated logged rate; held-out misfit {f.heldout[0] / DEG:.3g} → {f.heldout[1] / DEG:.3g}°; "
+                         "no library effect carries it)")
+        elif f.effect == "heading_bias":
             parts.append(f"heading_bias b_psi = {f.shown()} (the logged heading against the track and u, v; "
                          f"held-out track misfit {f.heldout[0]:.3g} → {f.heldout[1]:.3g} m)")
         else:
@@ -367,15 +422,19 @@ def in_data_line(findings: dict[str, DataFinding]) -> str | None:
 
 def corrected(runs: Sequence[Run], findings: dict[str, DataFinding]) -> list[Run]:
     r"""The runs with the *found* measurement errors taken out (new runs; the given ones are not
-    changed): the heading :math:`\psi_{log} - b`; the rudder re-timed to when the hull answers it,
+    changed): the heading :math:`\psi_{log} - b`; the yaw rate :math:`r_{log} - b_r`; the rudder
+    re-timed to when the hull answers it,
     :math:`\delta(t) = \delta_{log}(t - \tau)` (held at the first or last logged value past the ends)."""
     hb = findings.get("heading_bias")
     rt = findings.get("rudder_timing")
+    rb = findings.get("rate_bias")
     out = []
     for r in runs:
         new = {}
         if hb is not None and hb.found and r.has("psi"):
             new["psi"] = np.asarray(r["psi"], dtype=float) - hb.value
+        if rb is not None and rb.found and r.has("r"):
+            new["r"] = np.asarray(r["r"], dtype=float) - rb.value
         if rt is not None and rt.found and r.has("delta"):
             t = np.asarray(r.time, dtype=float)
             new["delta"] = np.interp(t - rt.value, t, np.asarray(r["delta"], dtype=float))

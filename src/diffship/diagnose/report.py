@@ -200,8 +200,8 @@ def plot_all(d, out: Path) -> list[Path]:
 
 def plot_data_checks(checks, path: Path) -> Path:
     """The data-consistency checks (:mod:`.consistency`): per run, the heading bias the track implies
-    with the pooled estimate and its 95 % band; the yaw equation error against the rudder shift, the
-    shift of least error and the runs' own."""
+    and the rate bias the heading implies, with the pooled estimate and its 95 % band; the yaw
+    equation error against the rudder shift, the shift of least error and the runs' own."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -209,7 +209,7 @@ def plot_data_checks(checks, path: Path) -> Path:
 
     fig, axes = plt.subplots(1, len(checks), figsize=(5.5 * len(checks), 3.8), squeeze=False)
     for ax, (name, f) in zip(axes[0], checks.items()):
-        k, unit = (180 / np.pi, "°") if f.unit == "rad" else (1.0, f.unit)
+        k, unit = {"rad": (180 / np.pi, "°"), "rad/s": (180 / np.pi, "°/s")}.get(f.unit, (1.0, f.unit))
         verdict = "finding" if f.found else "not a finding"
         if f.curve[0]:
             ax.plot(f.curve[0], f.curve[1], color="k", lw=1)
