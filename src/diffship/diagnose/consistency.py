@@ -98,7 +98,8 @@ class DataFinding:
     ``effect``/``parameter``: what it measures (``heading_bias`` ``b_psi`` [rad], the library
     effect of that name; ``rudder_timing`` ``tau_d`` [s], the time the motion follows the logged
     rudder, the library's ``input_delay`` when it is a clock offset; negative when the logged
-    rudder lags the motion; ``rate_bias`` ``b_r`` [rad/s], a rate-gyro zero error, no library effect); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
+    rudder lags the motion; ``rate_bias`` ``b_r`` [rad/s], a rate-gyro zero error, no library
+    effect); ``value`` the pooled estimate over the training runs, ``stderr`` its standard
     error over all runs (``per_run``); ``heldout`` the held-out runs' misfit without and with it
     (``misfit_unit``); ``found`` whether it is an error of the logs (module docstring) and
     ``reason`` why or why not; ``curve`` what the figure draws (the rudder timing: the shifts and
@@ -403,7 +404,8 @@ def in_data_line(findings: dict[str, DataFinding]) -> str | None:
             continue
         if f.effect == "rate_bias":
             parts.append(f"rate_bias b_r = {f.shown()} (a yaw-rate zero error: the logged heading against the "
-                         f"integrated logged rate; held-out misfit {f.heldout[0] / DEG:.3g} → {f.heldout[1] / DEG:.3g}°; "
+                         f"integrated logged rate; held-out misfit {f.heldout[0] / DEG:.3g} → "
+                         f"{f.heldout[1] / DEG:.3g}°; "
                          "no library effect carries it)")
         elif f.effect == "heading_bias":
             parts.append(f"heading_bias b_psi = {f.shown()} (the logged heading against the track and u, v; "

@@ -87,7 +87,8 @@ class Diagnosis:
     validation gain)`` (:attr:`~.which.Selection.waiting`: a further step, ``greedy_steps``, may
     attribute one); ``in_data`` the data-consistency checks (:mod:`.consistency`: the heading
     against the track and over-ground u, v; the yaw rate against the heading; the time the motion
-    follows the logged rudder), each with its estimate, interval and whether it is a finding (then a verdict line "In the data").
+    follows the logged rudder), each with its estimate, interval and whether it is a finding
+    (then a verdict line "In the data").
     """
 
     model_name: str
