@@ -207,9 +207,11 @@ def plot_data_checks(checks, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .consistency import shown_unit
+
     fig, axes = plt.subplots(1, len(checks), figsize=(5.5 * len(checks), 3.8), squeeze=False)
     for ax, (name, f) in zip(axes[0], checks.items()):
-        k, unit = {"rad": (180 / np.pi, "°"), "rad/s": (180 / np.pi, "°/s")}.get(f.unit, (1.0, f.unit))
+        k, unit = shown_unit(f.unit)
         verdict = "finding" if f.found else "not a finding"
         if f.curve[0]:
             ax.plot(f.curve[0], f.curve[1], color="k", lw=1)
