@@ -169,6 +169,7 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
         "priors": result.info.get("priors"),
         "channels": list(result.channels),
         "noise_std": dict(result.noise_std),
+        "channel_scales": {k: float(v) for k, v in (result.channel_scales or {}).items()},
         "integrator": {**integrator_name(result.integrator), "description": result.integrator.describe()},
         "initial_states": x0,
         "operating_point": _operating_point(runs) if runs else {},
@@ -241,6 +242,8 @@ class LoadedFit:
     data: tuple[dict[str, Any], ...]
     path: Path
     document: dict[str, Any]
+    #: the fit's channel scales (the output-error weights; the initial-state rule of its metrics), or empty
+    channel_scales: dict[str, float] = dataclasses.field(default_factory=dict)
 
     @property
     def has_covariance(self) -> bool:
@@ -336,4 +339,5 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
         operating_point=dict(doc.get("operating_point", {})), data_ranges=dict(doc.get("data_ranges", {})),
         ship=dict(doc.get("ship", {})),
         data=tuple(doc.get("data", ())), path=path, document=doc,
+        channel_scales={k: float(v) for k, v in (doc.get("channel_scales") or {}).items()},
     )

@@ -12,7 +12,7 @@ equation-error and output-error fits are judged the same way.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -20,9 +20,10 @@ from .data import Run
 from .integrators import AbstractIntegrator, Diffrax
 from .models import AbstractModel
 from .preprocess import Filter
-from .simulate import initial_state, simulate_run
+from .initial import estimate_starts
+from .simulate import simulate_run
 
-__all__ = ["START_WINDOW_S", "Evaluation", "evaluate", "nrmse_fit", "rmse", "simulate_run", "start_state"]
+__all__ = ["Evaluation", "evaluate", "nrmse_fit", "rmse", "simulate_run", "start_channels", "start_state"]
 
 
 def _err(c: str, y: np.ndarray, yh: np.ndarray, angles) -> np.ndarray:
@@ -63,90 +64,41 @@ class Evaluation:
     horizon: str = "whole-run simulation from the initial state"
 
 
-#: Length of the window the initial state of a scored simulation is estimated on [s] (at least
-#: :data:`START_MIN_SAMPLES` samples, at most a fifth of the run).
-START_WINDOW_S = 3.0
-START_MIN_SAMPLES = 10
+#: Channels that are not part of the initial-state estimate unless a fit fitted them (positions).
+NOT_ESTIMATED_BY_DEFAULT = ("x0", "y0")
 
 
-def _noise_sigma(y: np.ndarray) -> float:
-    """White-noise level of a channel from its second differences (smooth signals cancel): σ̂ = std(Δ²y)/√6."""
-    d2 = np.diff(y, 2)
-    return float(np.std(d2) / np.sqrt(6.0)) if d2.size > 2 else 0.0
+def start_channels(model: AbstractModel, runs: Sequence[Run], fitted: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The channels a run's initial state is estimated on: the fit's channels where given (and in every
+    run), else every output of the model the runs have except positions."""
+    chans = tuple(c for c in (fitted or ()) if c in model.output_names and all(r.has(c) for r in runs))
+    if chans:  # (an equation-error fit's channels are its equations: the default then)
+        return chans
+    return tuple(c for c in model.output_names if c not in NOT_ESTIMATED_BY_DEFAULT and all(r.has(c) for r in runs))
 
 
-def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s: float = START_WINDOW_S,
-                integrator: AbstractIntegrator = Diffrax()) -> np.ndarray:
-    r"""**The initial-state rule of every metric**: the measured states at the first sample that make the
-    model's own simulation over the run's first ``window_s`` seconds fit the measured channels best (states
-    that are not measured channels keep the data's value)
-    (two Gauss–Newton steps from :func:`diffship.simulate.initial_state`, the filtered first sample, with
-    finite-difference sensitivities; every channel weighted by its noise level σ̂ = std(Δ²y)/√6).
+def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), *, integrator: AbstractIntegrator = Diffrax(),
+                channels: Sequence[str] | None = None, scales: Mapping[str, float] | None = None) -> np.ndarray:
+    r"""**The initial-state rule of every metric** (:mod:`diffship.initial`, the rule every fit uses): the run's
+    initial state estimated over the whole run with the model held, each measured state within its sensor
+    noise (a prior row centred on its first sample), states no channel measures free, the data's value for
+    the rest; the output errors weighted by the fit's channel scales ``scales`` (``FitResult.channel_scales``;
+    default: the residual RMS at the measured start times the square root of its correlation time).
 
-    The first sample alone (even low-pass filtered: a zero-phase filter has no past at the edge) keeps
-    nearly all of its sensor noise, and a whole-horizon simulation carries that start error to the end —
-    an error in r grows into a heading offset of about :math:`T\,\delta r` — so the true model scored
-    above the sensor noise (0.77° against 0.58° of heading noise, issue 26). Estimated on N samples of
-    the window the start error shrinks as :math:`1/\sqrt N`, and the true model scores at the noise.
-    The window is short against the run, and the parameters are those being scored (a held-out run's
-    start is estimated with the fitted model, never refitted).
-    """
-    x = np.asarray(initial_state(model, run, flt), dtype=np.float64).copy()
-    t = np.asarray(run.time, dtype=np.float64)
-    n = int(np.searchsorted(t, t[0] + window_s, side="right"))
-    n = min(max(n, START_MIN_SAMPLES), max(START_MIN_SAMPLES, run.n // 5), run.n)
-    chans = [c for c in model.output_names if run.has(c)]
-    if n < 4 or not chans:
-        return x
-    w = run.slice(None, float(t[n - 1]))
-    idx = [model.output_names.index(c) for c in chans]
-    ys, sig = [], []
-    for c in chans:
-        y = np.asarray(w[c], dtype=np.float64)
-        full = np.asarray(run[c], dtype=np.float64)
-        sig.append(max(_noise_sigma(np.unwrap(full) if c in model.angle_outputs else full), 1e-9))
-        ys.append(y)
-    y = np.stack(ys, axis=1)
-    sig = np.asarray(sig)
-    angles = [j for j, c in enumerate(chans) if c in model.angle_outputs]
-    # only measured states move: an internal state (Nomoto2's ξ̇) keeps its data rule — moved freely on a short
-    # window it trades off against the parameters (SSPA zigzag: 3.2° instead of 0.42° heading error)
-    moved = [i for i, s_ in enumerate(model.state_names) if s_ in chans]
-    if not moved:
-        return x
+    The first sample alone keeps all of its sensor noise, and a whole-horizon simulation carries that start
+    error to the end (an error in r grows into a heading offset of about :math:`T\,\delta r`), so the true
+    model would score above the sensor noise; estimated on the run, the start error shrinks with the run's
+    effective sample count, and a structurally wrong model, whose residuals have few effective samples,
+    cannot move its start away from the log. ``channels``: the fit's channels (default
+    :func:`start_channels`)."""
+    return _starts(model, [run], flt, integrator, channels, scales)[0]
 
-    def resid(xv):
-        sol = simulate_run(model, w, xv, integrator)
-        if not bool(sol.ok):
-            return None
-        e = np.asarray(sol.ys)[:, idx] - y
-        if angles:
-            e[:, angles] = np.arctan2(np.sin(e[:, angles]), np.cos(e[:, angles]))
-        return (e / sig).ravel()
 
-    for _ in range(2):
-        r0 = resid(x)
-        if r0 is None or not np.all(np.isfinite(r0)):
-            break
-        cols = []
-        for i in moved:
-            h = 1e-6 * max(1.0, abs(x[i]))
-            xp = x.copy()
-            xp[i] += h
-            ri = resid(xp)
-            if ri is None:
-                return x
-            cols.append((ri - r0) / h)
-        dx, *_ = np.linalg.lstsq(np.stack(cols, axis=1), -r0, rcond=1e-10)
-        if not np.all(np.isfinite(dx)):
-            break
-        x_new = x.copy()
-        x_new[moved] += dx
-        r1 = resid(x_new)
-        if r1 is None or not (r1 @ r1 <= r0 @ r0):
-            break
-        x = x_new
-    return x
+def _starts(model, runs, flt, integrator, channels, scales) -> list[np.ndarray]:
+    chans = start_channels(model, runs, channels)
+    if scales is not None and not all(c in scales for c in chans):
+        scales = None  # e.g. an equation-error fit's scales are its equations'
+    return estimate_starts(model, runs, chans, scales, flt=flt, integrator=integrator)
 
 
 def evaluate(
@@ -157,15 +109,17 @@ def evaluate(
     channels: Sequence[str] | None = None,
     flt: Filter = Filter(),
     integrator: AbstractIntegrator = Diffrax(),
+    fitted: Sequence[str] | None = None,
+    scales: Mapping[str, float] | None = None,
 ) -> Evaluation:
     """Simulate ``model`` on every run (whole horizon) and compare with the measurements.
 
-    ``x0``: initial states per run; by default :func:`start_state` (the state that fits the run's first
-    3 s best with this model, from the filtered first sample) — **the one initial-state rule** of every metric
-    diffship reports: ``python -m diffship.fit`` judges training and ``--validate`` runs this way,
-    so a file fitted and then validated gives the same fit % (pass a fit's ``initial_states`` to
-    see the fit's own estimated starts instead). ``integrator``: use the fit's
-    (``fit.integrator``) so the model is judged as it was fitted.
+    ``x0``: initial states per run; by default :func:`start_state` — **the one initial-state rule** of every
+    fit and metric diffship reports (:mod:`diffship.initial`), estimated on the fit's channels ``fitted``
+    with the fit's channel scales ``scales`` (``FitResult.channels``, ``FitResult.channel_scales``):
+    ``python -m diffship.fit`` judges training and ``--validate`` runs this way, and a training run
+    scored so starts where the fit started it. ``integrator``: use the fit's (``fit.integrator``) so the
+    model is judged as it was fitted.
     """
 
     pooled_e: dict[str, list] = {}
@@ -173,8 +127,9 @@ def evaluate(
     per_run, simulated = {}, {}
     all_ok = True
     chans_all = set()
+    starts = list(x0) if x0 is not None else _starts(model, runs, flt, integrator, fitted, scales)
     for i, run in enumerate(runs):
-        xi = np.asarray(x0[i]) if x0 is not None else start_state(model, run, flt, integrator=integrator)
+        xi = np.asarray(starts[i])
         sol = simulate_run(model, run, xi, integrator)
         ok = bool(sol.ok)
         all_ok &= ok

@@ -14,8 +14,9 @@ with what the whole-horizon simulations of the training and held-out runs show
   the held-out runs are followed, the fit stays usable and says so;
 * **not converged** — the solver stopped at its step limit (usable, with a warning);
 * **FAILED** also — a free parameter with an infinite standard error (the data leave it entirely
-  free: a rank-deficient Jacobian), or every free parameter unidentified as below: the values
-  identify nothing, however well the simulation follows the runs;
+  free: a rank-deficient Jacobian), or every free parameter unidentified as below, or a solve that did not
+  converge with a parameter unidentified (it stopped where its steps ran out): the values identify nothing,
+  however well the simulation follows the runs;
 * **unidentifiable** — a free parameter with a standard error larger than
   :data:`WEAK_RATIO` × its value (or infinite): the data do not determine it; the cause is named
   where the data show it (a degree of freedom that hardly varies: "surge speed hardly varies:
@@ -214,6 +215,14 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
         reasons.append(result.status)
     weak = unidentified(result.params, result.stderr, result.free, train)
     lost = [n for n in result.free if math.isinf(float(result.stderr.get(n, 0.0)))]
+    if weak and not result.converged and not lost:
+        # the solver stopped before its optimum along a direction the data do not determine: where it stopped
+        # is where the steps ran out, not an estimate
+        names = [w.split(" = ")[0] for w in weak]
+        return Verdict(m, "FAILED", False, (f"the solver did not converge and the data do not determine "
+                                            f"{', '.join(names)} (SE > {WEAK_RATIO:g}× value): the values are where "
+                                            "the steps ran out; fix some of them (--fix NAME=VALUE), give priors, or "
+                                            "add runs that excite them",), tuple(probs + vprobs), tuple(weak))
     if lost or (weak and len(weak) == len(result.free)):
         # values the data leave entirely free (a rank-deficient Jacobian), or not one parameter determined:
         # whatever the simulation shows, these values are not an identification of anything

@@ -155,8 +155,9 @@ def test_solve_many_matches_one_start_at_a_time():
 
 
 def test_parameter_started_on_its_bound_is_not_left_there(usv_noisy):
-    # Nr ≤ 0 is log-mapped: started at 1e-7 of the truth, ∂θ/∂z ≈ 0 and LM in z stops at once ("converged",
-    # Nr ≈ −2e-4, 9.8 standard errors off with the plain step/cost rule); the Gauss–Newton step in θ sees it
+    # Nr ≤ 0 is log-mapped: started at 1e-7 of the truth, ∂θ/∂z ≈ 0 and LM in z can stop at once ("converged",
+    # Nr ≈ −2e-4, 9.8 standard errors off with the plain step/cost rule); the search's first short round at the
+    # sensor-noise scales and the Gauss–Newton step in θ (bound_escape) both take it off the bound
     start = {n: TV[n] for n in FREE}
     start["Nr"] = TV["Nr"] * 1e-7
     # that start alone (choose="first"): the driver's other starts would otherwise win without the escape
@@ -165,13 +166,13 @@ def test_parameter_started_on_its_bound_is_not_left_there(usv_noisy):
     assert res.converged, res.status
     z = {n: (res.params[n] - TV[n]) / res.stderr[n] for n in res.free}
     assert max(abs(v) for v in z.values()) < 3.0, z
-    assert any("Gauss–Newton step in the parameters" in m for m in res.messages)
+    assert abs(res.params["Nr"]) > 0.5 * abs(TV["Nr"])  # off the bound: by the search's rounds or the GN step
 
 
 def test_starts_at_the_same_point_after_the_warm_up_are_solved_once():
     """:func:`same_points`: starts whose warm-ups end at one point (unknowns equal to 1e-4 of a scale,
     costs to 1e-4) share one whole-run solve; a different point or a blown-up start never merges."""
-    from diffship.fit.output_error import same_points
+    from diffship.fit.warmup import same_points
     z = np.array([0.3, -1.2, 0.05])
     zs = [z, z + 3e-6, z + np.array([0.0, 0.02, 0.0]), z + 1e-7, z]
     costs = [845842.52, 845844.18, 845000.0, math.inf, 845842.60]
@@ -183,7 +184,7 @@ def test_starts_at_the_same_point_after_the_warm_up_are_solved_once():
 def test_an_initial_heading_a_whole_turn_away_is_the_same_start():
     """An estimated initial angle 2π apart (in its scaled units, the ``period``) is the same point:
     the warm-ups of a USV fit reached one optimum, one of them with ψ(0) one turn from the others."""
-    from diffship.fit.output_error import same_points
+    from diffship.fit.warmup import same_points
     z = np.array([0.3, -1.2, 0.05, 0.01])
     per = np.array([0.0, 0.0, 2 * math.pi / 16.2, 0.0])  # ψ(0) scaled by a 16.2 rad heading spread
     turned = z + np.array([0.0, 0.0, per[2], 0.0])

@@ -117,10 +117,16 @@ def test_pem_agrees_with_output_error_in_calm_water_and_finds_the_sensor_noise()
     assert pe.info["process_sd"]["r"] < 1e-4
 
 
-def test_pem_is_unbiased_where_output_error_is_not_under_process_noise():
+def test_pem_is_unbiased_under_process_noise_and_output_error_says_its_residuals_are_coloured():
+    """Under a yaw disturbance (0.01 rad/s sd, 8 s time constant) prediction error's K, T1 are within 3
+    standard errors of the truth. Output error's simulation residuals carry the integrated disturbance: they are
+    coloured (HAC covariance) with few effective samples, so they weigh less in its likelihood (0.34 worst
+    relative error when every sample counted as independent, 0.085 now, against prediction error's 0.098)."""
     oe, pe = _fits(_nomoto_numpy(seed=2, sigma_w=0.01))  # yaw disturbance 0.01 rad/s sd, 8 s time constant
     assert pe.converged, pe.status
-    assert _worst(oe) > 2 * _worst(pe), (_worst(oe), _worst(pe))
+    assert oe.info["covariance"].startswith("hac"), oe.info["covariance"]
+    assert min(oe.info["correlation_time"].values()) > 10, oe.info["correlation_time"]  # few effective samples
+    assert _worst(pe) < 0.15 and _worst(oe) < 0.15, (_worst(oe), _worst(pe))
     for n in TRUTH:
         assert abs(pe.params[n] - TRUTH[n]) < 3 * pe.stderr[n], (n, pe.params[n], pe.stderr[n])
     # the disturbance was found: w/T1 on the yaw acceleration, sd 0.01/8 rad/s²

@@ -6,8 +6,9 @@ position noise and 0.05° rudder noise. Trained on the 10/10 and 20/20 zigzags; 
 35° turning circle and a 20° pull-out. The right model (six linear derivatives free, the cubic
 ones at their true values) predicts the tactical diameter within 1 % (measured −0.06 %, advance
 +0.1 %); the same free set with the cubic sway/yaw terms deliberately set to zero (a linear
-model) fits the zigzags to 2.1° heading RMS and misses the turn (tactical diameter −27 %,
-transfer −31 %, steady yaw rate +20 %): flagged.
+model) fits the zigzags to about 2° heading RMS and either misses the turn (tactical diameter −27 %)
+or leaves it undetermined (its likelihood has a second optimum with Yv > 0, whose 95 % interval spans
+170–910 m): flagged.
 """
 
 import json
@@ -99,7 +100,11 @@ def test_right_model_predicts_the_turn_wrong_one_is_flagged(runs, fits, tmp_path
 
     wrong = cross_validate(fits["linear"], train, held, samples=60)
     wtc = {m.name: m for m in wrong.checks[0].metrics}
-    assert wtc["tactical_diameter"].relative_error < -0.2, wtc["tactical_diameter"]  # measured −27 %
+    # the linear model's likelihood has two optima 1 apart (one with Yv > 0): its tactical diameter is
+    # either 27 % short or undetermined (95 % interval 170–910 m around 804 m); flagged either way
+    lo, hi = wtc["tactical_diameter"].interval
+    assert wtc["tactical_diameter"].relative_error < -0.2 or hi - lo > 0.5 * wtc["tactical_diameter"].measured, \
+        wtc["tactical_diameter"]
     assert wtc["tactical_diameter"].flagged and not wrong.passed
     # the right fit reproduces its zigzags to the heading noise (0.1°); the linear one misses them by
     # about 2° RMS, which the training fit alone does not call wrong; the turn shows how wrong
@@ -107,7 +112,8 @@ def test_right_model_predicts_the_turn_wrong_one_is_flagged(runs, fits, tmp_path
 
     text = cross_text(wrong)
     assert "Manoeuvre validation on held-out runs (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
-    assert "FAILS cross-manoeuvre validation" in text and "tactical_diameter" in text and "MISS" in text
+    assert "FAILS cross-manoeuvre validation" in text and "tactical_diameter" in text
+    assert "MISS" in text or "UNDETERMINED" in text
     doc = json.loads(json.dumps(cross_json(wrong)))
     assert doc["train_types"] == ["zigzag"] and doc["passed"] is False
     td = doc["heldout"][0]["metrics"]["tactical_diameter"]

@@ -242,8 +242,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             fits.append((cand, res))
     say("ranking: simulating every candidate on the training and held-out runs...")
     channels = tuple(res0.channels)
-    evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator),
-            evaluate(res.model, validate, flt=flt, integrator=res.integrator) if validate else None)
+    evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
+                                scales=res.channel_scales),
+            evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
+                     scales=res.channel_scales) if validate else None)
            for cand, res in fits]
     # the criteria are computed on what each fit minimised: its simulation from its own fitted initial states
     # (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter lets a

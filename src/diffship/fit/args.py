@@ -46,15 +46,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "Kalman filter innovations: for data with unmeasured disturbances) or both (EE then OE); decay1/decay2 curve fits: python -m diffship.decay")
     add_data_options(p)
     add_parameter_options(p)
-    p.add_argument("--x0", default=None, choices=("estimate", "data"),
-                   help="initial states in the fit: taken from the data (default, except for a free decay (decay1, "
-                        "decay2), whose released state is estimated: the measured, filtered state, so the "
-                        "fit minimises what it is judged by) or estimated per run with the parameters within each "
-                        "channel's noise (for a noisy first sample: a heading offset never decays and biases the "
-                        "estimates); the metrics start every run from its state estimated on its first 3 s "
-                        "(diffship.metrics.start_state)")
+    p.add_argument("--x0", default="estimate", choices=("estimate", "data"),
+                   help="initial states: estimate (default): every run's initial state is an unknown of the fit, held "
+                        "within its sensor noise by its first sample (states no channel measures free); the metrics "
+                        "and held-out runs use the same rule with the parameters held (diffship.initial); data: "
+                        "the filtered first sample taken as exact (a noisy first sample biases every estimate; the "
+                        "report says what it costs)")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
-                   help="output-error channel weights: noise (two passes, noise-normalised; default) or spread (one pass)")
+                   help="output-error channel weights: noise (default: each channel's residual RMS times the square "
+                        "root of its correlation time, re-estimated to the likelihood's optimum) or spread (one pass)")
     add_numerics_options(p, filter_help=(
         "equation-error differentiation filter: butter[:Hz], savgol[:s], none, or kalman (extended "
         "Kalman filter + RTS smoother over the model at its starting values, noise levels estimated; "

@@ -12,7 +12,6 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from .equation_error import fit_equation_error
 from .output_error import OutputErrorOptions, fit_output_error
-from .problem import default_channels
 from .result import FitResult
 
 __all__ = ["fit_both"]
@@ -41,11 +40,10 @@ def fit_both(
     many starts reached it and whether the user's own start ended higher.
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
-    ``estimate_x0=None`` (default) follows the model (``model.X0_DEFAULT``: the data for manoeuvring
-    models, ``"fitted"`` for a free decay); ``()`` takes every run's initial state from the data — the measured (filtered)
-    state every metric starts from, so the fit minimises what it is judged by; ``"fitted"`` estimates the
-    initial values of the fitted channels' states within their noise (``OutputError.x0_prior``), for data
-    whose first sample is noisy (a heading offset never decays and biases the estimates); ``options`` holds the other output-error settings.
+    ``estimate_x0=None`` (default) keeps ``options.estimate_x0`` (``"auto"``: the one initial-state rule,
+    :mod:`diffship.initial` — every run's initial state estimated within its sensor noise); ``"fitted"`` is
+    the same rule; ``()`` or ``"data"`` takes every run's initial state from the data as exact (a noisy first
+    sample then biases the estimates); ``options`` holds the other output-error settings.
     """
     say = progress or (lambda s: None)
     spec = spec or model.spec()
@@ -65,10 +63,11 @@ def fit_both(
                 raise
     if "output_error" in methods:
         if estimate_x0 is None:
-            estimate_x0 = "fitted" if model.X0_DEFAULT == "estimate" else ()
-        if estimate_x0 == "fitted":
-            chans = tuple(channels) if channels else default_channels(model, runs)
-            est = model.states_for_channels(chans)
+            est = options.estimate_x0
+        elif estimate_x0 in ("fitted", "auto", "estimate"):
+            est = "auto"
+        elif estimate_x0 == "data":
+            est = ()
         else:
             est = tuple(estimate_x0)
         # equation error ran above: its estimate is a named start already (or it failed: no second try)

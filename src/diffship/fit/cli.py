@@ -43,7 +43,6 @@ from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
-from .problem import default_channels
 from .shooting import fit_multiple_shooting, parse_shooting
 from .smoother import KalmanSmoother
 
@@ -155,8 +154,7 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
         spec = spec.with_values(init)
     ee = results.get("equation_error")
     starts = {"the equation-error estimate": {n: ee.params[n] for n in ee.free}} if ee else {}
-    chans = tuple(args.channels) if args.channels else default_channels(model, train)
-    est = model.states_for_channels(chans) if _x0(args, model) == "fitted" else ()
+    est = "auto" if _x0(args, model) == "auto" else ()
     opts = dataclasses.replace(options, estimate_x0=est, flt=flt, choose="first" if init else "best")
     if shooting is not None:
         out["output_error"] = fit_multiple_shooting(model, train, spec=spec, starts=starts, channels=args.channels,
@@ -169,9 +167,9 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
 
 
 def _x0(args, model) -> str | tuple:
-    """``--x0`` as ``fit_both``'s ``estimate_x0``: ``"fitted"``, ``()`` (the data) or, without the option,
-    the model's default (``X0_DEFAULT``)."""
-    return "fitted" if (args.x0 or model.X0_DEFAULT) == "estimate" else ()
+    """``--x0`` as ``fit_both``'s ``estimate_x0``: ``"auto"`` (the one initial-state rule, the default) or
+    ``()`` (``--x0 data``: the data's initial states taken as exact)."""
+    return () if args.x0 == "data" else "auto"
 
 
 def _filters(args):
@@ -342,13 +340,15 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
 # checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
 # ----------------------------------------------------------------------------------------
 def evaluate_all(results, train, val, flt):
-    """Metrics with one initial-state rule for training and validation runs: the measured (filtered)
-    state at the first sample, as :func:`diffship.metrics.evaluate` does by default."""
+    """Metrics with the one initial-state rule for training and validation runs (:mod:`diffship.initial`):
+    each run's start estimated within its sensor noise on the fit's channels with the fit's channel scales,
+    the parameters held, as :func:`diffship.metrics.evaluate` does."""
     ev_train, ev_val = {}, {}
     for m, r in results.items():
-        ev_train[m] = evaluate(r.model, train, flt=flt, integrator=r.integrator)
+        kw = dict(flt=flt, integrator=r.integrator, fitted=r.channels, scales=r.channel_scales)
+        ev_train[m] = evaluate(r.model, train, **kw)
         if val:
-            ev_val[m] = evaluate(r.model, val, flt=flt, integrator=r.integrator)
+            ev_val[m] = evaluate(r.model, val, **kw)
     return ev_train, ev_val
 
 

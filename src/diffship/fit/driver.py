@@ -191,7 +191,8 @@ def fit(
             raise FitError(text)
         return _failed(model, spec, estimator, problem, text, messages)
     m_rows = max(int(problem.state.get("n_rows", 0)) - n_p, 1)
-    tol = max(costs[best] / m_rows, 1e-12 * abs(costs[best]))
+    tol = (float(problem.state["cost_tolerance"]) if "cost_tolerance" in problem.state
+           else max(costs[best] / m_rows, 1e-12 * abs(costs[best])))
     labels = tuple(t[0] for t in finite)
     report = StartsReport(labels=labels, costs=tuple(float(c) for c in costs), best=best,
                           reached=int(sum(1 for c in costs if math.isfinite(c) and c <= costs[best] + tol)),

@@ -22,10 +22,10 @@ this module; nothing else in diffship writes an output-error residual.
 
 from the whole-horizon simulation (:func:`diffship.simulate.simulate`, vmapped over runs),
 heading errors wrapped to (−π, π], padded samples masked out and every sample after a blow-up
-set to :data:`PENALTY`. Where free parameters carry Gaussian priors (:mod:`diffship.fit.priors`)
-one row per free parameter follows the data rows,
-:math:`e^{\text{prior}}_j = w_j(\theta_j(z) - \mu_j)` with :math:`w_j = 1/\sigma_j` (0 for no prior),
-so the least-squares optimum is the MAP estimate (:meth:`Kernel.split` separates the two parts).
+set to :data:`PENALTY`. Gaussian prior rows follow the data rows (:meth:`Kernel.split` separates them):
+:math:`w_j(\theta_j(z) - \mu_j)` per free parameter with a prior (:mod:`diffship.fit.priors`; the
+optimum is then the MAP estimate), and per estimated initial state :math:`w_k(d_k - \bar d_k)`
+(:mod:`diffship.initial`).
 
 **Solver.** The batched Levenberg–Marquardt of :mod:`diffship.fit.batched` (a single fit is a
 batch of one; :meth:`Kernel.solve_many` runs many starts or resamples in one program), the
@@ -64,15 +64,14 @@ from .batched import lm_advance, lm_start, solve_batch
 
 __all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "stalled", "wrap_angle"]
 
-#: Normalised residual assigned to every sample after a simulation blew up.
+#: Normalised residual assigned to every sample after a simulation blew up (exactly: a blow-up is ``r == PENALTY``).
 PENALTY = 1e3
 
 #: Tree structure of an optimistix result (to rebuild one from its integer code).
 _RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)
 
 def stalled(result, steps, max_steps: int) -> bool:
-    """Whether a solve that reports the step cap stopped before it: the early stop of a crawling
-    cost (``stall_steps``; :mod:`diffship.fit.batched`, item 6) — not converged either way."""
+    """Whether a solve that reports the step cap stopped before it (a crawl's early stop, ``stall_steps``)."""
     return (int(jax.tree_util.tree_leaves(result)[0]) == int(jax.tree_util.tree_leaves(
         optx.RESULTS.nonlinear_max_steps_reached)[0]) and int(steps) < int(max_steps))
 
@@ -96,9 +95,9 @@ class KernelData(eqx.Module):
             ``(n_phi, n_extra)`` and ``(n_phi,)``.
         prior_mean, prior_w: prior means and inverse standard deviations of the free
             parameters ``(n_theta,)``, or empty ``(0,)`` for a fit without priors (no prior rows).
-        x0_prior_w: inverse standard deviations (in ``x0_scale`` units) of the initial-state offsets
-            ``d`` ``(R·n_d,)``, or empty: rows :math:`w_k d_k` after the parameters' prior rows, so an
-            estimated initial state moves from the measured one only as far as its noise allows.
+        x0_prior_w, x0_prior_mean: inverse standard deviations and means (``x0_scale`` units, ``(R·n_d,)``,
+            or empty) of the initial-state offsets: rows :math:`w_k (d_k - \bar d_k)` after the parameters'
+            prior rows (:mod:`diffship.initial`; ``w_k = 0``: a state no channel measures, free).
         horizon: ``None`` (the whole padded runs), or a traced sample count: only the first
             ``horizon`` samples of every run are simulated and scored (:meth:`with_horizon`, :meth:`head`), so a
             growing-horizon warm-up and the whole runs share one compiled program.
@@ -123,6 +122,7 @@ class KernelData(eqx.Module):
     prior_mean: Float[Array, " n_prior"]
     prior_w: Float[Array, " n_prior"]
     x0_prior_w: Float[Array, " n_x0_prior"]
+    x0_prior_mean: Float[Array, " n_x0_prior"]
     horizon: Int[Array, ""] | None
     step_cap: Int[Array, ""] | None
 
@@ -231,11 +231,12 @@ class Kernel(eqx.Module):
         """``e`` followed by the prior rows (none when ``data.n_prior == 0``)."""
         if not data.n_prior:
             return e
-        rows = [e]
+        rows = [e]  # then the parameters' prior rows, then the initial states' (mean 0 where none is given)
         if data.prior_w.shape[0]:
             rows.append(data.prior_w * (self.spec.from_z(z[: self.n_theta]) - data.prior_mean))
         if data.x0_prior_w.shape[0]:
-            rows.append(data.x0_prior_w * z[self.n_theta + self.n_extra:])
+            d = z[self.n_theta + self.n_extra:]
+            rows.append(data.x0_prior_w * ((d - data.x0_prior_mean) if data.x0_prior_mean.shape[0] else d))
         return jnp.concatenate(rows)
 
     @staticmethod
@@ -505,8 +506,8 @@ def _with_result(fn):
     return solve
 
 
-def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None,
-                phi_scale=None, lo=None, hi=None, prior_mean=None, prior_w=None, x0_prior_w=None) -> KernelData:
+def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=None, S=None, phi0=None, phi_scale=None,
+                lo=None, hi=None, prior_mean=None, prior_w=None, x0_prior_w=None, x0_prior_mean=None) -> KernelData:
     """Build :class:`KernelData` from NumPy arrays (empty extra coordinates and no priors by
     default; priors with all weights zero are dropped, so they cost nothing)."""
     if prior_w is not None and not np.any(np.asarray(prior_w)):
@@ -515,4 +516,5 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
     return KernelData(
         model=model, ts=f(ts), us=f(us), ys=f(ys), mask=jnp.asarray(mask, dtype=bool), x0=f(x0), x0_scale=f(x0_scale),
         scales=f(scales), S=f(np.zeros((0, 0)) if S is None else S), phi0=f(phi0), phi_scale=f(phi_scale), lo=f(lo),
-        hi=f(hi), prior_mean=f(prior_mean), prior_w=f(prior_w), x0_prior_w=f(x0_prior_w), horizon=None, step_cap=None)
+        hi=f(hi), prior_mean=f(prior_mean), prior_w=f(prior_w), x0_prior_w=f(x0_prior_w), x0_prior_mean=f(x0_prior_mean),
+        horizon=None, step_cap=None)

@@ -1,36 +1,30 @@
 r"""Output error (simulation error), single shooting: the :class:`OutputError` estimator.
 
-Minimise over the free parameters θ (and optionally per-run initial states)
+Minimise over the free parameters θ and every run's initial state :math:`x_{0}` (:mod:`diffship.initial`)
 
 .. math::
-    \tfrac12 \sum_{\text{runs}}\sum_k\sum_c \Big(\frac{\hat y_c(t_k;\theta) - y_c(t_k)}{s_c}\Big)^2
+    \sum_c \frac{N}{2\tau_c}\log\sum_{\text{runs},k}\big(\hat y_c(t_k;\theta, x_0) - y_c(t_k)\big)^2
+    + \tfrac12\sum_{\text{runs}, s}\Big(\frac{x_{0,s} - y_s(t_0)}{\sigma_s}\Big)^2 + \text{priors}
 
-where :math:`\hat y` is the whole-horizon simulation from the run's initial state (no
-differentiated data anywhere), ``s_c`` normalises each channel, heading errors are wrapped to
-(−π, π], and the parameters live in a scaled unconstrained space (:mod:`diffship.params`).
-The residual, Jacobian and solver are the one output-error kernel (:mod:`diffship.fit.kernel`).
-Everything a fit shares with the other estimators (starts, priors, covariance, relabelling,
-status, result) is the driver's (:func:`diffship.fit.fit`); this module says how the residuals
-are assembled and which schedule of solves runs:
+— the likelihood with each channel's noise level unknown, on ``N/τ_c`` effective samples
+(:func:`~diffship.fit.weights.concentrated_cost`) — where :math:`\hat y` is the whole-horizon simulation
+(no differentiated data anywhere), heading errors are wrapped to (−π, π], each measured initial state is held
+by its first sample within the sensor noise :math:`\sigma_s`, and the parameters live in a scaled unconstrained
+space (:mod:`diffship.params`). It is solved as weighted least squares at self-consistent channel scales. The
+residual, Jacobian and solver are the one output-error kernel (:mod:`diffship.fit.kernel`); everything a fit
+shares with the other estimators (starts, priors, covariance, relabelling, status, result) is the driver's
+(:func:`diffship.fit.fit`). The schedule:
 
-1. **first solve** (from every start together, :meth:`~diffship.fit.kernel.Kernel.solve_many`):
-   with ``warmup``, the first part of every run (growing horizon: cheap steps, and a short
-   horizon keeps LM out of the local minima of long simulations), then the whole runs, with
-   ``s_c`` = the signal spread of each channel;
-2. with ``weights="noise"`` (default), each channel's residual RMS ``σ_c`` is estimated (from the first
-   part of the runs of the best start after a warm-up, the same weights for every start; else from the
-   whole runs) and the fit solved again with ``s_c = σ_c`` — the maximum-likelihood weighting for white Gaussian channel
-   noise, under which the Gauss–Newton covariance ``σ̂²(JᵀJ)⁻¹`` is an honest standard error;
-3. with priors and ``effective_samples``, each channel's data are weighted by their effective
-   sample size ``N/τ_c`` (:func:`~diffship.fit.weights.correlation_time`) and solved again;
-4. a parameter stopped on a log-mapped bound is released by :func:`bound_escape`.
+1. **proposals**: with ``warmup``, every start fitted on the first part of every run (rounds of
+   ``warmup_round`` steps, :mod:`diffship.fit.warmup`);
+2. **whole-run candidates**, one per start, solved together, compared by the likelihood; the best ones
+   refined at their self-consistent channel scales (:mod:`diffship.fit.search`);
+3. a parameter stopped on a log-mapped bound is released by :func:`bound_escape`.
 
-Priors (``priors``, ``reference_priors``; :mod:`diffship.fit.priors`) add one residual row per
-prior, so the optimum is the MAP estimate and the standard errors are posterior ones; by default a
-model with a reference set (MMG KVLCC2, USV, BlueROV2) carries its reference values as loose priors
-when the fixed particulars are the reference vessel's.
-
-:func:`fit_output_error` is :func:`diffship.fit.fit` with this estimator (its earlier signature).
+Priors (``priors``, ``reference_priors``; :mod:`diffship.fit.priors`) add one residual row per prior, so the
+optimum is the MAP estimate and the standard errors are posterior ones; by default a model with a reference set
+(MMG KVLCC2, USV, BlueROV2) carries its reference values as loose priors when the fixed particulars are the
+reference vessel's. :func:`fit_output_error` is :func:`diffship.fit.fit` with this estimator.
 """
 
 from __future__ import annotations
@@ -44,6 +38,7 @@ from concurrent.futures import ThreadPoolExecutor
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 
 from ..data import Run
 from ..errors import FitError
@@ -54,15 +49,17 @@ from ..preprocess import Filter
 from ..progress import heartbeat
 from . import status as st
 from .driver import fit, fit_priors
+from ..initial import channel_noise, cost_of_data_starts, estimated_states, start_prior
 from .equation_error import equation_error_start
 from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import per_scale_columns
-from .input_noise import input_noise_levels, meat_request, measured_input_meat
+from .input_noise import meat_request, measured_input_meat
 from .kernel import PENALTY, Kernel, kernel_data, stalled
 from .priors import Priors, prior_arrays
 from .problem import make_batch
 from .result import FitResult
-from .warmup import same_points, warm_rounds, wrap_periodic
+from .search import ROUND_STEPS, bound_escape, candidates, objective_or_cost, reweighted_solves
+from .warmup import warm_rounds, wrap_periodic
 from .weights import channel_rms, channel_spread, correlation_time, x0_scales
 
 __all__ = ["OutputError", "OutputErrorOptions", "bound_escape", "channel_rms", "channel_spread", "correlation_time",
@@ -75,7 +72,9 @@ class OutputError(AbstractEstimator):
 
     Attributes:
         estimate_x0: state names whose initial values are estimated per run (offsets from the
-            measured values); ``()`` takes every initial state from the data.
+            measured values); ``"auto"`` (default): the one initial-state rule (:mod:`diffship.initial`),
+            every state the fitted channels measure or depend on; ``()`` takes every initial state from
+            the data as exact (``--x0 data``: a noisy first sample then biases the estimates).
         weights: ``"noise"`` (two passes, noise-normalised) or ``"spread"`` (one pass).
         channel_scales: fixed per-channel normalisation (overrides ``weights``).
         integrator: how simulations advance between samples (:mod:`diffship.integrators`).
@@ -110,17 +109,16 @@ class OutputError(AbstractEstimator):
             whole-run solve; the starts report says so, with its cost). Measured on the issue-27 USV
             fit: three starts converged in 11–28 steps, the fourth (the model's reference values)
             crawled 67 steps to the same point (cost 5.2 after 30 steps against 4.29).
-        x0_prior: an estimated initial state moves from the measured (filtered) one only within its
-            noise: a Gaussian prior row on each offset with the standard deviation of the channel's
-            sample noise (robust second-difference estimate, at least 1 % of its spread) where the state
-            is a fitted channel, and one spread of its channel where it is not measured. Without it the
-            offsets are free and soak up model error (measured on the SSPA zigzag: a yaw-rate offset of
-            −0.46°/s, 2.7 noise standard deviations, and a fit judged from the measured start 3.5× worse).
+        x0_prior: an estimated initial state that a fitted channel measures is held by the measurement
+            of its first sample: a Gaussian prior row centred on the raw first sample with the channel's
+            sensor noise (:func:`diffship.initial.start_prior`); states no channel measures are free.
+            ``False``: every estimated state free (it then soaks up model error: on the SSPA zigzag a
+            yaw-rate offset of −0.46°/s, 2.7 noise standard deviations).
     """
 
     method = "output_error"
 
-    estimate_x0: tuple[str, ...] = ()
+    estimate_x0: tuple[str, ...] | str = "auto"
     weights: str = "noise"
     channel_scales: Mapping[str, float] | None = None
     integrator: AbstractIntegrator = Diffrax()
@@ -135,13 +133,16 @@ class OutputError(AbstractEstimator):
     reference_priors: bool = True
     prior_rel_sd: float = 0.5
     effective_samples: bool = True
-    x0_prior: bool = False
+    x0_prior: bool = True
     ee_start: bool = True
     stall: tuple[int, float] | None = None
     warmup_round: int = 30
 
     def __post_init__(self):
-        object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
+        if self.estimate_x0 != "auto":
+            if isinstance(self.estimate_x0, str):
+                raise FitError(f"estimate_x0 must be 'auto' or a sequence of state names, got {self.estimate_x0!r}")
+            object.__setattr__(self, "estimate_x0", tuple(self.estimate_x0))
         if self.weights not in ("noise", "spread"):
             raise FitError(f"weights must be 'noise' or 'spread', got {self.weights!r}")
         if not self.gntol > 0:
@@ -158,6 +159,11 @@ class OutputError(AbstractEstimator):
 
     def describe(self) -> str:
         return "output error"
+
+    def x0_states(self, model: AbstractModel, channels: Sequence[str]) -> tuple[str, ...]:
+        """The states whose initial values this fit estimates (``estimate_x0`` with ``"auto"`` resolved
+        by :func:`diffship.initial.estimated_states`)."""
+        return estimated_states(model, channels) if self.estimate_x0 == "auto" else tuple(self.estimate_x0)
 
     @property
     def warm_cap(self) -> int:
@@ -181,45 +187,33 @@ class OutputError(AbstractEstimator):
     def prepare(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, priors: Priors,
                 say: Callable[[str], None]) -> Problem:
         o = self
-        unknown = [s for s in o.estimate_x0 if s not in model.state_names]
+        batch = make_batch(model, runs, channels, o.flt)
+        est = o.x0_states(model, batch.channels)
+        unknown = [s for s in est if s not in model.state_names]
         if unknown:
             raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
                            f"({', '.join(model.state_names)})")
-        batch = make_batch(model, runs, channels, o.flt)
         n_p = len(spec.free_names)
         kernel = Kernel(spec=spec.structural(), out_idx=tuple(model.output_names.index(c) for c in batch.channels),
                         angle=tuple(c in model.angle_outputs for c in batch.channels),
-                        x0_idx=tuple(model.state_names.index(s) for s in o.estimate_x0), integrator=o.integrator)
+                        x0_idx=tuple(model.state_names.index(s) for s in est), integrator=o.integrator)
         spread = channel_spread(batch)
         scales = np.asarray([o.channel_scales[c] for c in batch.channels]) if o.channel_scales else spread
         p_mean, p_w = prior_arrays(priors, spec)
-        x0_scale = x0_scales(model, batch, o.estimate_x0)
-        x0_w = None
-        if o.x0_prior and o.estimate_x0:
-            noise = np.sqrt(np.maximum(np.diag(input_noise_levels(batch.ys, batch.mask)), 0.0))
-            dt = float(np.median(np.diff(batch.ts[0, : batch.lengths[0]])))
-            rate_of = getattr(model, "STATE_RATE_OF", {})
-
-            def sd(s_):
-                if s_ in batch.channels:
-                    j = batch.channels.index(s_)
-                    return max(noise[j], 1e-2 * spread[j])
-                if rate_of.get(s_) in batch.channels:  # the rate of a channel: a numerical derivative's noise
-                    j = batch.channels.index(rate_of[s_])
-                    return math.sqrt(2.0) * max(noise[j], 1e-2 * spread[j]) / dt
-                return None
-
-            w = [x0_scale[i] / sd(s_) if sd(s_) else 1.0 for i, s_ in enumerate(o.estimate_x0)]
-            x0_w = np.tile(np.asarray(w, dtype=np.float64), len(runs))
+        x0_scale = x0_scales(model, batch, est)
+        x0_w = x0_m = None
+        start = None
+        if o.x0_prior and est:
+            start = start_prior(model, batch.channels, batch.ys, batch.mask, batch.x0, est, x0_scale)
+            x0_w, x0_m = start.weight.reshape(-1), start.mean.reshape(-1)
         data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale,
-                           prior_mean=p_mean, prior_w=p_w, x0_prior_w=x0_w)
+                           prior_mean=p_mean, prior_w=p_w, x0_prior_w=x0_w, x0_prior_mean=x0_m)
         n_x0 = len(kernel.x0_idx) * len(runs)
         n_full = batch.ts.shape[1]
         n_warm = int(o.warmup * n_full) if o.warmup and o.warmup < 1 and o.warmup * n_full >= 200 else 0
-        if n_warm:
-            # the warm-up's horizon and its rounds' step cap are data (:class:`~diffship.fit.kernel.KernelData`):
-            # the warm-up and the whole runs share one compiled solve instead of compiling two
-            data = data.with_horizon().with_step_cap()
+        # the warm-up's horizon and the rounds' step cap are data (:class:`~diffship.fit.kernel.KernelData`): the
+        # warm-up, the whole runs' rounds and the final solves share one compiled solve instead of compiling several
+        data = data.with_horizon().with_step_cap() if n_warm else data.with_step_cap()
         z_shape = np.zeros(n_p + n_x0)
         say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
             f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
@@ -238,7 +232,7 @@ class OutputError(AbstractEstimator):
             if ee_job is not None and not ee_job.done():
                 say("output error: the equation-error estimate as a start...")
             ee, note = ee_job.result() if ee_job is not None else (None, "")
-        names = tuple(f"{s}(0) of run {n}" for n in batch.names for s in o.estimate_x0)
+        names = tuple(f"{s}(0) of run {n}" for n in batch.names for s in est)
         extra, notes = {}, []
         if ee_start:
             if ee is not None:
@@ -247,7 +241,11 @@ class OutputError(AbstractEstimator):
         return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_x0,
                        nuisance_names=names, priors=priors, compile_seconds=compile_s,
                        state=dict(kernel=kernel, data=data, batch=batch, res_fn=res_fn, solve_fn=solve_fn,
-                                  n_warm=n_warm, spread=spread, integrator=o.integrator,
+                                  n_warm=n_warm, spread=spread, integrator=o.integrator, x0_states=est,
+                                  start_prior=start, noise=channel_noise(batch.ys, batch.mask),
+                                  # every start begins at the measured first samples (the filtered ones carry the
+                                  # zero-phase filter's edge error: 2.7 noise levels of r on a Nomoto zigzag)
+                                  nuisance0=np.zeros(n_x0) if x0_m is None else np.asarray(x0_m),
                                   n_rows=batch.n_residuals, extra_starts=extra, start_notes=notes))
 
     # -- starts --------------------------------------------------------------------------------------
@@ -260,67 +258,78 @@ class OutputError(AbstractEstimator):
         return cost
 
     def first_solves(self, problem: Problem, zs, say) -> list[tuple[np.ndarray, float, int]]:
+        """The search (module docstring): proposals, whole-run candidates, the likelihood decides.
+
+        Returns, per start, its best whole-run candidate ``(z, objective, steps)``: the objective is the
+        concentrated likelihood :func:`~diffship.fit.weights.concentrated_cost`, on one scale for every
+        candidate (the correlation times of the best candidate's residuals)."""
         if self.choose == "first":
             zs = zs[:1]
         st_ = problem.state
         kernel, data, n_warm = st_["kernel"], st_["data"], st_["n_warm"]
-        zs = [np.asarray(z) for z in zs]
-        steps = [0] * len(zs)
+        batch = st_["batch"]
+        per = self.angle_periods(problem)
+        zs = [wrap_periodic(np.asarray(z), per) for z in zs]
+        n = len(zs)
+        steps = [0] * n
         dominated: list[int] = []
+        proposals: list[tuple[int, np.ndarray, float, bool]] = []  # (start, z, warm-up cost, converged there)
         if n_warm:
-            # Growing horizon: converge on the first part of every run, then the whole runs (a fit on
-            # the first part that blows up on the whole runs is dropped: that start goes on from itself)
+            # proposals: every start converged on the first part of every run (growing horizon)
             wdata = self.warm_data(data, n_warm, self.warm_cap)
             warm, dominated = warm_rounds(kernel, zs, wdata, {"jacobian": True, **self.lm}, int(self.max_steps), say,
                                           f"output error, first {n_warm} samples", cap=self.warm_cap)
-            if dominated:
-                say(f"output error: start(s) {', '.join(str(i + 1) for i in dominated)} stopped on the first {n_warm} "
-                    "samples: still running, above the cost of a start that had converged there")
             best_w = None
-            for i, (zw, _, k, rw, *_) in enumerate(warm):
+            ok = int(jax.tree_util.tree_leaves(optx.RESULTS.successful)[0])
+            for i, (zw, res, k, rw, *_) in enumerate(warm):
                 steps[i] += int(k)
-                if math.isfinite(self.start_cost(problem, np.asarray(zw))):
-                    zs[i] = np.asarray(zw)
-                    rw = np.asarray(kernel.split(np.asarray(rw), wdata)[0])
-                    if best_w is None or rw @ rw < best_w @ best_w:
-                        best_w = rw
+                zw = wrap_periodic(np.asarray(zw), per)
+                if not math.isfinite(self.start_cost(problem, zw)):
+                    continue
+                rw = np.asarray(kernel.split(np.asarray(rw), wdata)[0])
+                cw = 0.5 * float(rw @ rw)
+                proposals.append((i, zw, cw, int(jax.tree_util.tree_leaves(res)[0]) == ok and i not in dominated))
+                if best_w is None or cw < best_w[0]:
+                    best_w = (cw, rw)
             if best_w is not None and self.weights == "noise" and not self.channel_scales:
-                # the noise weights from the best start's first part, the same for every start (costs stay
-                # comparable) — the noise pass of the whole runs is then not repeated
-                batch = st_["batch"]
-                sigma = channel_rms(best_w, np.asarray(wdata.mask), np.asarray(data.scales))
-                data = data.replace(scales=jnp.asarray(np.maximum(sigma, 1e-6 * st_["spread"])))
-                st_["data"], st_["noise_done"] = data, True
-            say(f"output error: first {n_warm} samples of each run fitted ({', '.join(map(str, steps))} steps); "
-                "now the whole runs")
-        # starts the warm-up brought to the same point (same cost, same unknowns) are one problem on the
-        # whole runs: solved once (four starts of a USV fit all reached one optimum on the first quarter,
-        # and each then ran 200 identical steps on the whole runs)
-        # an initial angle a whole turn from the logged one is the same start: taken back to the branch
-        # nearest the log (same cost; the reported start is the measured heading's)
-        per = self.angle_periods(problem)
-        zs = [wrap_periodic(z, per) for z in zs]
-        w_costs = [self.start_cost(problem, z) for z in zs] if n_warm else []
-        live = [i for i in range(len(zs)) if i not in dominated]
-        rep_live = same_points([zs[i] for i in live], [w_costs[i] for i in live], period=per) if n_warm \
-            else list(range(len(live)))
-        rep = {i: live[j] for i, j in zip(live, rep_live)}
-        uniq = sorted(set(rep.values()))
-        if len(uniq) < len(live):
-            say(f"output error: {len(live) - len(uniq)} start(s) reached the same point as another on the first "
-                f"{n_warm} samples: {len(uniq)} whole-run solve(s)")
-        solved = kernel.solve_many(np.stack([zs[i] for i in uniq]), data, jacobian=True, progress=say,
-                                   label="output error", **self.lm)
-        res = []
-        for i in range(len(zs)):
-            if i in dominated:  # stopped on the warm-up: its whole-run cost where it stopped
-                res.append((np.asarray(zs[i]), w_costs[i], steps[i]))
-                continue
-            z, _, k, r, *_ = solved[uniq.index(rep[i])]
-            r = np.asarray(r)
-            bad = np.any(np.abs(kernel.split(r, data)[0]) >= PENALTY) or not np.all(np.isfinite(r))
-            res.append((np.asarray(z), math.inf if bad else 0.5 * float(r @ r), steps[i] + int(k)))
-        problem.state["dominated"] = tuple(dominated)  # the starts report says which (driver)
+                # the candidates' weights from the best proposal's residuals on the first part, the same for
+                # every candidate (their costs stay comparable)
+                rms = channel_rms(best_w[1], np.asarray(wdata.mask), np.asarray(data.scales))
+                tau = (correlation_time(best_w[1], np.asarray(wdata.mask), len(batch.channels))
+                       if self.effective_samples else np.ones(len(batch.channels)))
+                data = data.replace(scales=jnp.asarray(np.maximum(rms * np.sqrt(tau), 1e-6 * st_["spread"])))
+                st_["data"] = data
+        cands = candidates(zs, proposals, per)
+        if n_warm:
+            n_w = sum(1 for c in cands if c[2] == "warm-up point")
+            say(f"output error: {len(cands)} whole-run candidate(s): {n_w} distinct point(s) of the warm-up on the first "
+                f"{n_warm} samples, {len(cands) - n_w} start(s) as they are")
+        mask = np.asarray(data.mask)
+        reweight = self.weights == "noise" and not self.channel_scales
+        first = st_["noise"] if reweight else np.asarray(data.scales)
+        sols = reweighted_solves(kernel, [c[1] for c in cands], data, first, {"jacobian": True, **self.lm},
+                                 cap=min(ROUND_STEPS, int(self.max_steps)), total=2 * int(self.max_steps),
+                                 floor=1e-6 * st_["spread"], reweight=reweight, effective_samples=self.effective_samples,
+                                 period=per, progress=say, label="output error, whole runs")
+        good = [s_ for s_ in sols if not s_["blew_up"] and s_["merged_into"] is None]
+        # one scale for every candidate: the smallest correlation time of each channel among them
+        tau = np.min(np.stack([s_["tau"] for s_ in good]), axis=0) if good and reweight else None
+        st_["tau"] = tau
+        res = [(np.asarray(zs[i]), math.inf, steps[i]) for i in range(n)]
+        cand_out = []
+        for (i, _, kind), s_ in zip(cands, sols):
+            src = sols[s_["merged_into"]] if s_["merged_into"] is not None else s_
+            f = math.inf if src["blew_up"] else objective_or_cost(src["r"], src["r_prior"], mask, src["scales"], tau)
+            cand_out.append((i, kind, src["z"], f, src))
+            if f < res[i][1]:
+                res[i] = (src["z"], f, steps[i] + s_["steps"])
+        st_["candidates"] = cand_out
+        st_["dominated"] = tuple(dominated)  # the starts report says which (driver)
+        st_["cost_tolerance"] = 0.5  # one standard error along one direction of the likelihood
+        n_m = sum(1 for s_ in sols if s_["merged_into"] is not None)
+        st_["search_note"] = (f"search: {len(cands)} whole-run candidate(s) ({sum(1 for c in cands if c[2] == 'start')} "
+                              f"start(s) as they are, {len(cands) - sum(1 for c in cands if c[2] == 'start')} warm-up "
+                              f"point(s)), each solved at its own channel scales; {n_m} reached another's point")
         return res
 
     def angle_periods(self, problem: Problem) -> np.ndarray:
@@ -330,9 +339,10 @@ class OutputError(AbstractEstimator):
         USV fit reached one optimum, one of them with ψ(0) 2π from the others, at equal cost."""
         data, n_p = problem.state["data"], problem.n_params
         scale = np.asarray(data.x0_scale)
+        est = problem.state["x0_states"]
         per_run = np.asarray([2 * math.pi / scale[i] if s in problem.model.angle_outputs else 0.0
-                              for i, s in enumerate(self.estimate_x0)])
-        n_runs = problem.n_nuisance // max(len(self.estimate_x0), 1) if self.estimate_x0 else 0
+                              for i, s in enumerate(est)])
+        n_runs = problem.n_nuisance // max(len(est), 1) if est else 0
         return np.concatenate([np.zeros(n_p), np.tile(per_run, n_runs), np.zeros(problem.n_nuisance - per_run.size * n_runs)])
 
     def residuals(self, problem: Problem, z) -> np.ndarray:
@@ -347,7 +357,6 @@ class OutputError(AbstractEstimator):
         kernel, data, batch, res_fn, solve_fn = (st_[k] for k in ("kernel", "data", "batch", "res_fn", "solve_fn"))
         spec, model = problem.spec, problem.model
         n_p = problem.n_params
-        spread = st_["spread"]
         scales = np.asarray(data.scales)
         messages: list[str] = []
         passes, steps_per_pass, last_jac = [], [steps], []
@@ -362,21 +371,23 @@ class OutputError(AbstractEstimator):
             return z, np.asarray(kernel.split(np.asarray(r), d)[0])
 
         t0 = time.perf_counter()
-        # the first solve's point again, with its Jacobian (one compiled program: no extra compile)
-        z, r = run_solve(z, data)
-        taus: list[np.ndarray] = []
-        if o.weights == "noise" and not o.channel_scales:
-            if not st_.get("noise_done"):
-                # floor: on noise-free data the residuals are round-off, which must not set the weights
-                scales = np.maximum(channel_rms(r, batch.mask, scales), 1e-6 * spread)
-                data = data.replace(scales=jnp.asarray(scales))
-                z, r = run_solve(z, data)
-            if data.prior_w.shape[0] and o.effective_samples:
-                # data weight of an effective sample size N/τ_c (τ from the noise-weighted residuals)
-                taus.append(correlation_time(r, batch.mask, len(batch.channels)))
-                scales = scales * np.sqrt(taus[-1])
-                data = data.replace(scales=jnp.asarray(scales))
-                z, r = run_solve(z, data)
+        tau = st_.get("tau")
+        chosen = next((c[4] for c in st_.get("candidates", ()) if np.allclose(c[2], z, rtol=0, atol=0)), None)
+        if chosen is not None and chosen["jac"] is not None:
+            # the search solved this candidate at its own channel scales: its point, residuals and Jacobian
+            z, r, scales = np.asarray(chosen["z"]), chosen["r"], chosen["scales"]
+            data = data.replace(scales=jnp.asarray(scales))
+            passes.append(chosen["status"])
+            last_jac[:] = [chosen["jac"]]
+            if tau is not None:
+                st_["objective"], tau = objective_or_cost(r, chosen["r_prior"], np.asarray(batch.mask), scales, tau), \
+                    chosen["tau"]
+        else:
+            # the first solve's point again, with its Jacobian (one compiled program: no extra compile)
+            z, r = run_solve(z, data)
+        if st_.get("search_note"):
+            messages.append(st_["search_note"])
+        taus = [tau] if tau is not None else []
         # -- a parameter pinned on a log-mapped bound: LM again from the Gauss–Newton step in θ ----------
         if last_jac and math.isfinite(o.gntol):
             for _ in range(2):
@@ -394,7 +405,7 @@ class OutputError(AbstractEstimator):
                 z_try, r_try = run_solve(z_new, data)
                 r_full = np.asarray(res_fn(jnp.asarray(z_try), data))
                 if (np.all(np.isfinite(r_full)) and r_full @ r_full < r_old @ r_old
-                        and not np.any(np.abs(kernel.split(r_full, data)[0]) >= PENALTY)):
+                        and not np.any(kernel.split(r_full, data)[0] == PENALTY)):
                     messages.append(f"LM stopped with the Gauss–Newton step in the parameters {length:.2g} standard "
                                     f"errors long (a parameter on a bound); LM again from that step: cost "
                                     f"{0.5 * float(r_old @ r_old):.6g} → {0.5 * float(r_full @ r_full):.6g}")
@@ -417,9 +428,13 @@ class OutputError(AbstractEstimator):
             result = st.RESULTS.cost_stalled
             messages.append(f"stopped early: the cost fell by less than {o.stall[1]:.0e} of itself over "
                             f"{o.stall[0]} steps (a crawl; not converged)")
-        if np.any(np.abs(r) >= PENALTY):
+        if np.any(r == PENALTY):  # the kernel marks every sample after a blow-up exactly
             result = st.RESULTS.simulation_blew_up
         noise = channel_rms(r, batch.mask, scales)
+        if not st_["x0_states"] and estimated_states(model, batch.channels):  # --x0 data: say what it costs
+            note = cost_of_data_starts(kernel.model_at(jnp.asarray(z), data), problem.runs, batch.channels,
+                                       dict(zip(batch.channels, scales)), flt=o.flt, integrator=o.integrator)
+            messages.extend([note] if note else [])
         prior_rows = np.asarray(kernel.split(np.asarray(res_fn(jnp.asarray(z), data)), data)[1])
         x0_rows, prior_rows = prior_rows[n_pw:], prior_rows[:n_pw]
         x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
@@ -428,55 +443,20 @@ class OutputError(AbstractEstimator):
             seconds=fit_s, compile_seconds=c, cost=0.5 * float(np.sum(r * r)),
             channel_scales={ch: float(s) for ch, s in zip(batch.channels, scales)},
             noise_std={ch: float(s) for ch, s in zip(batch.channels, noise)}, initial_states=tuple(x0_fit),
-            run_names=batch.names, variance=1.0 if taus else None, dof=batch.n_residuals - J.shape[1], kind="auto",
+            run_names=batch.names, variance=1.0 if (taus and n_pw) else None, dof=batch.n_residuals - J.shape[1], kind="auto",
             mask=batch.mask, n_channels=len(batch.channels), input_meat=meat, input_noise=sigma_u,
             prior_cost=0.5 * float(np.sum(prior_rows ** 2)), messages=tuple(messages),
             info={"weights": o.weights, "integrator": o.integrator.describe(), "steps_per_pass": tuple(steps_per_pass),
-                  "warmup_samples": st_["n_warm"], "estimate_x0": o.estimate_x0,
-                  "x0_prior_cost": 0.5 * float(np.sum(x0_rows ** 2)),
+                  "warmup_samples": st_["n_warm"], "estimate_x0": st_["x0_states"],
+                  "x0_prior_cost": 0.5 * float(np.sum(x0_rows ** 2)), "objective": st_.get("objective"),
+                  "start_prior": st_["start_prior"].describe() if st_.get("start_prior") is not None else None,
+                  "candidates": [{"start": int(i), "from": kind, "objective": float(f)}
+                                 for i, kind, _, f, _ in st_.get("candidates", ())],
                   "correlation_time": ({ch: float(t) for ch, t in zip(batch.channels, taus[-1])} if taus else None)})
 
 
 #: The earlier name of the output-error settings (the estimator is its own settings object).
 OutputErrorOptions = OutputError
-
-
-def bound_escape(spec: ParamSpec, z: np.ndarray, r: np.ndarray, J: np.ndarray, n_p: int,
-                 gntol: float) -> tuple[np.ndarray, float] | None:
-    r"""The Gauss–Newton step in the parameters θ (not the fit variables ``z``) where it is long.
-
-    A bounded parameter lives in a log-mapped ``z`` (:mod:`diffship.params`): on its bound,
-    :math:`\partial\theta/\partial z \to 0`, so the Jacobian in ``z`` loses that column and LM stops
-    ("converged": the step in ``z`` is short) even where the cost falls steeply as the parameter
-    leaves the bound. In θ/scale the step :math:`\delta = -J_\theta^{+} r` sees it: if its marginal
-    length over the parameters exceeds ``gntol`` standard errors (:mod:`diffship.fit._lm`), the
-    point ``θ + δ`` (kept 10⁻³ scales inside the bounds; initial-state unknowns moved by their part
-    of the step) is returned with that length, else ``None``. Measured on the MMG KVLCC2 zigzag
-    (``benchmarks/kvlcc2_second_minimum.py``): J'_z pinned at 10⁻⁶ on its bound 0, step 1.26 se
-    long, pointing to the optimum (J'_z 0.011) that LM with J'_z unbounded reaches from there.
-    """
-    n = J.shape[1]
-    col = per_scale_columns(spec, z, n)
-    Jt = J * col
-    m = int(np.sum(r != 0))
-    s2 = float(r @ r) / max(m - n, 1)
-    step, *_ = np.linalg.lstsq(Jt, -r, rcond=None)
-    cov = np.linalg.pinv(Jt.T @ Jt, hermitian=True)[:n_p, :n_p]
-    length = math.sqrt(max(float(step[:n_p] @ np.linalg.pinv(cov, hermitian=True) @ step[:n_p]) / s2, 0.0))
-    if not length > gntol:
-        return None
-    names = spec.free_names
-    theta = np.asarray(spec.from_z(jnp.asarray(z[:n_p])))
-    new = {}
-    for i, name in enumerate(names):
-        p = spec[name]
-        v = theta[i] + step[i] * p.scale
-        new[name] = float(np.clip(v, p.lower + 1e-3 * p.scale, p.upper - 1e-3 * p.scale))
-    try:
-        z_theta = spec.to_z(new)
-    except Exception:  # pragma: no cover - clipped inside the bounds
-        return None
-    return np.concatenate([z_theta, z[n_p:] + step[n_p:] / col[n_p:]]), length
 
 
 def fit_output_error(

@@ -301,7 +301,7 @@ def shooting_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec,
     counted &= active[:, :, None]
     seg_mask = (mask[:, idx] & counted).reshape(R * S, L + 1)
     x_guess = _segment_starts(model, runs, batch.ts, batch.x0, L, S, o.flt)
-    x0_idx = tuple(model.state_names.index(s) for s in o.estimate_x0)
+    x0_idx = tuple(model.state_names.index(s) for s in o.x0_states(model, batch.channels))
     n_x = len(model.state_names)
     rows, cols = [], []
     for i in range(R):
@@ -350,7 +350,9 @@ class MultipleShooting(OnOutputError):
 
     def prepare(self, model, runs, spec, channels, priors, say) -> Problem:
         o, sh = self.oe, self.shooting
-        unknown = [s_ for s_ in o.estimate_x0 if s_ not in model.state_names]
+        if o.estimate_x0 != "auto":  # the rule's states are resolved on the batch's channels (shooting_problem)
+            o = dataclasses.replace(o, estimate_x0=tuple(o.estimate_x0))
+        unknown = [s_ for s_ in (o.estimate_x0 if o.estimate_x0 != "auto" else ()) if s_ not in model.state_names]
         if unknown:
             raise FitError(f"estimate_x0: {', '.join(unknown)} are not states of model {model.name} "
                            f"({', '.join(model.state_names)})")
@@ -482,7 +484,7 @@ class MultipleShooting(OnOutputError):
             channel_scales={ch: float(s_) for ch, s_ in zip(batch.channels, scales)},
             noise_std={ch: float(s_) for ch, s_ in zip(batch.channels, noise)}, initial_states=tuple(x0),
             run_names=batch.names, dof=max(n_res - n_p, 1), kind="white", messages=tuple(messages),
-            info={"shooting": ms_info, "estimate_x0": self.oe.estimate_x0, "weights": self.oe.weights,
+            info={"shooting": ms_info, "estimate_x0": self.oe.x0_states(problem.model, st_["batch"].channels), "weights": self.oe.weights,
                   "integrator": self.oe.integrator.describe()})
 
 

@@ -136,6 +136,10 @@ class LinearForm(NamedTuple):
     names: tuple[str, ...]
 
 
+#: The rate state of each angle state: an angle fitted without its rate still determines the rate's start.
+_RATE_OF_ANGLE = {"psi": "r", "phi": "p", "theta": "q"}
+
+
 class AbstractModel(eqx.Module):
     """Base class: a vector field with named states, inputs, outputs and parameters.
 
@@ -170,11 +174,6 @@ class AbstractModel(eqx.Module):
     REFERENCE_VESSEL: ClassVar[str | None] = None
     #: Inputs that are a known constant when a run has no such column (e.g. zero force in a free decay).
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {}
-    #: Where a fit takes each run's initial state by default (``fit_both``, ``--x0``): ``"data"`` (the
-    #: measured, filtered state; manoeuvres driven by their inputs) or ``"estimate"`` (fitted with the
-    #: parameters; a free response such as a decay, whose every sample depends on the released state
-    #: as a curve fit's amplitude does).
-    X0_DEFAULT: ClassVar[str] = "data"
 
     @classmethod
     def _select_params(cls, declared: tuple[str, ...]) -> tuple[str, ...]:
@@ -282,8 +281,12 @@ class AbstractModel(eqx.Module):
         return np.array([float(y0.get(n, 0.0)) for n in self.state_names], dtype=np.float64)
 
     def states_for_channels(self, channels) -> tuple[str, ...]:
-        """States whose initial values determine the given measured channels at t0."""
-        return tuple(c for c in channels if c in self.state_names)
+        """States whose initial values the fitted ``channels`` determine (the initial-state rule,
+        :mod:`diffship.initial`): the measured states, and the rate of a fitted angle (ψ → r, φ → p,
+        θ → q) that no channel measures — its initial value shapes the whole angle trace."""
+        chosen = {c for c in channels if c in self.state_names}
+        chosen |= {w for a, w in _RATE_OF_ANGLE.items() if a in channels and w in self.state_names}
+        return tuple(s for s in self.state_names if s in chosen)
 
     # -- equation-error form (module docstring) -----------------------------------------------
     def equation_residual(

@@ -38,7 +38,6 @@ class Decay1(AbstractModel):
     #: the DOF's total inertia is not a vessel-file quantity (which DOF decays is the test's): ``--fix m=VALUE``
     PARTICULARS: ClassVar[dict[str, str]] = DECAY1
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
-    X0_DEFAULT: ClassVar[str] = "estimate"  # a free decay: the released state is estimated, as u0 is in a curve fit
 
     m: jnp.ndarray = param(1.0, free=False, lower=0.0, scale=1.0, unit="kg", description="total inertia (rigid + added)")
     D: jnp.ndarray = param(1.0, lower=0.0, scale=1.0, unit="kg/s", description="linear damping")
@@ -71,7 +70,6 @@ class Decay2(AbstractModel):
     #: ``--fix`` both, or fix one and ``--free`` the other (the decay gives only k/I and b/I)
     PARTICULARS: ClassVar[dict[str, str]] = DECAY2
     INPUT_DEFAULTS: ClassVar[dict[str, float]] = {"tau": 0.0}
-    X0_DEFAULT: ClassVar[str] = "estimate"  # a free decay: the released state is estimated, as u0 is in a curve fit
 
     I: jnp.ndarray = param(  # noqa: E741
         1.0, free=False, lower=0.0, scale=1.0, unit="kg m2", description="total inertia (rigid + added)")

@@ -143,9 +143,9 @@ class Nomoto2(AbstractModel):
         return np.array([float(y0.get("psi", 0.0)), float(y0.get("r", 0.0)), float(y0.get("r_dot", 0.0))])
 
     def states_for_channels(self, channels) -> tuple[str, ...]:
-        out = ("psi",) if "psi" in channels else ()
-        return out + (("r", "xi_dot") if "r" in channels else ())
-        return (("psi",) if "psi" in channels else ()) + (("r",) if "r" in channels else ())
+        """ψ, r and ξ̇ wherever ψ or r is fitted: the yaw rate's initial value shapes the heading whether
+        or not r is measured (unmeasured states are estimated free, :mod:`diffship.initial`)."""
+        return (("psi",) if "psi" in channels else ()) + (("r", "xi_dot") if {"psi", "r"} & set(channels) else ())
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
         """Order the interchangeable time constants so that ``T1 ≥ T2``."""

@@ -36,7 +36,9 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
    (vmapped, :func:`diffship.predict.sampling.simulate_draws`) and the 2.5–97.5 percentiles of each
    metric are its 95 % interval (parameter uncertainty only);
 4. **flags** a metric whose measured value lies outside the interval *and* whose error exceeds a
-   tolerance (:data:`TOLERANCES`: 5 % for lengths and rates, 10 % for times, 1.5° for overshoots);
+   tolerance (:data:`TOLERANCES`: 5 % for lengths and rates, 10 % for times, 1.5° for overshoots), and a
+   metric whose 95 % interval is wider than :data:`UNDETERMINED` tolerances on either side (the fit does not
+   determine it: a prediction anywhere in such an interval validates nothing);
    the run (and the validation) fails when any metric is flagged.
 
 Held-out runs of a trained type are listed but not judged here (they are ordinary validation
@@ -81,6 +83,8 @@ METRIC_UNITS = {"advance": "m", "transfer": "m", "tactical_diameter": "m", "stea
                 "initial_turning_time": "s", "time_to_check": "s", "r_turn": "deg/s", "r_residual": "deg/s"}
 #: (relative, absolute) tolerance per metric unit before a miss is flagged
 TOLERANCES = {"m": (0.05, 0.0), "s": (0.10, 0.0), "deg": (0.0, 1.5), "deg/s": (0.05, 0.02)}
+#: A metric whose 95 % interval reaches further than this many tolerances from its prediction is not determined
+UNDETERMINED = 5.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -303,6 +307,11 @@ class MetricCheck:
     flagged: bool
 
     @property
+    def outside_tolerance(self) -> bool:
+        """The prediction misses by more than the tolerance with the measured value outside its interval."""
+        return _flag(self.unit, self.measured, self.predicted, self.interval, undetermined=False)
+
+    @property
     def inside(self) -> bool | None:
         if self.interval is None or not all(map(math.isfinite, self.interval)):
             return None
@@ -347,15 +356,18 @@ class CrossValidation:
         return bool(self.checks) and not any(c.flagged for c in self.checks)
 
 
-def _flag(unit: str, measured: float, predicted: float, interval) -> bool:
+def _flag(unit: str, measured: float, predicted: float, interval, undetermined: bool = True) -> bool:
     if not math.isfinite(measured):
         return False
     if not math.isfinite(predicted):
         return True
     rel, ab = TOLERANCES.get(unit, (0.05, 0.0))
-    too_far = abs(predicted - measured) > max(rel * abs(measured), ab)
+    tol = max(rel * abs(measured), ab)
+    too_far = abs(predicted - measured) > tol
     outside = interval is None or not (interval[0] <= measured <= interval[1])
-    return bool(too_far and outside)
+    wide = (undetermined and interval is not None and all(map(math.isfinite, interval))
+            and max(predicted - interval[0], interval[1] - predicted) > UNDETERMINED * tol)
+    return bool((too_far and outside) or wide)
 
 
 def _fit_parts(fit):
@@ -404,7 +416,8 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
         if rt.kind == "other":
             skipped.append((run.name, f"not a standard manoeuvre ({rt.reason})"))
             continue
-        checks.append(_check(model, names, draws, integ, run, rt, flt or Filter(), length))
+        checks.append(_check(model, names, draws, integ, run, rt, flt or Filter(), length,
+                             getattr(fit, "channels", None), getattr(fit, "channel_scales", None)))
     return CrossValidation(model.name, ttypes, tnames, tuple(checks), tuple(skipped), method)
 
 
@@ -434,9 +447,11 @@ def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndar
                      rudder_rate_deg_s=rate, integrator=integ, metadata={"manoeuvre": "zigzag"})
 
 
-def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, length) -> RunCheck:
+def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, length, fitted=None,
+           scales=None) -> RunCheck:
     us = model_inputs(model, run)
-    x0 = start_state(model, run, flt, integrator=integ)  # the metrics' initial-state rule
+    # the one initial-state rule (:mod:`diffship.initial`), on the fit's channels with its channel scales
+    x0 = start_state(model, run, flt, integrator=integ, channels=fitted or None, scales=scales or None)
     theta0 = np.asarray([[float(getattr(model, n)) for n in names]])
     closed = rt.kind == "zigzag" and "psi" in model.state_names and run.has("psi") and bool(names)
     if closed:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cross import CrossValidation
+from .cross import UNDETERMINED, CrossValidation
 from ..figures import pyplot
 
 __all__ = ["cross_json", "cross_text", "plot_cross"]
@@ -25,7 +25,8 @@ def cross_text(cv: CrossValidation) -> str:
               "autopilot (measured side, execute time, helm rate and switch delay), other types open loop with "
               f"their measured inputs; IMO metrics measured vs predicted; intervals: {cv.interval_method}"),
              ("  flagged (MISS): measured value outside the 95 % interval and error beyond 5 % (lengths, rates), "
-              "10 % (times) or 1.5° (overshoots)")]
+              "10 % (times) or 1.5° (overshoots); UNDETERMINED: the 95 % interval reaches beyond "
+              f"{UNDETERMINED:g} such tolerances (the fit does not determine the metric)")]
     for c in cv.checks:
         trained = c.type.kind in {t.kind for t in cv.train_types}
         lines += ["", f"  {c.run}: {c.type.label} ({c.type.reason})"
@@ -38,7 +39,8 @@ def cross_text(cv: CrossValidation) -> str:
         for m in c.metrics:
             iv = f"[{_f(m.interval[0])}, {_f(m.interval[1])}]" if m.interval else "—"
             rel = f"{100 * m.relative_error:+.1f}%" if math.isfinite(m.relative_error) else "—"
-            verdict = "MISS" if m.flagged else ("ok" if math.isfinite(m.measured) else "n/a")
+            verdict = (("MISS" if m.outside_tolerance else "UNDETERMINED") if m.flagged
+                       else ("ok" if math.isfinite(m.measured) else "n/a"))
             lines.append(f"    {m.name:<22}{m.unit:>6}{_f(m.measured):>12}{_f(m.predicted):>12}{iv:>24}"
                          f"{_f(m.error):>11}{rel:>8}  {verdict}")
     for run, why in cv.skipped:

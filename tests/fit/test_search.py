@@ -1,0 +1,59 @@
+"""The search of an output-error fit (:mod:`diffship.fit.search`) and the likelihood that decides it."""
+
+import math
+
+import numpy as np
+
+from diffship.fit.search import candidates
+from diffship.fit.weights import concentrated_cost, self_consistent_scales
+
+
+def test_whole_run_candidates_are_the_distinct_proposals_then_the_starts_themselves():
+    """``--starts N`` means N whole-run candidates: distinct converged warm-up points first (lowest cost),
+    then unconverged proposals, then the starts as they are; a start equal to a kept point is not repeated."""
+    per = np.zeros(3)
+    s = [np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 2.0, 0.0]), np.array([0.0, 0.0, 3.0])]
+    p = np.array([0.5, 0.5, 0.5])
+    proposals = [(0, p, 10.0, True), (1, p + 1e-7, 10.0, True), (2, p + 1.0, 9.0, True), (3, p - 1.0, 5.0, False)]
+    out = candidates(s, proposals, per)
+    assert [(i, kind) for i, _, kind in out] == [(2, "warm-up point"), (0, "warm-up point"), (3, "warm-up point"),
+                                                 (0, "start")]
+    assert np.allclose(out[0][1], p + 1.0) and np.allclose(out[3][1], s[0])
+    # every warm-up at one point: that point and three starts as they are
+    same = [(i, p, 10.0, True) for i in range(4)]
+    out = candidates(s, same, per)
+    assert [kind for _, _, kind in out] == ["warm-up point", "start", "start", "start"]
+    assert [i for i, _, _ in out] == [0, 0, 1, 2]
+    assert len(candidates(s, same, per, n=2)) == 2
+
+
+def test_an_initial_heading_a_turn_apart_is_one_candidate():
+    per = np.array([0.0, 2 * math.pi / 10.0])
+    z = np.array([0.3, 0.1])
+    out = candidates([z, z + np.array([0.0, per[1]])], [], per)
+    assert len(out) == 1
+
+
+def test_the_likelihood_does_not_depend_on_the_weights_and_its_scales_are_self_consistent():
+    """:func:`concentrated_cost` of the same errors weighted two ways is the same number; the weighted
+    least-squares gradient at :func:`self_consistent_scales` is the likelihood's gradient (checked by a
+    finite difference in one error)."""
+    rng = np.random.default_rng(0)
+    mask = np.ones((2, 50), bool)
+    e = rng.normal(0, [0.01, 0.2], (2, 50, 2))  # errors in model units, two channels
+    tau = np.array([4.0, 1.5])
+    for w in (np.array([1.0, 1.0]), np.array([0.01, 0.3])):
+        f = concentrated_cost((e / w).reshape(-1), mask, w, tau)
+        assert math.isclose(f, concentrated_cost(e.reshape(-1), mask, np.ones(2), tau), rel_tol=1e-12)
+    s = self_consistent_scales(e.reshape(-1), mask, np.ones(2), tau, np.zeros(2))
+    sse = np.sum(e ** 2, axis=(0, 1))
+    assert np.allclose(s, np.sqrt(tau * sse / 100))
+    # d F / d e_k = (N/τ_c) e_k / SSE_c = e_k / s_c²: the weighted least-squares gradient at those scales
+    h = 1e-7
+    e2 = e.copy()
+    e2[0, 3, 0] += h
+    dF = (concentrated_cost(e2.reshape(-1), mask, np.ones(2), tau) - concentrated_cost(e.reshape(-1), mask, np.ones(2), tau)) / h
+    assert math.isclose(dF, e[0, 3, 0] / s[0] ** 2, rel_tol=1e-4)
+    # a prior row adds ½ p²
+    assert math.isclose(concentrated_cost(e.reshape(-1), mask, np.ones(2), tau, np.array([2.0])) -
+                        concentrated_cost(e.reshape(-1), mask, np.ones(2), tau), 2.0)
