@@ -86,7 +86,7 @@ def start_state(model: AbstractModel, run: Run, flt: Filter = Filter(), window_s
     The first sample alone (even low-pass filtered: a zero-phase filter has no past at the edge) keeps
     nearly all of its sensor noise, and a whole-horizon simulation carries that start error to the end —
     an error in r grows into a heading offset of about :math:`T\,\delta r` — so the true model scored
-    above the sensor noise (0.77° against 0.58° of heading noise, issue 26). Estimated on N samples of
+    above the sensor noise (0.77° against 0.58° of heading noise). Estimated on N samples of
     the window the start error shrinks as :math:`1/\sqrt N`, and the true model scores at the noise.
     The window is short against the run, and the parameters are those being scored (a held-out run's
     start is estimated with the fitted model, never refitted).

@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _sea_estimators(args, model, train, spec, init, flt, options, shooting, results, say) -> dict:
-    """Multiple-shooting output error and the prediction-error method (issue 13), started like
+    """Multiple-shooting output error and the prediction-error method, started like
     output error in ``fit_both``: from ``--init`` or the model's values, or the equation-error estimate."""
     out = {}
     if shooting is None and args.method != "prediction-error":
@@ -235,7 +235,7 @@ def _fit(args, say) -> int:
     notes = resample_notes(args, model, spec, results, flt, options, say)
     report = (text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts) + "\n\n"
               + fixed_values_text(spec, sources))
-    # what the command adds per method goes into its own JSON entries; the FitResult is not edited (issue 25)
+    # what the command adds per method goes into its own JSON entries; the FitResult is not edited
     per_method = {m: {"fixed": fixed_values(spec, sources)} for m in results}
     oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None and verdicts["output_error"].usable else None
@@ -244,7 +244,7 @@ def _fit(args, say) -> int:
         if adm is not None:
             report += "\n\n" + adm.summary()
             per_method["output_error"]["admissibility"] = adm.as_json()
-    if args.bootstrap and oe is not None:  # issue 27: percentile intervals from refits of resamples
+    if args.bootstrap and oe is not None:  # percentile intervals from refits of resamples
         from .bootstrap import bootstrap_report
 
         text, boot = bootstrap_report(oe, fit_runs, args.bootstrap, args.bootstrap_method, say, spec=spec,
@@ -252,7 +252,7 @@ def _fit(args, say) -> int:
         report += "\n\n" + text
         per_method["output_error"]["bootstrap"] = boot
     cross = _cross_manoeuvre(oe, train, val, say)
-    if cross is not None:  # held-out runs of manoeuvre types not trained on (issue 12)
+    if cross is not None:  # held-out runs flown as manoeuvres, with their IMO metrics
         report += "\n\n" + cross_text(cross)
         per_method["output_error"]["cross_manoeuvre"] = cross_json(cross)
     if notes:
@@ -263,7 +263,7 @@ def _fit(args, say) -> int:
     if cross is not None and cross.checks and args.out:
         plot_cross(cross, Path(args.out) / "cross_manoeuvre.png")
         say(f"wrote {Path(args.out) / 'cross_manoeuvre.png'}")
-    if args.html:  # issue 30: one self-contained file, the figures --out writes embedded
+    if args.html:  # one self-contained file, the figures --out writes embedded
         def figures(d):
             plot_fit(model.name, train, val, ev_train, ev_val, d / "fit.png", failed=failed_methods(ev_train, results))
             return [d / "fit.png"] + ([plot_cross(cross, d / "cross_manoeuvre.png") or d / "cross_manoeuvre.png"]
@@ -277,11 +277,11 @@ def _fit(args, say) -> int:
 
 
 def _starts(args) -> dict:
-    """``--starts N`` for the fit driver (issue 25); ``{}`` when not given."""
+    """``--starts N`` for the fit driver; ``{}`` when not given."""
     return {} if args.starts is None else {"n_starts": args.starts}
 
 
-# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
+# -- vessel particulars: --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
 def _with_vessel(args, model, fix, say):
     """The model with its particulars from ``--vessel`` (or stop naming the missing ones)."""
     if args.rigid_body_cg:
@@ -339,7 +339,7 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
         if w.startswith("warning") or not args.quiet:
             print(w, file=sys.stderr, flush=True)
 # ----------------------------------------------------------------------------------------
-# checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
+# checks before any compute, metrics, outputs (fit -> fit file -> prediction)
 # ----------------------------------------------------------------------------------------
 def evaluate_all(results, train, val, flt):
     """Metrics with one initial-state rule for training and validation runs: the measured (filtered)
