@@ -12,7 +12,7 @@ falls by less than 0.1 % over 10 Levenberg–Marquardt steps while the Gauss–N
 promises more; the base fit then says "stopped early: the cost stalled", not converged). Measured
 on the USV current case (3 + 2 runs of 240 s, ``benchmarks/diagnose_current_case.py``): the base fit's whole-run solve 91 steps
 instead of 4 × 200, the wrong candidates' refits 42 steps instead of up to 600, the result the same
-(``benchmarks/results/diagnose_current_case_240s.md``). ``timings`` gives ``refits`` (the reference
+(``benchmarks/results/diagnose_current_case.md``). ``timings`` gives ``refits`` (the reference
 and the single candidates together) and ``where`` (the analysis alone). The workspace's programs
 compile while the base fit runs (:func:`prefetch_workspace`), and the refits' compiled solve also
 gives the screen's and the covariances' Jacobians: on that case a cold whole process went from 133
@@ -217,7 +217,7 @@ def split_varying(effs: Sequence) -> tuple[list, dict]:
     effect selected first, and only when that leaves a structural gap; it gets a workspace of its
     own then. Kept out of the all-effects workspace, every refit's simulation carries two effects
     fewer (the USV current case, with and without them in alternation, on 2 CPU cores: diagnosis
-    125 → 110 s, CPU 230 → 199 s, ``benchmarks/results/diagnose_current_case_240s.md``)."""
+    125 → 110 s, CPU 230 → 199 s, ``benchmarks/results/diagnose_current_case.md``)."""
     return ([e for e in effs if e.name not in POSSIBLE_ONLY],
             {e.name: e for e in effs if e.name in POSSIBLE_ONLY})
 
