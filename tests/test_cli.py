@@ -442,7 +442,7 @@ def test_fit_figure_always_shows_the_held_out_runs(nomoto_csvs, tmp_path):
     evs = {"output_error": evaluate(m, train)}
     fig = plot_fit("nomoto1", train, val, evs, {"output_error": evaluate(m, val)}, max_runs=4)
     titles = [ax.get_title() for ax in fig.axes]
-    assert any("held out" in t for t in titles) and sum("train" in t and ": psi" in t for t in titles) == 3
+    assert any("held out" in t for t in titles) and sum("train" in t and ": heading ψ" in t for t in titles) == 3
 
 
 KVLCC2_README = "HSVA_CPMC_KVLCC2_Z_10_05.csv"
@@ -450,7 +450,7 @@ KVLCC2_README = "HSVA_CPMC_KVLCC2_Z_10_05.csv"
 
 @pytest.mark.slow
 def test_readme_kvlcc2_commands_give_the_study_numbers(tmp_path, capsys):
-    """The README's KVLCC2 commands: the fit is usable (one training run named as not followed, not
+    """The prediction guide's KVLCC2 commands: the fit is usable (one training run named as not followed, not
     FAILED), held-out first overshoots within 1° of HSVA's with the measured values inside the 95 % intervals,
     and the 35° turn's tactical diameter within 5 % of the measured 3.1–3.3 L on both sides. About 3 minutes."""
     import shlex
@@ -461,7 +461,7 @@ def test_readme_kvlcc2_commands_give_the_study_numbers(tmp_path, capsys):
     root = shared_data_dir()
     if root is None:
         pytest.skip("needs ../shared/data (the KVLCC2 model tests; DIFFSHIP_SHARED_DATA), absent here")
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "guides" / "prediction.md").read_text()
     fit_cmd = next(ln for ln in text.splitlines() if ln.startswith("python -m diffship.fit") and KVLCC2_README in ln)
     pred_cmd = next(ln for ln in text.splitlines() if ln.startswith("python -m diffship.predict fit_kvlcc2"))
 
