@@ -271,8 +271,8 @@ def diagnose(
     Args:
         model: base model (its values are the fit's start) or the fitted model when ``fit``
             is given.
-        train, val: training runs and held-out validation runs (validation is required:
-            selection never uses the training fit alone).
+        train: training runs.
+        val: held-out validation runs (required: selection never uses the training fit alone).
         fit: an existing output-error fit of ``model`` on ``train`` (skips the base fit).
         spec: free/fixed parameters of the base fit.
         options: candidates, effort and acceptance rule (default: :class:`DiagnoseOptions()`).
