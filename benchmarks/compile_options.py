@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import subprocess
 import time
 from pathlib import Path
 
@@ -39,6 +38,7 @@ import numpy as np  # noqa: E402
 import diffship  # noqa: E402,F401
 import diffship.compiled as C  # noqa: E402
 
+from benchmarks.common.timing import commit as git_commit  # noqa: E402
 from benchmarks.diagnose_current_case import oe_jacobian_request  # noqa: E402  (the machine probe's program)
 
 OUT = Path(__file__).resolve().parent / "results"
@@ -144,8 +144,7 @@ def main(argv=None):
         label, build = CASES[key]
         rows += measure(label, build, a.reps if key != "workspace" else max(3, a.reps // 4))
     load = os.getloadavg()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                            cwd=Path(__file__).parent).stdout.strip()
+    commit = git_commit()
     text = "\n".join([
         "# XLA optimisation level of diffship's CPU programs",
         "",

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import diffship  # noqa: F401
+from benchmarks.common.timing import commit as git_commit
 from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.models import Fossen3
 from diffship.models.effects import augment
@@ -116,8 +117,7 @@ def main(argv=None):
                  progress=lambda s: print(s, file=sys.stderr, flush=True))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     load1 = os.getloadavg()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit()
     fp = d.final_model.param_values()
     L = [f"# Diagnosis of the USV current case ({a.duration:g} s runs{', NULL: no current' if a.null else ''})", "",
          f"Command: `python -m benchmarks diagnose_current_case --duration {a.duration:g}"
@@ -158,8 +158,7 @@ def cli(a, runs) -> None:
         if proc.returncode != 0:
             sys.exit(f"python -m diffship.diagnose failed ({proc.returncode}): {proc.stderr[-2000:]}")
         doc = json.loads((Path(tmp) / "d.json").read_text())
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit()
     cache = os.environ.get("DIFFSHIP_CACHE_DIR", "the default compile cache")
     L = [f"# The USV current case through `python -m diffship.diagnose` ({a.duration:g} s runs)", "",
          f"Command: `python -m benchmarks diagnose_current_case --duration {a.duration:g} --cli` at {commit} "

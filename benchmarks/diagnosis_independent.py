@@ -55,21 +55,12 @@ from diffship.diagnose.verdict import nearest_miss
 from diffship.models import Fossen3, Nomoto1
 
 from benchmarks import independent  # the generator: no diffship inside
+from benchmarks.common.timing import commit as git_commit
 
 OUT = Path(__file__).resolve().parent / "results"
 
 
-def _commit() -> str:
-    """The commit the diagnosis ran from (rows merged from older runs say which code they measured)."""
-    import subprocess
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "?"
-
-
-COMMIT = _commit()
+COMMIT = git_commit()  # the commit the diagnosis ran from (rows merged from older runs say which code)
 
 
 def to_runs(gen: list[dict]) -> list[Run]:
