@@ -15,6 +15,7 @@ def main(argv: list[str]) -> int:
     if argv[0] not in BENCHMARKS:
         print(f"error: no benchmark {argv[0]!r}; choose from {', '.join(BENCHMARKS)}", file=sys.stderr)
         return 2
+    sys.argv[0] = f"python -m benchmarks {argv[0]}"  # what argparse's usage lines name
     return importlib.import_module(BENCHMARKS[argv[0]][0]).main(argv[1:]) or 0
 
 

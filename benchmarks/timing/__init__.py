@@ -27,4 +27,5 @@ def main(argv=None) -> int:
         print(__doc__)
         print(f"choose a mode: {', '.join(MODES)}", file=sys.stderr)
         return 2
+    sys.argv[0] = f"python -m benchmarks timing {argv[0]}"  # what argparse's usage lines name
     return importlib.import_module(MODES[argv[0]]).main(argv[1:]) or 0
