@@ -166,7 +166,8 @@ def text_report(
         if m in brief:
             v = verdicts.get(m) if verdicts is not None else None
             why = (v.reasons[0] if v is not None and v.reasons else "its simulation is worse than the measured mean")
-            where = f"its notes and per-run errors: {details}" if details else "--out DIR writes its notes and per-run errors"
+            where = (f"its notes and per-run errors: {details}" if details
+                     else "--out DIR writes its notes and per-run errors")
             lines.append(f"{_LABEL.get(m, m)}: FAILED — {why}; do not use these values ({where})")
             continue
         if verdicts is not None and m in verdicts:
