@@ -1,24 +1,23 @@
-"""diffship benchmark suite: output error vs equation error vs the tools users would pick instead.
+"""diffship's benchmarks: measured speed and accuracy, one result per benchmark in ``results/``.
 
-Run all cases (from the repository root)::
+One entry point (from the repository root, with diffship installed)::
 
-    PYTHONPATH=src .venv/bin/python -m benchmarks [--quick] [--cases nomoto,fossen3] [--report-only] [--out DIR]
-    PYTHONPATH=src .venv/bin/python benchmarks/run.py [...]          # the same command, as a script
-    PYTHONPATH=src .venv/bin/python -m benchmarks.cases.nomoto --quick   # one case module alone
+    python -m benchmarks                      # list the benchmarks
+    python -m benchmarks NAME [ARGS ...]      # run one; NAME --help for its options
+    python -m benchmarks suite --quick        # the suite at CI size (a few minutes)
 
 Layout:
 
-* :mod:`benchmarks.suite` — the case registry and the command line (``main``);
-* :mod:`benchmarks.record` — the recorder (every number into ``all_numbers*.csv``), timing and
-  peak-memory helpers, the per-method accuracy rows shared by all cases;
-* :mod:`benchmarks.report` — figures and the ``report*.md`` writer;
-* :mod:`benchmarks.fitapi` — every call into diffship's fitting API (one place to edit when its
-  signatures change);
-* :mod:`benchmarks.peers` — the NumPy/SciPy peers (scipy ``least_squares`` over NumPy RK4,
-  NumPy OLS on inverse dynamics, STLSQ/SINDy);
-* :mod:`benchmarks.cases` — one module per case (nomoto, fossen3, vmm, rov, sspa, kvlcc2).
+* :mod:`benchmarks.registry` — every benchmark by name (one line each);
+* :mod:`benchmarks.suite` — the suite of cases (:mod:`benchmarks.cases`, one module per case) with
+  its recorder (:mod:`benchmarks.record`) and report (:mod:`benchmarks.report`);
+* :mod:`benchmarks.common` — helpers shared by the benchmarks: the calls into diffship's fitting API,
+  the NumPy/SciPy and CasADi peers, the timing harness;
+* :mod:`benchmarks.timing` — diffship against CasADi on one fit: cold process, one fit, batches;
+* :mod:`benchmarks.independent` — a NumPy-only generator of hidden-effect scenarios (no diffship
+  inside: importing it never imports diffship);
+* one module (or package) per other benchmark.
 
-See ``benchmarks/README.md`` for what is measured and how.
+See ``benchmarks/README.md`` for what is measured and how, and ``benchmarks/results/README.md`` for
+the results and the command that regenerates each.
 """
-
-import diffship  # noqa: F401  (enables float64 before any array is made)

@@ -1,4 +1,4 @@
-"""Coverage of the bootstrap 95 % intervals over seeds (issue 27), beside the covariance intervals.
+"""Coverage of the bootstrap 95 % intervals over seeds, beside the covariance intervals.
 
 Problem (small enough for a shared 2-core CPU): Nomoto1 (K = 0.2 1/s, T1 = 8 s, δ0 = 0.01 rad), two
 zigzag-like runs (``diffship.synthetic.nomoto_runs``) of ``--duration`` s at 0.2 s, output noise
@@ -10,7 +10,7 @@ inside a parameter's interval or not. Reported: coverage per parameter of the pe
 covariance (θ̂ ± 1.96 se) intervals, with the binomial 95 % range of a coverage of 95 % over that
 many seeds.
 
-    python benchmarks/bootstrap_coverage.py [--seeds 50] [--resamples 64] [--duration 60]
+    python -m benchmarks bootstrap_coverage [--seeds 50] [--resamples 64] [--duration 60]
 """
 
 from __future__ import annotations
@@ -18,15 +18,12 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if __package__ in (None, ""):
-    sys.path[0] = str(ROOT)
 
 from diffship.data import Run
 from diffship.fit import OutputErrorOptions, fit_output_error
@@ -77,7 +74,7 @@ def main(argv=None):
     S = len(hb)
     lo, hi = 0.95 - 1.96 * math.sqrt(0.95 * 0.05 / S), 0.95 + 1.96 * math.sqrt(0.95 * 0.05 / S)
     load1 = " ".join(f"{x:.2f}" for x in os.getloadavg())
-    L = ["## Bootstrap 95 % intervals: coverage over seeds (issue 27)", "",
+    L = ["## Bootstrap 95 % intervals: coverage over seeds", "",
          f"Nomoto1 (K = 0.2 1/s, T1 = 8 s, δ0 = 0.01 rad), 2 runs × {args.duration:g} s at 0.2 s, output noise "
          f"realistic (heading 0.5°, yaw rate 0.2°/s), input noise {args.input_noise:g}° on the rudder the fit sees; "
          f"{args.resamples} moving-block resamples per seed (block length chosen from the residuals: "
@@ -91,12 +88,8 @@ def main(argv=None):
     L.append(f"| all three at once | {hb.all(axis=1).mean():.2f} | {hc.all(axis=1).mean():.2f} |")
     L.append(f"| all parameters pooled | {hb.mean():.3f} | {hc.mean():.3f} |")
     L += ["", f"Refits converged: {int(np.sum(n_ok))} of {S * args.resamples}.",
-          f"Command: `python benchmarks/bootstrap_coverage.py --seeds {args.seeds} --resamples {args.resamples} "
+          f"Command: `python -m benchmarks bootstrap_coverage --seeds {args.seeds} --resamples {args.resamples} "
           f"--duration {args.duration:g} --input-noise {args.input_noise:g}`"]
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text("\n".join(L) + "\n")
     print("\n".join(L))
-
-
-if __name__ == "__main__":
-    main()

@@ -11,14 +11,14 @@ default's:
 * ``fossen3 jacobian``: the output-error forward-mode Jacobian of the fossen3 USV on 2 runs × 240 s
   at 10 Hz (the diagnosis benchmark's machine probe);
 * ``workspace solve``: the gap diagnosis's workspace solve program (fossen3 + the 11 candidate
-  effects, 3 runs × 240 s; the issue-28 current case), six Levenberg–Marquardt steps of a current refit;
+  effects, 3 runs × 240 s; the USV current case of ``diagnose_current_case.py``), six Levenberg–Marquardt steps of a current refit;
 * ``mmg jacobian``: the output-error Jacobian of the KVLCC2 MMG model on the four training HSVA
   zigzags (100 s at 0.2 s; needs ``../shared/data``, skipped without it).
 
 Usage::
 
-    python benchmarks/compile_options.py            # writes benchmarks/results/compile_options.md
-    python benchmarks/compile_options.py --reps 5 --only fossen3
+    python -m benchmarks compile_options            # writes benchmarks/results/compile_options.md
+    python -m benchmarks compile_options --reps 5 --only fossen3
 """
 
 from __future__ import annotations
@@ -26,8 +26,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -40,8 +38,8 @@ import numpy as np  # noqa: E402
 import diffship  # noqa: E402,F401
 import diffship.compiled as C  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from diagnose_current_case import oe_jacobian_request  # noqa: E402  (the machine probe's program)
+from benchmarks.common.timing import commit as git_commit  # noqa: E402
+from benchmarks.diagnose_current_case import oe_jacobian_request  # noqa: E402  (the machine probe's program)
 
 OUT = Path(__file__).resolve().parent / "results"
 LEVELS = (None, 0, 1, 2, 3)  # None: XLA's default (no option given)
@@ -146,12 +144,11 @@ def main(argv=None):
         label, build = CASES[key]
         rows += measure(label, build, a.reps if key != "workspace" else max(3, a.reps // 4))
     load = os.getloadavg()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                            cwd=Path(__file__).parent).stdout.strip()
+    commit = git_commit()
     text = "\n".join([
         "# XLA optimisation level of diffship's CPU programs",
         "",
-        f"Command: `python benchmarks/compile_options.py{'' if argv is None else ' ' + ' '.join(argv)}` at {commit}; "
+        f"Command: `python -m benchmarks compile_options{'' if argv is None else ' ' + ' '.join(argv)}` at {commit}; "
         f"{os.cpu_count()} cores, {platform.processor() or platform.machine()}, jax {jax.__version__}; "
         f"load average {load[0]:.1f} at the end. One lowered program per row group, compiled at each level in one "
         "process and called in turn (module docstring). diffship compiles at level 1 "
@@ -164,7 +161,3 @@ def main(argv=None):
     if not a.no_write:
         (OUT / "compile_options.md").write_text(text)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

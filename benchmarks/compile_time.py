@@ -14,7 +14,7 @@ JSON are recorded beside it. ``--hlo`` also counts, in this process, the lines o
 StableHLO text (``jax.jit(f).lower(...).as_text()``) of each output-error program (residuals,
 Jacobian, solve) and of one vector-field evaluation: what makes a program large.
 
-    PYTHONPATH=src python benchmarks/compile_time.py [--models fossen6 vmm_simple] [--repeats 1] [--hlo]
+    python -m benchmarks compile_time [--models fossen6 vmm_simple] [--repeats 1] [--hlo]
 
 Writes ``benchmarks/results/compile_time.md`` (and ``compile_time.csv``). Timings on a shared
 machine are disturbed by other jobs: the load average is written beside them.
@@ -34,8 +34,6 @@ from pathlib import Path
 
 import numpy as np
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])
 
 MODELS = ("nomoto2", "fossen3", "fossen6", "vmm_simple", "vmm_abkowitz", "mmg", "decay2")
 DEG = np.pi / 180.0
@@ -122,7 +120,7 @@ def one_process(model: str, files: list[Path], cache: Path, out_json: Path, src:
 
 def particulars_stop(files: list[Path], repeats: int = 5) -> dict:
     """Whole-process wall time of ``python -m diffship.fit RUN --model vmm_simple`` without a vessel: the stop
-    that names the twelve missing particulars (issue 17: "within a second"); median and max of ``repeats``."""
+    that names the twelve missing particulars (it must answer within a second); median and max of ``repeats``."""
     cmd = [sys.executable, "-m", "diffship.fit", str(files[0]), "--model", "vmm_simple"]
     env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH", "src")}
     walls, codes, err = [], set(), ""
@@ -215,7 +213,7 @@ def main(argv=None):
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         w.writerows(rows)
-    lines = [f"# Compile time per model: cold `python -m diffship.fit` process, empty vs warm cache {args.tag}", "",
+    lines = [f"# Compile time per model: cold `python -m diffship.fit` process, empty vs warm cache" + (f" ({args.tag})" if args.tag else ""), "",
              f"Machine: {os.cpu_count()} CPUs shared with other sessions; load average at start "
              f"{' '.join(f'{x:.2f}' for x in load0)}, at end {' '.join(f'{x:.2f}' for x in os.getloadavg())}. "
              f"Total {(time.perf_counter() - t_all) / 60:.1f} min. Median over {args.repeats} repeat(s). "
@@ -250,7 +248,3 @@ def main(argv=None):
                   f"{r.get('hlo_jacobian')} | {r.get('hlo_solve')} |" for r in hl]
     (out / f"compile_time{tag}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()

@@ -1,6 +1,6 @@
 """Coverage of output-error 95 % intervals with measured (noisy) inputs and outputs.
 
-Question (issue 17, item 2): do diffship's standard errors hold when the inputs the fit
+Question: do diffship's standard errors hold when the inputs the fit
 simulates with are measurements — rudder angle with 0.05–0.1° noise, thrust with 1 % noise —
 and the outputs carry sensor noise? Residuals are then coloured (the model's response to the
 input noise), and ``σ̂²(JᵀJ)⁻¹`` assumes white ones.
@@ -28,7 +28,7 @@ the covariance is computed three ways from the same ``J`` and ``r``: ``white`` (
 seeds (95 % intervals: honest ≈ 95 %, target 90–99 %), per parameter, the lag-1
 autocorrelation of the residuals, and seconds per fit.
 
-    PYTHONPATH=src python benchmarks/coverage.py [--seeds 50] [--cases vmm usv] [--quick]
+    python -m benchmarks coverage [--seeds 50] [--cases vmm usv] [--quick]
 
 Writes ``benchmarks/results/coverage.md`` and ``coverage.csv`` (``--quick``: 3 seeds, ``*_quick``).
 """
@@ -38,14 +38,11 @@ from __future__ import annotations
 import argparse
 import csv
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])
 
 DEG = np.pi / 180.0
 KINDS = ("white", "hac", "block", "white+inputs", "hac+inputs")
@@ -344,7 +341,3 @@ def write_report(path, rows, summary, seeds, load0, total_s, note=""):
                          f"{np.median([r['se_reported'] / r['se_white'] for r in pr]):.2f} |")
     Path(path).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()

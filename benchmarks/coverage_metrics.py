@@ -1,4 +1,4 @@
-"""Coverage of 95 % intervals on *manoeuvre metrics* predicted from a zigzag fit (issue 12, item 5).
+"""Coverage of 95 % intervals on *manoeuvre metrics* predicted from a zigzag fit.
 
 Question: when a model is fitted to noisy zigzags and :func:`diffship.predict.predict` flies the
 35° turning circle and the zigzags with Monte-Carlo intervals from the fit's covariance, does the
@@ -32,7 +32,7 @@ radius R = |V|/|r| at two constant thrust / nozzle settings inside the training 
 simulated open loop, vmapped (:func:`diffship.predict.sampling.simulate_draws`); the truth's R
 from the NumPy simulator.
 
-    PYTHONPATH=src python benchmarks/coverage_metrics.py [--seeds 50] [--samples 400] [--cases vmm usv] [--quick]
+    python -m benchmarks coverage_metrics [--seeds 50] [--samples 400] [--cases vmm usv] [--quick]
 
 Writes ``benchmarks/results/coverage_metrics.md`` and ``coverage_metrics.csv`` (``--quick``: 3 seeds,
 100 draws, ``*_quick``).
@@ -42,17 +42,13 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])
 
 from benchmarks.coverage import (
     DEG,
@@ -438,7 +434,3 @@ def write_report(path, rows, truth, conv, dt_pred, lag, usv_rows, usv_truth, see
                        f"{np.median([r['predict_s'] for r in first]):.2f} s ({len(usv_truth)} turns × {samples} draws).")]
     Path(path).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()

@@ -1,22 +1,23 @@
-"""The issue-28 case: a USV (fossen3 test truth) in a constant current, 3 training + 2 held-out runs.
+"""The USV current case: a USV (fossen3 test truth) in a constant current, 3 training + 2 held-out runs.
 
-The current (Vcx 0.125, Vcy 0.2165 m/s: 0.25 m/s towards 60°) was recovered to the third
-digit by the refit and then rejected on the held-out runs, whose initial states were estimated
-freely (the base model started 15–30 m off the logged position). This runs the whole diagnosis
-(base fit, screen, refits, selection, time-variation check) and writes what it says.
+The current is Vcx 0.125, Vcy 0.2165 m/s (0.25 m/s towards 60°). A diagnosis must attribute it on
+the held-out runs, whose initial states follow the start rule of :mod:`diffship.diagnose.start` (a
+freely estimated start lets the base model start 15–30 m off the logged position and hide the
+drift). This runs the whole diagnosis (base fit, screen, refits, selection, time-variation check)
+and writes what it says.
 
-    python benchmarks/diagnose_current_case.py --duration 240          # the issue's size
-    python benchmarks/diagnose_current_case.py --duration 120 --effects current,heading_bias,actuator_lag,damping_vv
-    python benchmarks/diagnose_current_case.py --duration 240 --effects current,heading_bias,actuator_lag,damping_vv --null
-    python benchmarks/diagnose_current_case.py --duration 240 --cli   # the same runs through python -m diffship.diagnose
+    python -m benchmarks diagnose_current_case               # 240 s runs, every library effect a candidate
+    python -m benchmarks diagnose_current_case --cli         # the same runs through python -m diffship.diagnose
+    python -m benchmarks diagnose_current_case --effects current,heading_bias,actuator_lag,damping_vv --null
 
 ``--cli`` writes the runs as CSV files and times the command a user runs (``python -m diffship.diagnose
 TRAIN.csv ... --validate VAL.csv ... --model fossen3 --vessel usv --out DIR``) as a whole process,
 figures and report included, with the compile cache of ``$DIFFSHIP_CACHE_DIR`` (a new folder: cold).
 
-Writes ``benchmarks/results/diagnose_current_case_<duration>s[_null|_cli].md``, with a machine probe
-(:func:`machine_probe`, about 6 s of fixed work before the timer starts) beside the timings: the same code took 80–85 s and
-111–120 s on one 2-core machine an hour apart (stop 40), so a timing is read with the probe of its run.
+Writes ``benchmarks/results/diagnose_current_case[_null|_cli].md`` (another ``--duration`` adds
+``_<duration>s``), with a machine probe (:func:`machine_probe`, about 6 s of fixed work before the timer
+starts) beside the timings: the same code took 80–85 s and 111–120 s on one 2-core machine an hour
+apart, so a timing is read with the probe of its run.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import diffship  # noqa: F401
+from benchmarks.common.timing import commit as git_commit
 from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.models import Fossen3
 from diffship.models.effects import augment
@@ -40,13 +42,6 @@ from diffship.synthetic import simulate_run, usv_excitation, usv_truth
 
 OUT = Path(__file__).resolve().parent / "results"
 
-#: the same command before the speed work of issue 28 (item 3), for comparison
-BEFORE = {
-    120: "before (aaf83b2, load 4–8): wall 765 s, CPU 231 s; timings [s]: base_fit 138, screen 9, where 165, "
-         "refits 350, greedy 102",
-    240: "before (c53eb09, load 4–10): the base fit alone took 198 s (four identical whole-run solves of 200 steps "
-         "each, 364 steps in all; compile 20 s); the run was stopped in the screen",
-}
 
 
 def oe_jacobian_request(model, spec, runs, channels):
@@ -73,9 +68,8 @@ def machine_probe() -> str:
     machine) of different speed can be compared: diffship's own fossen3 output-error forward-mode
     Jacobian program on two runs (2 × 240 s; shapes the diagnosis never uses, so nothing it compiles
     is shared), compiled (cold with an empty cache) and called. It is the kind of program the
-    diagnosis runs: in the slow period of stop 40 the diagnosis's own workspace Jacobian took 276 ms
-    and its solve program 21.5 s to compile, against 162 ms and 13.6 s an hour earlier on the same
-    machine."""
+    diagnosis runs: in a slow period of one machine the diagnosis's own workspace Jacobian took 276 ms
+    and its solve program 21.5 s to compile, against 162 ms and 13.6 s an hour earlier."""
     import jax
     from diffship.synthetic import usv_runs
 
@@ -93,6 +87,11 @@ def machine_probe() -> str:
     t_r = (time.perf_counter() - t0) / 10
     return (f"machine probe (`machine_probe()`: fixed work, smaller is faster): fossen3 Jacobian program, 2 runs × "
             f"240 s, compile {t_c:.2f} s, one call {1e3 * t_r:.1f} ms")
+
+
+def _stem(a) -> str:
+    """The result's name: ``diagnose_current_case`` at the default 240 s, else with ``_<duration>s``."""
+    return "diagnose_current_case" + ("" if a.duration == 240.0 else f"_{a.duration:g}s")
 
 
 def main(argv=None):
@@ -118,17 +117,15 @@ def main(argv=None):
                  progress=lambda s: print(s, file=sys.stderr, flush=True))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     load1 = os.getloadavg()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit()
     fp = d.final_model.param_values()
-    L = [f"# Diagnosis of the issue-28 current case ({a.duration:g} s runs{', NULL: no current' if a.null else ''})", "",
-         f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g}"
+    L = [f"# Diagnosis of the USV current case ({a.duration:g} s runs{', NULL: no current' if a.null else ''})", "",
+         f"Command: `python -m benchmarks diagnose_current_case --duration {a.duration:g}"
          + (f" --effects {a.effects}" if a.effects != "all" else "") + (" --null" if a.null else "")
          + f"` at {commit}; 2-core machine shared "
          f"with other jobs (1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; 5-min "
          f"{load1[1]:.1f}): diagnosis wall {wall:.0f} s, CPU {cpu:.0f} s (all threads; the data simulation "
          f"before it not counted).", "", probe + ".", "",
-         *([f"{BEFORE[int(a.duration)]}.", ""] if int(a.duration) in BEFORE and not a.null else []),
          ("Truth: fossen3 test USV, no current" if a.null else "Truth: fossen3 test USV + current Vcx 0.125, Vcy 0.2165 m/s")
          + "; 3 training + 2 held-out runs at 10 Hz, realistic noise.", "",
          f"- selected: {list(d.selected)}; possible: {list(d.possible)}",
@@ -137,7 +134,7 @@ def main(argv=None):
          f"- timings [s]: " + ", ".join(f"{k} {v:.0f}" for k, v in d.timings.items()), "", "Verdict:", ""]
     L += [f"> {x}  " for x in d.verdict]
     text = "\n".join(L) + "\n"
-    (OUT / f"diagnose_current_case_{int(a.duration)}s{'_null' if a.null else ''}.md").write_text(text)
+    (OUT / f"{_stem(a)}{'_null' if a.null else ''}.md").write_text(text)
     print(text)
 
 
@@ -161,19 +158,14 @@ def cli(a, runs) -> None:
         if proc.returncode != 0:
             sys.exit(f"python -m diffship.diagnose failed ({proc.returncode}): {proc.stderr[-2000:]}")
         doc = json.loads((Path(tmp) / "d.json").read_text())
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                            text=True).stdout.strip()
+    commit = git_commit()
     cache = os.environ.get("DIFFSHIP_CACHE_DIR", "the default compile cache")
-    L = [f"# The issue-28 current case through `python -m diffship.diagnose` ({a.duration:g} s runs)", "",
-         f"Command: `python benchmarks/diagnose_current_case.py --duration {a.duration:g} --cli` at {commit} "
+    L = [f"# The USV current case through `python -m diffship.diagnose` ({a.duration:g} s runs)", "",
+         f"Command: `python -m benchmarks diagnose_current_case --duration {a.duration:g} --cli` at {commit} "
          f"(compile cache {cache}); 1-min load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end.", "",
          f"- whole process (figures and report included): **{wall:.1f} s**", f"- {probe}",
          f"- selected: {doc.get('selected')}; held-out E {doc.get('validation_E_before', float('nan')):.3g} → "
          f"{doc.get('validation_E_after', float('nan')):.3g}; timings [s] {doc.get('timings_s')}; current {({k: round(v, 4) for k, v in doc.get('final_params', {}).items() if k in ('Vcx', 'Vcy')})}", ""]
     text = "\n".join(L) + "\n"
-    (OUT / f"diagnose_current_case_{int(a.duration)}s_cli.md").write_text(text)
+    (OUT / f"{_stem(a)}_cli.md").write_text(text)
     print(text)
-
-
-if __name__ == "__main__":
-    main()

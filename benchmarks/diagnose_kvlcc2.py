@@ -7,9 +7,9 @@ held-out zigzags (both port-first runs and a 15°/5° run). Reads the data from
 
 Usage::
 
-    python benchmarks/diagnose_kvlcc2.py [--model mmg|nomoto2] [--horizon 60] [--dt 0.1] [--base published|study]
+    python -m benchmarks diagnose_kvlcc2 [--model mmg|nomoto2] [--horizon 60] [--dt 0.1] [--base published|study]
 
-Writes ``benchmarks/results/diagnose_kvlcc2_<model>.md`` / ``.json`` and figures beside them.
+Writes ``benchmarks/results/diagnose_kvlcc2_<model>_<base>.md`` / ``.json`` and figures beside them.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main(argv=None):
     p.add_argument("--effects", default="all")
     p.add_argument("--base", default="published", choices=("published", "study"),
                    help="published: the model's published values, its default free set refitted (the first look); "
-                        "study (mmg): the issue-12 MAP fit of diffship.studies.kvlcc2 (33 coefficients under priors, "
+                        "study (mmg): the MAP fit of diffship.studies.kvlcc2 (33 coefficients under priors, "
                         "the propeller wake's manoeuvring correction and rudder interaction included) as the base, "
                         "its ten core hull coefficients refitted in the diagnosis (the second look)")
     a = p.parse_args(argv)
@@ -59,9 +59,9 @@ def main(argv=None):
     d = diagnose(model, train, val, spec=spec, options=DiagnoseOptions(effects=effects), progress=print)
     secs = time.perf_counter() - t0
     OUT.mkdir(exist_ok=True)
-    stem = OUT / (f"diagnose_kvlcc2_{a.model}" + ("_study" if a.base == "study" else ""))
+    stem = OUT / f"diagnose_kvlcc2_{a.model}_{a.base}"
     text = to_markdown(d)
-    head = (f"Command: `python benchmarks/diagnose_kvlcc2.py --model {a.model} --horizon {a.horizon:g} --dt {a.dt:g} "
+    head = (f"Command: `python -m benchmarks diagnose_kvlcc2 --model {a.model} --horizon {a.horizon:g} --dt {a.dt:g} "
             f"--base {a.base}`; {note}; "
             f"train {', '.join(TRAIN)}; validate {', '.join(VALIDATE)}; {a.horizon:g} s per run at {a.dt:g} s; "
             f"{secs:.0f} s wall time.\n\n")
@@ -71,7 +71,3 @@ def main(argv=None):
     fig_dir.mkdir(exist_ok=True)
     plot_all(d, fig_dir)
     print(head + text)
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,4 @@
-"""Gap diagnosis judged on data it was not built from (issue 14).
+"""Gap diagnosis judged on data it was not built from.
 
 Scenarios come from :mod:`benchmarks.independent` (NumPy-only truths, own integrator, own
 effect implementations; shares no code with diffship). For each scenario: wrap the generated
@@ -31,9 +31,9 @@ selection on the held-out runs), and score
 
 Usage::
 
-    python benchmarks/diagnosis_independent.py --quick   # strong sizes, one seed (≈ 20–30 min on 2 shared cores)
-    python benchmarks/diagnosis_independent.py           # weak + strong, two seeds, two nulls per vessel
-    python benchmarks/diagnosis_independent.py --only usv-current   # scenarios whose name contains the text
+    python -m benchmarks diagnosis_independent --quick   # strong sizes, one seed (≈ 20–30 min on 2 shared cores)
+    python -m benchmarks diagnosis_independent           # weak + strong, two seeds, two nulls per vessel
+    python -m benchmarks diagnosis_independent --only usv-current   # scenarios whose name contains the text
 
 Writes ``benchmarks/results/diagnosis_independent[_quick].md``, ``.csv`` and a confusion-matrix figure.
 """
@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import sys
 import time
 from collections import Counter
 from pathlib import Path
@@ -55,23 +54,13 @@ from diffship.diagnose import FAMILY, DiagnoseOptions, diagnose
 from diffship.diagnose.verdict import nearest_miss
 from diffship.models import Fossen3, Nomoto1
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import independent  # the generator, imported as a top-level package: no diffship inside
+from benchmarks import independent  # the generator: no diffship inside
+from benchmarks.common.timing import commit as git_commit
 
 OUT = Path(__file__).resolve().parent / "results"
 
 
-def _commit() -> str:
-    """The commit the diagnosis ran from (rows merged from older runs say which code they measured)."""
-    import subprocess
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "?"
-
-
-COMMIT = _commit()
+COMMIT = git_commit()  # the commit the diagnosis ran from (rows merged from older runs say which code)
 
 
 def to_runs(gen: list[dict]) -> list[Run]:
@@ -302,7 +291,7 @@ def main(argv=None):
             with open(f, newline="") as fh:
                 rows += [_typed(r) for r in csv.DictReader(fh)]
         rows = list({r["scenario"]: r for r in reversed(rows)}.values())[::-1]  # a scenario run twice: the first
-        write_md(rows, "diagnosis_independent", "python benchmarks/diagnosis_independent.py --merge "
+        write_md(rows, "diagnosis_independent", "python -m benchmarks diagnosis_independent --merge "
                  + " ".join(Path(f).name for f in a.merge), float("nan"))
         print("\n".join(summarise(rows)))
         return
@@ -331,11 +320,8 @@ def main(argv=None):
               f"E {r['E_base']:.2f}→{r['E_after']:.2f} (truth {r['E_truth']:.2f}) shrink {r['shrink']:.2f} "
               f"[{r['confidence']}] possible {r['possible']} nearest miss {r['nearest_miss']} "
               f"screen {r['screen_cpu_s']:.1f} s CPU", flush=True)
-    write_md(rows, stem, (f"python benchmarks/diagnosis_independent.py{' --quick' if a.quick else ''}"
+    write_md(rows, stem, (f"python -m benchmarks diagnosis_independent{' --quick' if a.quick else ''}"
                           f"{' --vessels ' + a.vessels if a.vessels != 'ship,usv' else ''}"
                           f"{' --only ' + a.only if a.only else ''}{' --stem ' + a.stem if a.stem else ''}"),
              time.perf_counter() - t0)
     print("\n".join(summarise(rows)))
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,4 @@
-"""Structure discovery on the done-when scenario of issue 29 (``python benchmarks/discover.py OUTDIR [--null]``).
+"""Structure discovery on a USV with withheld terms (``python -m benchmarks discover [OUTDIR] [--null] [--hold H]``).
 
 Truth: :mod:`benchmarks.independent.usv_terms` (NumPy, its own RK4; the seed-002 USV with added masses and
 the withheld terms ``EXTRA``), noise at real-log levels. Training: steps, sines, chirp, zigzag (120 s,
@@ -8,11 +8,12 @@ floor and 1.5× the floor, the model error sqrt(RMSE² − noise²) relative to 
 found beside the truth's. ``--null``: the same runs from plain fossen3 (no extra terms): what is selected
 and every term's inclusion probability. ``--hold zero``: the truth holds each input sample until the next
 (a digital command) and discover is told so (``--input-hold zero``); without telling it, such a log reads half a
-sample early (see :mod:`independent.usv_terms`); ``--hold zero-untold`` shows that case.
+sample early (see :mod:`benchmarks.independent.usv_terms`); ``--hold zero-untold`` shows that case.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import subprocess
@@ -22,13 +23,22 @@ from pathlib import Path
 
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from independent.usv_terms import EXTRA, NOISE, run_table  # noqa: E402
+from benchmarks.independent.usv_terms import EXTRA, NOISE, run_table
 
 TRAIN, HELD = ("steps", "sines", "chirp", "zigzag"), ("pullout", "fast_pulses")
 
 
-def main(out: Path, null: bool = False, hold: str = "linear") -> None:
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", nargs="?", default="/tmp/diffship-discover", help="folder for the runs and results")
+    ap.add_argument("--null", action="store_true", help="the same runs from plain fossen3 (no extra terms)")
+    ap.add_argument("--hold", default="linear", choices=("linear", "zero", "zero-untold"))
+    a = ap.parse_args(argv)
+    return discover_runs(Path(a.out), null=a.null, hold=a.hold)
+
+
+def discover_runs(out: Path, null: bool = False, hold: str = "linear") -> int:
+    """Write the runs to ``out``, run ``python -m diffship.discover`` on them and print what it found."""
     told = hold != "zero-untold"
     hold = "zero" if hold == "zero-untold" else hold
     out.mkdir(parents=True, exist_ok=True)
@@ -69,14 +79,4 @@ def main(out: Path, null: bool = False, hold: str = "linear") -> None:
             me = lambda x: math.sqrt(max(x * x - n * n, 0.0))  # noqa: E731
             print(f"{run:12s} {c:4s} base {b:.4g}  selected {s:.4g}  floor {n:.4g} (1.5x {1.5 * n:.4g})  "
                   f"model error selected/base {me(s) / max(me(b), 1e-12):.2f}")
-
-
-if __name__ == "__main__":
-    argv = sys.argv[1:]
-    hold = "linear"
-    if "--hold" in argv:
-        i = argv.index("--hold")
-        hold = argv[i + 1]
-        del argv[i:i + 2]
-    args = [a for a in argv if a != "--null"]
-    main(Path(args[0] if args else "/tmp/diffship-discover"), null="--null" in argv, hold=hold)
+    return 0

@@ -1,6 +1,6 @@
 """Equation error on the 6-DOF ROV at 10 Hz: the cut-off chosen from the data against fixed ones.
 
-Issue 17, item 3: is the equation-error baseline done as well as it can be? Data: the
+Question: is the equation-error baseline done as well as it can be? Data: the
 BlueROV2-like ``Fossen6`` reference vehicle, 2 runs × 60 s of smoothed random force/moment steps
 in all six DOF at 10 Hz, ROV-grade sensor noise (``benchmarks/cases/rov.py``), ``--seeds`` noise
 seeds; 18 free parameters (6 added masses, 6 linear and 6 quadratic damping terms). For each seed
@@ -10,7 +10,7 @@ many of the 18 estimates lie within 3 of their own standard errors (the reported
 the HAC sandwich where the equation residuals are coloured), the median and largest relative
 error, and the chosen cut-offs.
 
-    PYTHONPATH=src python benchmarks/ee_cutoff.py [--seeds 5]
+    python -m benchmarks ee_cutoff [--seeds 5]
 
 Writes ``benchmarks/results/ee_cutoff.md``.
 """
@@ -18,13 +18,10 @@ Writes ``benchmarks/results/ee_cutoff.md``.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])
 
 from benchmarks.cases.rov import rov_case_runs  # noqa: E402
 from diffship.fit import fit_equation_error  # noqa: E402
@@ -73,7 +70,3 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     (out / "ee_cutoff.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-
-
-if __name__ == "__main__":
-    main()

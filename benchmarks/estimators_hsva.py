@@ -1,4 +1,4 @@
-"""Estimators on real data (issue 13, item 5): the HSVA KVLCC2 zigzags fitted by each estimator.
+"""Estimators on real data: the HSVA KVLCC2 zigzags fitted by each estimator.
 
 The same problem for every estimator: the MMG model (:func:`diffship.models.mmg.kvlcc2_mmg`,
 published KVLCC2 L7 values as start), the free set and priors of the KVLCC2 study
@@ -20,7 +20,7 @@ flown closed loop by the fitted model with the HSVA autopilot
 turning circle (a manoeuvre type not in the training data): tactical diameter in ship lengths
 against the free-running measurements, 3.1–3.3 L.
 
-    PYTHONPATH=src python benchmarks/estimators_hsva.py [--estimators output-error,prediction-error]
+    python -m benchmarks estimators_hsva [--estimators output-error,prediction-error]
 
 Writes ``benchmarks/results/estimators_hsva.md`` and ``.json``. Needs ``../shared/data`` (the
 HSVA files may not be copied into the repository): exits with a message where it is absent.
@@ -130,7 +130,7 @@ def _write(rows, a, validate):
     OUT.mkdir(exist_ok=True)
     stem = f"estimators_hsva{a.tag}"
     (OUT / f"{stem}.json").write_text(json.dumps(rows, indent=1, default=str))
-    cmd = "python benchmarks/estimators_hsva.py " + " ".join(sys.argv[1:])
+    cmd = "python -m benchmarks estimators_hsva " + " ".join(sys.argv[1:])
     lines = [f"# Estimators on the HSVA KVLCC2 zigzags (real data)", "",
              f"Command: `{cmd.strip()}`; MMG, {len(DEFAULT_FREE)} coefficients free with the published values as ±50 % "
              f"priors; trained on {', '.join(DEFAULT_TRAIN)} (first {a.horizon:g} s at {a.dt:g} s, channels "
@@ -157,7 +157,3 @@ def _write(rows, a, validate):
         if r.get("noise"):
             lines += ["", f"Noise levels estimated by prediction error: `{json.dumps(r['noise'], default=str)}`"]
     (OUT / f"{stem}.md").write_text("\n".join(lines) + "\n")
-
-
-if __name__ == "__main__":
-    sys.exit(main())

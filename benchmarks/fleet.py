@@ -6,7 +6,7 @@ The shell loop starts one process per vessel-run (import, trace, compile or load
 cache, fit, write a fit file); the fleet keeps ``--workers`` processes and fits every vessel-run in them.
 Throughput = fitted vessel-runs / wall time, cluster start-up and first compilation included.
 
-    PYTHONPATH=src python benchmarks/fleet.py --runs 40 --loop 4 --workers 1 2
+    python -m benchmarks fleet --runs 40 --loop 4 --workers 1 2
 
 Writes ``benchmarks/results/fleet.md``. The shell loop's throughput is measured on ``--loop`` of the
 runs (each process is independent, so its per-fit time does not depend on how many follow), half before and half
@@ -122,10 +122,10 @@ def main(argv=None) -> int:
     rows.insert(0, ("shell loop of python -m diffship.fit (both halves: the baseline)", 1,
                     sum(r[2] for r in loop_rows), sum(r[3] for r in loop_rows), both))
     base = rows[0][4]
-    lines = ["# Fleet throughput (issue 30)", "",
-             f"`PYTHONPATH=src python benchmarks/fleet.py --runs {args.runs} --loop {args.loop} --duration "
+    lines = ["# Fleet throughput", "",
+             f"`python -m benchmarks fleet --runs {args.runs} --loop {args.loop} --duration "
              f"{args.duration:g} --workers {' '.join(map(str, args.workers))}`", "",
-             f"Vessel-runs: seed-002 USV, fossen3 (force inputs), {args.duration:g} s at 10 Hz each, output error with "
+             f"Vessel-runs: the water-jet USV, fossen3 (force inputs), {args.duration:g} s at 10 Hz each, output error with "
              "the fit command's defaults (`--vessel usv`, reference priors). Wall time includes process / cluster "
              "start-up and compilation. **Machine: 2 cores shared with other engineers' jobs** (load below); the "
              "numbers are under that load, not on an idle machine.", "",
@@ -143,7 +143,3 @@ def main(argv=None) -> int:
     Path(args.out).write_text("\n".join(lines))
     print("\n".join(lines))
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,4 +1,4 @@
-"""Accuracy and honesty of the fossen3 output-error fit (issue: core, "done when").
+"""Accuracy and honesty of the fossen3 output-error fit (the core fit's accuracy and its standard errors).
 
 Problem: the seed-002 USV with added mass (``diffship.synthetic.usv_truth``), 3 runs × 300 s at
 10 Hz, realistic GNSS/heading/rate-gyro noise, m, Iz, xg known, 10 free parameters (added masses
@@ -13,23 +13,20 @@ and reports per parameter the error in units of the reported standard error (z),
 of the ±2σ and ±3σ intervals over seeds (honest standard errors give ≈ 95 % and ≈ 99.7 %), and
 the RMS relative parameter error of both methods.
 
-    python benchmarks/fossen3_coverage.py [--seeds 8] [--duration 300] [--out benchmarks/results]
+    python -m benchmarks fossen3_coverage [--seeds 8] [--duration 300] [--out benchmarks/results]
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
 
-from benchmarks.fitapi import fit_oe, fit_oe_and_ee  # noqa: E402
+from benchmarks.common.fitapi import fit_oe, fit_oe_and_ee  # noqa: E402
 from diffship.models import Fossen3  # noqa: E402
 from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 
@@ -85,7 +82,3 @@ def main(argv=None):
     text = "\n".join(lines)
     (out / "fossen3_coverage.md").write_text(text + "\n")
     print(text)
-
-
-if __name__ == "__main__":
-    main()

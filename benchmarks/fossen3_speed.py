@@ -44,7 +44,7 @@ and with diffship's compilation included); whether both reached the same cost (w
 
 Run (from the repository root)::
 
-    PYTHONPATH=src .venv/bin/python benchmarks/fossen3_speed.py [--quick] [--out benchmarks/results]
+    python -m benchmarks fossen3_speed [--quick] [--out benchmarks/results]
 
 Writes ``OUT/fossen3_speed.md`` and ``OUT/fossen3_speed.csv`` (``--quick`` writes
 ``fossen3_speed_quick.*``) and prints the Markdown table.
@@ -57,7 +57,6 @@ import csv
 import math
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
@@ -67,11 +66,9 @@ import jax
 import scipy
 from scipy.optimize import least_squares
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
 
-from benchmarks.fitapi import FLT_NONE, batch_of, fit_oe, initial_states, spread_of  # noqa: E402
-from benchmarks.peers import Fossen3Problem as NumpyProblem  # noqa: E402  (the problem, in NumPy)
+from benchmarks.common.fitapi import FLT_NONE, batch_of, fit_oe, initial_states, spread_of  # noqa: E402
+from benchmarks.common.peers import Fossen3Problem as NumpyProblem  # noqa: E402  (the problem, in NumPy)
 from diffship.models import Fossen3  # noqa: E402
 from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
 
@@ -288,7 +285,3 @@ def main(argv=None):
                         "numpy": env["numpy"], "scipy": env["scipy"]})
     print(f"wrote {out_dir / (stem + '.md')} and {out_dir / (stem + '.csv')}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -13,7 +13,7 @@ Reported per integrator: compile time of the residual, Jacobian and LM programs;
 simulation and one Jacobian (warm, median of repeats); the whole warm fit; final cost and the
 largest parameter difference to the ``diffrax-rk4`` fit.
 
-    PYTHONPATH=src python benchmarks/integrators_speed.py [--runs 3] [--duration 300] [--out FILE]
+    python -m benchmarks integrators_speed [--runs 3] [--duration 300] [--out FILE]
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
     lines = [
         "# Integrators on the fossen3 output-error problem",
         "",
-        f"`PYTHONPATH=src python benchmarks/integrators_speed.py --runs {a.runs} --duration {a.duration:g}` "
+        f"`python -m benchmarks integrators_speed --runs {a.runs} --duration {a.duration:g}` "
         f"({a.runs} runs × {a.duration:g} s at 10 Hz, {len(free)} free parameters + {len(runs) * len(est)} initial "
         "states, start ±50 %, weights = spread). One process; 2-core CPU; timings noisy, compare within the table.",
         "",
@@ -109,7 +109,3 @@ def main(argv=None) -> int:
     Path(a.out).write_text("\n".join(lines))
     print("\n".join(lines))
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

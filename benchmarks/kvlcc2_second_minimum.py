@@ -1,4 +1,4 @@
-"""Is the KVLCC2 "1.29 standard errors" point a premature LM stop or a second minimum? (issue 13)
+"""Is the KVLCC2 "1.29 standard errors" point a premature LM stop or a second minimum?
 
 On the 5°/5° zigzag of 300 s at 0.2 s (``benchmarks/estimators.py --k-amps 5 --k-duration 300
 --k-dt 0.2``) several starts end "converged" at one point 1.29 reference standard errors from the
@@ -13,7 +13,7 @@ reference with the *same* channel weights (the reference's), and then
 
 Run from the repository root::
 
-    PYTHONPATH=src .venv/bin/python benchmarks/kvlcc2_second_minimum.py RESULTS.json [--start 1] [--variant multiple]
+    python -m benchmarks kvlcc2_second_minimum RESULTS.json [--start 1] [--variant multiple]
 """
 
 from __future__ import annotations
@@ -21,13 +21,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import estimators as E  # noqa: E402  (the NumPy truth of the benchmark)
+from benchmarks import estimators_truth as E  # noqa: E402  (the NumPy truth of the benchmark)
 
 from diffship.fit import OutputErrorOptions, fit_output_error  # noqa: E402
 from diffship.fit.identifiability import per_scale_columns  # noqa: E402
@@ -98,7 +96,3 @@ def main(argv=None):
               + ", ".join(f"{n} {th[i] + step[i] * scale[i]:.4g}" for i, n in enumerate(free)))
         print(f"  JᵀJ in z: smallest/largest eigenvalue {wz[0] / wz[-1]:.2g} (pseudo-inverse cut n·eps "
               f"{len(z) * np.finfo(float).eps:.2g})")
-
-
-if __name__ == "__main__":
-    main()

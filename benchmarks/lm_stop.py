@@ -1,4 +1,4 @@
-"""Cost of the Gauss–Newton-step stopping check (issue 13) on ordinary fits.
+"""Cost of the Gauss–Newton-step stopping check on ordinary fits.
 
 Fits the fossen3 test problem of ``tests/fit/test_output_error.py`` (3 × 60 s at 10 Hz,
 realistic noise, seed 2, 10 free parameters from ±50 % of the truth, initial states of psi, u, v,
@@ -9,7 +9,7 @@ standard errors.
 
 Run from the repository root::
 
-    PYTHONPATH=src .venv/bin/python benchmarks/lm_stop.py [--gntol 0.05|inf]
+    python -m benchmarks lm_stop [--gntol 0.05|inf]
 
 ``--gntol inf`` is the plain step/cost rule (what the solver did before the check).
 """
@@ -53,7 +53,3 @@ def main(argv=None):
                      "params": {n: res.params[n] for n in res.free}}
         print(name, json.dumps({k: v for k, v in out[name].items() if k != "params"}), flush=True)
     return out
-
-
-if __name__ == "__main__":
-    main()

@@ -21,7 +21,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from benchmarks.fitapi import fit_numbers
+from benchmarks.common.fitapi import fit_numbers
 from diffship.metrics import evaluate
 
 COLUMNS = ["case", "variant", "method", "metric", "value", "unit", "note"]

@@ -214,7 +214,7 @@ def figures(rec, out_dir, prefix):
 
 def write_report(rec, out_dir, stem, quick, cases_run, total_s, figs, env):
     L = [f"# diffship benchmark report ({'quick' if quick else 'full'} mode)", "",
-         f"Regenerate: `PYTHONPATH=src .venv/bin/python benchmarks/run.py{' --quick' if quick else ''}` "
+         f"Regenerate: `python -m benchmarks suite{' --quick' if quick else ''}` "
          f"(total {total_s / 60:.1f} min on this machine). Every number below is also in `{stem.replace('report', 'all_numbers')}.csv`.",
          "", "## Headline", "", "| quantity | value | how |", "|---|---:|---|"]
     for q, v, how in headline(rec):

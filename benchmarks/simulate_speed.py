@@ -5,23 +5,19 @@ inputs. Measures, for both solvers of :func:`diffship.simulate.simulate`: compil
 batched simulation (``jax.vmap`` over runs), and the forward-mode Jacobian of all outputs with
 respect to the 16 parameters (what Levenberg–Marquardt needs).
 
-    python benchmarks/simulate_speed.py [--repeat 10]
+    python -m benchmarks simulate_speed [--repeat 10]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 
-if __name__ == "__main__":
-    sys.path[0] = str(Path(__file__).resolve().parents[1])  # run as a script: import `benchmarks` from the repo root
 
-from benchmarks.fitapi import FLT_NONE, batch_of  # noqa: E402
+from benchmarks.common.fitapi import FLT_NONE, batch_of  # noqa: E402
 from diffship.integrators import get_integrator  # noqa: E402
 from diffship.simulate import simulate  # noqa: E402
 from diffship.synthetic import usv_runs, usv_truth  # noqa: E402
@@ -54,7 +50,3 @@ def main(argv=None):
         jac = jax.jit(jax.jacfwd(lambda th: jax.vmap(lambda t, u, x: simulate(model.with_params(th), t, u, x, get_integrator(solver)).ys)(ts, us, x0)))
         c2, s2 = _time(jac, model.theta(), repeat=max(2, args.repeat // 3))
         print(f"| {solver} | {c1:.2f} | {1e3 * s1:.1f} | {c2:.2f} | {1e3 * s2:.1f} |")
-
-
-if __name__ == "__main__":
-    main()

@@ -2,8 +2,7 @@
 
 One command (from the repository root)::
 
-    PYTHONPATH=src .venv/bin/python -m benchmarks [--quick] [--out benchmarks/results]
-    PYTHONPATH=src .venv/bin/python benchmarks/run.py [--quick] [--out benchmarks/results]   # the same
+    python -m benchmarks suite [--quick] [--cases nomoto,fossen3] [--report-only] [--out benchmarks/results]
 
 writes ``OUT/report.md`` (headline table first), ``OUT/all_numbers.csv`` (every number, long
 format: case, variant, method, metric, value, unit, note) and ``OUT/fig_*.png``. ``--quick``
@@ -16,6 +15,7 @@ format: case, variant, method, metric, value, unit, note) and ``OUT/fig_*.png``.
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import os
 import platform
@@ -26,23 +26,19 @@ import jax
 import numpy as np
 import scipy
 
-from benchmarks.cases import fossen3, kvlcc2, nomoto, rov, sspa, vmm
+from benchmarks.cases import MODULES
+from benchmarks.common.timing import cpu_name
 from benchmarks.record import Recorder, say
 from benchmarks.report import figures, headline, write_report
 
-#: every case, in the order the full mode runs them
-CASES = {**nomoto.CASES, **fossen3.CASES, **sspa.CASES, **kvlcc2.CASES, **vmm.CASES, **rov.CASES}
+#: every case, in the order the full mode runs them (each case module's ``CASES``)
+CASES = {name: run for m in MODULES for name, run in importlib.import_module(f"benchmarks.cases.{m}").CASES.items()}
 QUICK_CASES = ("nomoto", "nomoto_cubic", "sspa", "kvlcc2")
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def environment() -> str:
-    cpu = ""
-    try:
-        cpu = next(ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return (f"machine: {cpu or platform.machine()}, {os.cpu_count()} CPUs, {platform.platform()}; Python "
+    return (f"machine: {cpu_name()}, {os.cpu_count()} CPUs, {platform.platform()}; Python "
             f"{platform.python_version()}, JAX {jax.__version__} ({jax.default_backend()}), NumPy {np.__version__}, "
             f"SciPy {scipy.__version__}")
 

@@ -1,4 +1,4 @@
-"""Does the wave candidate appear where there is no wave? (issue 28, item 5)
+"""Does the wave candidate appear where there is no wave?
 
 For every scenario of the independent grid (``--quick``: strong, seed 1, one null per vessel;
 otherwise weak + strong, seeds 1–2), the diagnosis is run with the wave as the **only** candidate:
@@ -9,15 +9,13 @@ would be attributed — the exposure of the other effects' scenarios to a wrong 
 
 Usage::
 
-    python benchmarks/wave_false_periods.py --quick [--vessels usv] [--only TEXT]
+    python -m benchmarks wave_false_periods --quick [--vessels usv] [--only TEXT]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import diffship  # noqa: F401  (float64)
 from diffship.data import Run
@@ -25,8 +23,7 @@ from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.errors import DataError
 from diffship.models import Fossen3, Nomoto1
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import independent  # noqa: E402
+from benchmarks import independent  # noqa: E402
 
 
 def main(argv=None):
@@ -58,7 +55,3 @@ def main(argv=None):
         print(f"{sc.name:34s} period {w.params.get('T_w', float('nan')):.3g} s; wave {w.verdict}; E {d.E_before:.3g} → "
               f"{d.E_after:.3g}, gain {100 * w.validation_gain:.1f} %  {time.perf_counter() - t0:5.0f} s", flush=True)
     print(f"{len(grid)} scenarios: a periodic training residual in {n_found}, the wave alone attributed in {n_attr}")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,4 @@
-"""The wave effect family beyond the benchmark grid (issue 28, item 5): two measured cases.
+"""The wave effect family beyond the benchmark grid: two measured cases.
 
 * ``random_phase``: the independent USV with the generator's 6-s sway force / yaw moment
   (150 N, 600 N·m, no mean drift) at a **random phase per run** — the limitation of shared
@@ -14,8 +14,8 @@ scenario (phase locked to the run start, plus a mean drift force) is run by
 
 Usage::
 
-    python benchmarks/wave_family.py --case random_phase --seed 1
-    python benchmarks/wave_family.py --case ship --amp 0.03 --period 8 --seed 1
+    python -m benchmarks wave_family --case random_phase --seed 1
+    python -m benchmarks wave_family --case ship --amp 0.03 --period 8 --seed 1
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ import argparse
 import dataclasses
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -33,11 +32,10 @@ from diffship.data import Run
 from diffship.diagnose import diagnose
 from diffship.models import Fossen3, Nomoto1
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import independent  # noqa: E402  (the generator, imported as a top-level package: no diffship inside)
-from independent import effects as fx  # noqa: E402
+from benchmarks import independent  # noqa: E402  (the generator: no diffship inside)
+from benchmarks.independent import effects as fx  # noqa: E402
 
-SC = sys.modules["independent.scenarios"]  # the package exports a function of that name
+SC = sys.modules["benchmarks.independent.scenarios"]  # the package exports a function of that name
 
 
 @dataclasses.dataclass
@@ -96,7 +94,3 @@ def main(argv=None):
           f"{100 * wave.validation_gain:.1f} %, runs improved {wave.runs_improved}")
     print("final:", {k: round(v, 6) for k, v in pv.items() if k in ("A_Yc", "A_Ys", "A_Nc", "A_Ns", "a_c", "a_s", "T_w", "delta_off")})
     print("\n".join(d.verdict))
-
-
-if __name__ == "__main__":
-    main()

@@ -13,8 +13,8 @@ diagnose, and score:
 
 Usage::
 
-    python benchmarks/withheld_effects.py --quick     # nomoto1 scenarios, < 3 min
-    python benchmarks/withheld_effects.py             # + more seeds and fossen3 scenarios
+    python -m benchmarks withheld_effects --quick     # nomoto1 scenarios, < 3 min
+    python -m benchmarks withheld_effects             # + more seeds and fossen3 scenarios
 
 Writes ``benchmarks/results/withheld_effects[_quick].md`` and ``.csv``.
 """
@@ -32,7 +32,7 @@ import numpy as np
 
 import diffship  # noqa: F401  (float64)
 from diffship.diagnose import FAMILY, DiagnoseOptions, augment, diagnose
-from diffship.diagnose.where import noise_floor, normalised_error
+from diffship.diagnose.where import normalised_error
 from diffship.metrics import evaluate
 from diffship.models import Fossen3, Nomoto1
 from diffship.models import scalar
@@ -253,7 +253,7 @@ def main(argv=None):
         w.writerows(rows)
     summ = summarise(rows)
     md = [f"# Withheld-effect benchmark ({'quick' if a.quick else 'full'})", "",
-          f"Command: `python benchmarks/withheld_effects.py{' --quick' if a.quick else ''}`; wall time "
+          f"Command: `python -m benchmarks withheld_effects{' --quick' if a.quick else ''}`; wall time "
           f"{time.perf_counter() - t0:.0f} s on this CPU (shared).", "", *summ, "",
           "| model | kind | hidden | selected | top-1 | top-3 | E base | E after | E truth | shrink | param err |",
           "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -263,7 +263,3 @@ def main(argv=None):
     (OUT / f"{stem}.md").write_text("\n".join(md) + "\n")
     partial.unlink(missing_ok=True)
     print("\n".join(summ))
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,4 @@
-"""Real logs with withheld effects: exact effects injected into the HSVA KVLCC2 zigzags (issue 28, item 4).
+"""Real logs with withheld effects: exact effects injected into the HSVA KVLCC2 zigzags.
 
 The HSVA free-running zigzags of the KVLCC2 model (``../shared/data/kvlcc2_hsva``, SIMMAN 2008;
 never copied into the repository) carry whatever the real basin put in them. On top of that, each
@@ -71,8 +71,8 @@ scenario's own (injected) training logs as a user would make it, its ten core co
 
 Usage::
 
-    python benchmarks/withheld_real.py --model nomoto1 --only none,clock_offset,rudder_zero
-    python benchmarks/withheld_real.py --model mmg --base study --greedy-steps 3   # all five (minutes each)
+    python -m benchmarks withheld_real --model nomoto1 --only none,clock_offset,rudder_zero
+    python -m benchmarks withheld_real --model mmg --base study --greedy-steps 3   # all five (minutes each)
 
 Each finished scenario is appended to ``benchmarks/results/withheld_real_<model>.jsonl`` (a run
 that stops keeps what it measured; ``--resume`` skips scenarios already there for the same
@@ -393,7 +393,7 @@ def write(rows, a):
     in_data = sum(r["judge"]["found_in_data"] and not (r["judge"]["found"] or r["judge"]["found_in_base"]) for r in inj)
     # named by the verdict as passing at the capped path's last step (not selected: not counted as found)
     waiting = sum(r["expected"] in r.get("waiting", "").split("+") and not r["judge"]["selected_any"] for r in inj)
-    cmd = (f"python benchmarks/withheld_real.py --model {a.model} --base {a.base} --horizon {a.horizon:g} --dt {a.dt:g}"
+    cmd = (f"python -m benchmarks withheld_real --model {a.model} --base {a.base} --horizon {a.horizon:g} --dt {a.dt:g}"
            + (f" --greedy-steps {a.greedy_steps}" if a.greedy_steps else ""))
     default = [n for n in SCENARIOS if n not in EXTRA]
     present = [r["scenario"] for r in rows]
@@ -501,7 +501,7 @@ def write(rows, a):
     L += ["", "Where (verdict line per scenario):", ""] + [f"- {r['scenario']}: {r.get('verdict_where', '')}" for r in rows]
     L += ["", "Which:", ""] + [f"- {r['scenario']}: {r.get('verdict_which', '')}" for r in rows]
     L += ["", "In the base (the verdict's line for an effect the base model carries as a parameter of its own, "
-          "`Diagnosis.in_base`; rows run before stop 37 did not record it):", ""] + \
+          "`Diagnosis.in_base`; rows that do not record it are left blank):", ""] + \
         [f"- {r['scenario']}: {r.get('verdict_in_base') or ('—' if 'verdict_in_base' in r else 'not recorded')}" for r in rows]
     L += ["", "In the data (the verdict's line for the data-consistency findings, `Diagnosis.in_data`; every check's "
           "estimate in the table below, a finding or not):", ""] + \
@@ -517,7 +517,3 @@ def write(rows, a):
                      f"{f['reason']} |")
     (OUT / f"{stem}.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
-
-
-if __name__ == "__main__":
-    main()

@@ -1,4 +1,5 @@
-"""The package's shape: no import cycles, models below fitting, no private names across packages.
+"""The package's shape: no import cycles, models below fitting, no private names across packages; and no
+import cycle among the benchmarks either.
 
 The import graph is read from the source (``ast``), counting imports executed at import time and
 inside functions alike; imports under ``if TYPE_CHECKING:`` are type hints and are skipped.
@@ -14,12 +15,14 @@ from pathlib import Path
 
 import pytest
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
 PKG = SRC / "diffship"
+BENCH = ROOT / "benchmarks"
 
 
-def _module_name(path: Path) -> str:
-    rel = path.relative_to(SRC).with_suffix("")
+def _module_name(path: Path, base: Path = SRC) -> str:
+    rel = path.relative_to(base).with_suffix("")
     parts = list(rel.parts)
     if parts[-1] == "__init__":
         parts = parts[:-1]
@@ -32,9 +35,9 @@ def _is_type_checking(node: ast.If) -> bool:
         isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING")
 
 
-def _imports(path: Path) -> list[tuple[str, tuple[str, ...]]]:
+def _imports(path: Path, base: Path = SRC) -> list[tuple[str, tuple[str, ...]]]:
     """(imported module, names) for every runtime import in ``path``, resolved to absolute names."""
-    mod = _module_name(path)
+    mod = _module_name(path, base)
     is_pkg = path.name == "__init__.py"
     package = mod if is_pkg else mod.rpartition(".")[0]
     out = []
@@ -62,6 +65,8 @@ def _imports(path: Path) -> list[tuple[str, tuple[str, ...]]]:
 
 
 MODULES = {_module_name(p): p for p in PKG.rglob("*.py")}
+_MODULES = MODULES
+BENCH_MODULES = {_module_name(p, ROOT): p for p in BENCH.rglob("*.py") if "results" not in p.parts}
 
 
 def _lazy_names(path: Path) -> dict[str, str]:
@@ -80,11 +85,13 @@ def _lazy_names(path: Path) -> dict[str, str]:
 LAZY = {_module_name(p): _lazy_names(p) for p in PKG.rglob("__init__.py")}
 
 
-def _graph() -> dict[str, set[str]]:
+def _graph(modules: dict[str, Path] | None = None, top: str = "diffship", base: Path = SRC) -> dict[str, set[str]]:
+    """Module → the modules its import runs (``modules`` below ``base``, imports of the package ``top``)."""
+    MODULES = _MODULES if modules is None else modules  # noqa: N806
     g: dict[str, set[str]] = {m: set() for m in MODULES}
     for mod, path in MODULES.items():
-        for target, names in _imports(path):
-            if not target.startswith("diffship"):
+        for target, names in _imports(path, base):
+            if target != top and not target.startswith(top + "."):
                 continue
             parts = target.split(".")
             for k in range(1, len(parts) + 1):  # parents' __init__ run first
@@ -101,7 +108,8 @@ def _graph() -> dict[str, set[str]]:
                 elif sub in MODULES and sub != mod:
                     g[mod].add(sub)
     for pkg, names in LAZY.items():  # a lazy face imports its submodules when a name is first used
-        g[pkg].update(m for m in names.values() if m in MODULES)
+        if pkg in g:
+            g[pkg].update(m for m in names.values() if m in MODULES)
     return g
 
 
@@ -162,6 +170,21 @@ def test_lazy_faces_count_as_imports():
     g = _graph()
     assert "diffship.fitfile" in g["diffship"]
     assert "diffship.fit.driver" in g["diffship.fit"]
+
+
+def test_no_import_cycle_in_the_benchmarks():
+    """The benchmarks import each other only one way (a case never imports the suite that runs it); the
+    entry point ``benchmarks/__main__.py`` reaches a benchmark by the registry's module names, at run time."""
+    g = _graph(BENCH_MODULES, "benchmarks", ROOT)
+    assert "benchmarks.suite" in g and "benchmarks.timing.cold" in g and g["benchmarks.timing.cold"]
+    cycle = _cycle(g)
+    assert cycle is None, " -> ".join(cycle)
+
+
+def test_benchmark_files_stay_readable():
+    """The benchmarks keep the package's file-size rule (one concept per module)."""
+    long = {str(p.relative_to(ROOT)): n for p in BENCH_MODULES.values() if (n := len(p.read_text().splitlines())) > 520}
+    assert not long, long
 
 
 def test_the_cycle_detector_finds_a_cycle():

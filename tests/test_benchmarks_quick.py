@@ -1,6 +1,6 @@
 """The benchmark suite cannot rot: run its quick Nomoto case end to end and check what it measured.
 
-Runs ``benchmarks/run.py --quick --cases nomoto`` (the cheapest case that still produces every
+Runs ``python -m benchmarks suite --quick --cases nomoto`` (the cheapest case that still produces every
 headline row: speed ratio vs the scipy peer, equation-/output-error parameter-error ratio,
 batched time per fit) in a subprocess; about 1–2 minutes on a loaded 2-core machine.
 """
@@ -22,7 +22,7 @@ def _numbers(path):
 @pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_quick_benchmark_nomoto(tmp_path):
     env = {"PYTHONPATH": str(ROOT / "src"), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "run.py"), "--quick", "--cases", "nomoto",
+    proc = subprocess.run([sys.executable, "-m", "benchmarks", "suite", "--quick", "--cases", "nomoto",
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=600, env=env, cwd=ROOT)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     report = (tmp_path / "report_quick.md").read_text()
@@ -51,3 +51,24 @@ def test_quick_benchmark_nomoto(tmp_path):
     # the vmapped fixed-iteration LM reaches the best cost from most random starts
     assert n[(c, "batch", "diffship_oe", "vmap_lm_converged_rate")] >= 0.5
     assert n[(c, "batch", "diffship_oe", "vmap_lm_time_per_fit_s")] > 0
+
+
+def test_every_benchmark_is_registered_and_importable_by_name():
+    """``python -m benchmarks`` lists every benchmark of the registry; each registered module exists and
+    defines ``main`` (read from the source: importing a benchmark may need its optional peers)."""
+    import ast
+    import importlib.util
+
+    sys.path.insert(0, str(ROOT))
+    try:
+        from benchmarks.registry import BENCHMARKS
+
+        for name, (module, _) in BENCHMARKS.items():
+            spec = importlib.util.find_spec(module)
+            assert spec is not None and spec.origin, (name, module)
+            tree = ast.parse(Path(spec.origin).read_text())
+            assert any(isinstance(n, ast.FunctionDef) and n.name == "main" for n in tree.body), (name, module)
+    finally:
+        sys.path.remove(str(ROOT))
+    proc = subprocess.run([sys.executable, "-m", "benchmarks"], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert proc.returncode == 0 and all(n in proc.stdout for n in BENCHMARKS), proc.stdout + proc.stderr

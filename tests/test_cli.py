@@ -1,4 +1,4 @@
-"""The command line: the bundled example, JSON contract, and every bad input named in the issue."""
+"""The command line: the bundled example, JSON contract, and every bad input a user can give."""
 
 import json
 import re
@@ -137,7 +137,7 @@ def test_subprocess_exit_code_and_no_traceback(tmp_path):
 
 
 # ----------------------------------------------------------------------------------------
-# issue 15: fit file, one initial-state rule, checks before compute, FAILED label
+# the fit file, one initial-state rule, checks before compute, FAILED label
 # ----------------------------------------------------------------------------------------
 SSPA = str(ROOT / "src" / "diffship" / "examples" / "sspa_zigzag.csv")
 
@@ -247,10 +247,10 @@ def test_help_lists_every_model_and_channel_names(capsys):
 
 @pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_resampling_sensitivity_is_reported(capsys):
-    """The SSPA zigzag at 10 Hz vs its own 50 Hz: Nomoto K moves from 0.835 to 1.31 (issue 15). The
+    """The SSPA zigzag at 10 Hz vs its own 50 Hz: Nomoto K moves from 0.835 to 1.31. The
     CLI warns whenever it resamples, and --check-sampling refits at the files' rate and compares
-    the two in combined standard errors. With the honest (HAC + measured-input) intervals of
-    issue 17 the two agree within them (K 0.6 σ apart; with the white σ²(JᵀJ)⁻¹ errors of before
+    the two in combined standard errors. With the honest (HAC + measured-input) intervals
+    the two agree within them (K 0.6 σ apart; with the white σ²(JᵀJ)⁻¹ errors of before
     it read 11 σ), and the report says which."""
     code = fit_main([SSPA, "--rudder-sign", "port", "--resample", "0.1", "--method", "output-error", "--quiet"])
     out = capsys.readouterr().out
@@ -268,7 +268,7 @@ def test_resampling_sensitivity_is_reported(capsys):
     assert ("WARNING" in line) == (z > 2.0), (line, z)
 
 
-# -- issue 26: one set of options, failures travel, checks before compute ------------------------------
+# -- one set of options, failures travel, checks before compute ------------------------------
 def test_repeated_list_options_accumulate_in_every_cli(capsys):
     """``--fix A=1 --fix B=2`` keeps both (argparse ``extend``) in fit, diagnose and predict; a malformed
     item stops with exit status 2 and names the item (before JAX)."""
@@ -449,7 +449,7 @@ def test_fit_figure_always_shows_the_held_out_runs(nomoto_csvs, tmp_path):
     evs = {"output_error": evaluate(m, train)}
     fig = plot_fit("nomoto1", train, val, evs, {"output_error": evaluate(m, val)}, max_runs=4)
     titles = [ax.get_title() for ax in fig.axes]
-    assert any("held out" in t for t in titles) and sum("train" in t and ": psi" in t for t in titles) == 3
+    assert any("held out" in t for t in titles) and sum("train" in t and ": heading ψ" in t for t in titles) == 3
 
 
 KVLCC2_README = "HSVA_CPMC_KVLCC2_Z_10_05.csv"
@@ -457,7 +457,7 @@ KVLCC2_README = "HSVA_CPMC_KVLCC2_Z_10_05.csv"
 
 @pytest.mark.slow
 def test_readme_kvlcc2_commands_give_the_study_numbers(tmp_path, capsys):
-    """The README's KVLCC2 commands (issue 26): the fit is usable (one training run named as not followed, not
+    """The prediction guide's KVLCC2 commands: the fit is usable (one training run named as not followed, not
     FAILED), held-out first overshoots within 1° of HSVA's with the measured values inside the 95 % intervals,
     and the 35° turn's tactical diameter within 5 % of the measured 3.1–3.3 L on both sides. About 3 minutes."""
     import shlex
@@ -468,7 +468,7 @@ def test_readme_kvlcc2_commands_give_the_study_numbers(tmp_path, capsys):
     root = shared_data_dir()
     if root is None:
         pytest.skip("needs ../shared/data (the KVLCC2 model tests; DIFFSHIP_SHARED_DATA), absent here")
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "guides" / "prediction.md").read_text()
     fit_cmd = next(ln for ln in text.splitlines() if ln.startswith("python -m diffship.fit") and KVLCC2_README in ln)
     pred_cmd = next(ln for ln in text.splitlines() if ln.startswith("python -m diffship.predict fit_kvlcc2"))
 

@@ -80,7 +80,7 @@ def test_output_error_decay2_beats_equation_error(roll_decay):
     assert abs(ee.params["b"] / B_ROLL - 1) > abs(oe.params["b"] / B_ROLL - 1)
 
 
-# -- issue 17: from the command line, without an input column, standard errors of the physical parameters --
+# -- from the command line, without an input column, standard errors of the physical parameters --
 def _csv(tmp_path, run, name, columns):
     p = tmp_path / f"{name}.csv"
     run.to_dataframe()[["time", *columns]].to_csv(p, index=False)

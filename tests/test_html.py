@@ -1,4 +1,4 @@
-"""``--html FILE``: one self-contained file with the report text and every figure embedded (issue 30).
+"""``--html FILE``: one self-contained file with the report text and every figure embedded.
 
 Default run: the HTML parses, every image is an embedded PNG that decodes, nothing is fetched from
 outside. Slow (where Debian's chromium is installed): a real headless browser loads the file and

@@ -1,4 +1,4 @@
-"""The initial-state rule of the metrics (issue 26): the true model scores at the sensor noise."""
+"""The initial-state rule of the metrics: the true model scores at the sensor noise."""
 
 import numpy as np
 

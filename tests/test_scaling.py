@@ -41,7 +41,7 @@ def test_helm_rate_follows_the_scale():
 
 
 def test_manoeuvre_on_a_model_scale_ship_needs_a_rate():
-    """Issue 15: zigzag() on the 7 m KVLCC2 model silently used the full-scale 2.32°/s (6.8× slow)."""
+    """zigzag() on the 7 m KVLCC2 model once silently used the full-scale 2.32°/s (6.8× slow)."""
     with pytest.raises(ModelError, match="model scale"):
         M.zigzag(kvlcc2_mmg(), {"u": 1.179}, inputs={"n": 10.23}, duration=5.0)
     run = M.zigzag(Nomoto1(K=0.1, T1=10.0), {}, rudder_deg=10.0, duration=20.0, dt=0.1, scale=16.0)

@@ -1,4 +1,4 @@
-"""The shipmmg peer benchmark's data and conventions (``benchmarks/shipmmg_peer.py``).
+"""The shipmmg peer benchmark's data and conventions (``benchmarks/shipmmg_peer/``).
 
 ``shipmmg`` is a benchmark-only dependency (``pip install -e ".[bench]"``); CI does not install
 it, so these tests skip there. They check what the benchmark's verdict rests on: the peer's
@@ -8,7 +8,7 @@ KVLCC2 coefficients, driven open loop by the peer's rudder, reproduces the peer'
 flies nearly the peer's turning circle.
 """
 
-import importlib.util
+import importlib
 import math
 import subprocess
 import sys
@@ -21,20 +21,25 @@ pytest.importorskip("shipmmg", reason="shipmmg (the peer MMG implementation) is 
                     "pip install -e '.[bench]' to run these tests")
 
 ROOT = Path(__file__).resolve().parents[1]
-PATH = ROOT / "benchmarks" / "shipmmg_peer.py"
 
 
 @pytest.fixture(scope="module")
 def peer():
-    spec = importlib.util.spec_from_file_location("shipmmg_peer", PATH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """The peer's records (``data``) and diffship's judging of them (``judge``), as one namespace."""
+    sys.path.insert(0, str(ROOT))
+    try:
+        data = importlib.import_module("benchmarks.shipmmg_peer.data")
+        judge = importlib.import_module("benchmarks.shipmmg_peer.judge")
+    finally:
+        sys.path.remove(str(ROOT))
+    import types
+
+    return types.SimpleNamespace(**{**vars(data), **vars(judge)})
 
 
 def test_peer_data_are_made_without_diffship():
-    code = (f"import sys; sys.modules['diffship'] = None; sys.path.insert(0, {str(PATH.parent)!r});"
-            "import shipmmg_peer as P; n = P.peer_self_propulsion();"
+    code = (f"import sys; sys.modules['diffship'] = None; sys.path.insert(0, {str(ROOT)!r});"
+            "import benchmarks.shipmmg_peer.data as P; n = P.peer_self_propulsion();"
             "z = P.peer_zigzag(10, 10, duration=20.0, n=n); t = P.peer_turn(duration=10.0, n=n);"
             "print(n, z['channels']['psi'].max(), t['channels']['r'][-1])")
     proc = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=120)

@@ -13,7 +13,7 @@ from diffship.trim import trim
 
 
 def test_kvlcc2_published_set_settles_at_1_02_m_s_and_stays_there():
-    """Issue 15: the published KVLCC2 L7 set at the measured 10.23 rps slows to about 1.02 m/s."""
+    """The published KVLCC2 L7 set at the measured 10.23 rps slows to about 1.02 m/s."""
     m = kvlcc2_mmg()
     t = trim(m, inputs={"n": 10.23})
     assert t.ok and t.solved_for == "speed" and 1.00 < t.speed < 1.04

@@ -1,4 +1,4 @@
-"""Verdicts (issue 26): a run the model does not follow is named with its channel and onset; a parameter
+"""Verdicts: a run the model does not follow is named with its channel and onset; a parameter
 the data do not determine is named with the cause; a fit is FAILED only when nothing is followed."""
 
 import math

@@ -1,4 +1,4 @@
-"""Vessel particulars (issue 17): bundled reference vessels, derived quantities, missing particulars,
+"""Vessel particulars: bundled reference vessels, derived quantities, missing particulars,
 plausibility checks before any compute, fixed values in the report."""
 
 import json
@@ -30,7 +30,7 @@ def test_every_declared_particular_is_a_known_quantity():
         assert set(m.PARTICULARS.values()) <= set(QUANTITIES), name
         if m.REFERENCE_VESSEL:
             assert m.REFERENCE_VESSEL in bundled_vessels(), name
-    # what the issue lists for vmm_simple: m, Iz, xG, L, rho, U0, XT and five added masses
+    # what vmm_simple needs: m, Iz, xG, L, rho, U0, XT and five added masses
     assert set(get_model("vmm_simple").PARTICULARS) == {"m", "Iz", "xG", "L", "rho", "U0", "XT", "Xudot", "Yvdot",
                                                         "Yrdot", "Nvdot", "Nrdot"}
 

@@ -8,8 +8,12 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import withheld_real as wr
+ROOT = str(Path(__file__).resolve().parents[1])
+sys.path.insert(0, ROOT)
+try:
+    from benchmarks import withheld_real as wr
+finally:
+    sys.path.remove(ROOT)
 
 D = math.pi / 180
 VC = wr.injected_vector("water_drift")  # 0.02 m/s towards 0.8 rad

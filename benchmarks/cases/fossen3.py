@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from benchmarks import peers
-from benchmarks.fitapi import FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, fitted_model, fitted_params, spread_of
+from benchmarks.common import peers
+from benchmarks.common.fitapi import FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, fitted_model, fitted_params, spread_of
 from benchmarks.record import (EE_KEYS, convergence, log_uniform_starts, record_common, record_fit, rel_errs, say,
                                seed_summary, timed, traced_peak)
 from diffship.models import Fossen3
@@ -135,10 +135,3 @@ def run(rec, quick, figs=None):
 
 
 CASES = {"fossen3": run}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.fitapi import fit_numbers, kvlcc2_study
+from benchmarks.common.fitapi import fit_numbers, kvlcc2_study
 from benchmarks.record import maxrss_mb, say, timed
 
 
@@ -54,10 +54,3 @@ def run(rec, quick, figs=None):
 
 
 CASES = {"kvlcc2": run}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

@@ -26,9 +26,9 @@ from typing import ClassVar
 import jax.numpy as jnp
 import numpy as np
 
-from benchmarks import peers
+from benchmarks.common import peers
 from benchmarks.cases.nomoto_batch import batched, nomoto_derivatives
-from benchmarks.fitapi import (FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, fitted_model, fitted_params,
+from benchmarks.common.fitapi import (FLT_NONE, batch_of, fit_ee, fit_numbers, fit_oe, fitted_model, fitted_params,
                                initial_states, spread_of)
 from benchmarks.record import (EE_KEYS, METHODS, convergence, log_uniform_starts, record_common, record_fit,
                                record_zig, say, seed_summary, timed, traced_peak)
@@ -291,10 +291,3 @@ def run_cubic(rec, quick, figs=None):
 
 
 CASES = {"nomoto": run, "nomoto_cubic": run_cubic}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from benchmarks.fitapi import FLT_NONE, batch_of, fit_ee, lm_problem, spread_of
+from benchmarks.common.fitapi import FLT_NONE, batch_of, fit_ee, lm_problem, spread_of
 from benchmarks.record import say
 from diffship.models import Nomoto1
 from diffship.preprocess import Filter, smooth_and_derivative

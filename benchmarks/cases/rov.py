@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.fitapi import fit_ee, fit_oe, fitted_model, fitted_params
+from benchmarks.common.fitapi import fit_ee, fit_oe, fitted_model, fitted_params
 from benchmarks.record import EE_KEYS, record_common, record_fit, say, timed
 from diffship.synthetic import simulate_run
 
@@ -64,10 +64,3 @@ def run(rec, quick, figs=None):
 
 
 CASES = {"rov": run}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

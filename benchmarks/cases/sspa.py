@@ -40,10 +40,3 @@ def run(rec, quick, figs=None):
 
 
 CASES = {"sspa": run}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmarks.fitapi import fit_ee, fit_oe, fitted_model
+from benchmarks.common.fitapi import fit_ee, fit_oe, fitted_model
 from benchmarks.record import EE_KEYS, record_common, record_fit, say, timed
 from diffship.synthetic import rudder_sequence, simulate_run
 
@@ -89,10 +89,3 @@ def run(rec, quick, figs=None):
 
 
 CASES = {"vmm": run}
-
-if __name__ == "__main__":
-    import sys
-
-    from benchmarks.cases._alone import run_alone
-
-    sys.exit(run_alone(CASES))

@@ -1,4 +1,4 @@
-"""Independent hidden-effect scenario generator for judging ``diffship.diagnose`` (issue 14).
+"""Independent hidden-effect scenario generator for judging ``diffship.diagnose``.
 
 Written apart from diffship and sharing **no code** with it: plain NumPy/SciPy truth models,
 its own fixed-step integrator, and its own implementation of every effect at the physics level

@@ -1,4 +1,4 @@
-r"""A 3-DOF USV truth with extra hydrodynamic terms, for judging ``diffship.discover`` (issue 29).
+r"""A 3-DOF USV truth with extra hydrodynamic terms, for judging ``diffship.discover``.
 
 Written apart from diffship (NumPy only, its own RK4): Fossen's matrix form with force inputs,
 

@@ -14,7 +14,7 @@ same names, meanings, defaults and checks in every command:
 Every command also leaves the same way: :func:`exit_now` (``fleet`` excepted: its Dask workers' clean-up
 runs at the ordinary exit).
 
-Rules (issue 26): a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
+Rules: a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
 fixes both: ``action="extend"``); a malformed item (``--fix A``, ``--fix A=x``, ``--columns psi``,
 an unknown channel) stops the command at once with argparse's one-line message and exit status 2,
 before JAX or NumPy is imported. This module imports only the standard library and the plain-Python
@@ -237,7 +237,7 @@ def resamples(text: str) -> int:
 
 
 def add_bootstrap_options(p: argparse.ArgumentParser, *, what: str = "the output-error fit") -> None:
-    """``--bootstrap N`` and ``--bootstrap-method`` (issue 27): percentile intervals from N refits."""
+    """``--bootstrap N`` and ``--bootstrap-method``: percentile intervals from N refits."""
     g = p.add_argument_group("bootstrap")
     g.add_argument("--bootstrap", type=resamples, default=0, metavar="N",
                    help=f"refit {what} on N resamples (in one batch) and report 95 %% percentile intervals beside "
@@ -263,8 +263,8 @@ def exit_now(code: int | None) -> NoReturn:
     """Leave the command with exit status ``code`` (``None`` is 0) once stdout and stderr are flushed.
 
     The process ends at once (:func:`os._exit`) instead of through the interpreter's teardown, which
-    frees every compiled XLA program and module one by one: 1.1 s after a diagnosis of the issue-28
-    current case (measured from the last ``atexit`` handler to the process's end), on a command that
+    frees every compiled XLA program and module one by one: 1.1 s after a diagnosis of the USV
+    current case (``benchmarks/diagnose_current_case.py``) (measured from the last ``atexit`` handler to the process's end), on a command that
     has written and closed all its files by then. Under a tracer or profiler (coverage, ``python -m
     cProfile``) the ordinary :func:`sys.exit`, so that they write their results; an exception leaving
     ``main`` never reaches here and ends the process the ordinary way."""

@@ -407,7 +407,7 @@ class Run:
 
 def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel_map: Any = None, **kw) -> list[Run]:
     """Load CSV files or logs (``channel_map``, :mod:`diffship.logs`) alike; names are file stems made unique."""
-    from .logs import is_log, log_runs  # robot logs, parquet (issue 30); logs never import data: Run is passed
+    from .logs import is_log, log_runs  # robot logs, parquet; logs never import data: Run is passed
     paths = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
     if not paths:
         raise DataError("load_runs: no files given.")

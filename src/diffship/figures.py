@@ -2,8 +2,7 @@
 
 The command lines write figures to files and must not need a display, so they switch matplotlib to its
 Agg backend; a notebook's inline (or widget) backend is kept, so that a notebook calling the same
-plotting functions draws the figures (issue 26: a report function switching the backend made a
-notebook draw nothing). Plain Python: matplotlib is imported only when a figure is made.
+plotting functions draws the figures (a report function that switched the backend made a notebook draw nothing). Plain Python: matplotlib is imported only when a figure is made.
 """
 
 from __future__ import annotations

@@ -24,8 +24,11 @@ if TYPE_CHECKING:  # type hints only: report sits beside fit, not above it
     from .usability import Verdict
 
 __all__ = [
+    "CHANNEL_LABELS",
     "CHANNEL_NAMES",
     "CHANNEL_UNITS",
+    "axis_label",
+    "comparison",
     "failed_methods",
     "is_failed",
     "plot_fit",
@@ -35,7 +38,7 @@ __all__ = [
 ]
 
 
-_LABEL = {"equation_error": "equation error", "output_error": "output error"}
+_LABEL = {"equation_error": "equation error", "output_error": "output error", "prediction_error": "prediction error"}
 HORIZON_NOTE = "metrics: whole-horizon simulation of every run from its initial state (no one-step prediction)"
 
 
@@ -62,6 +65,53 @@ def failed_methods(evs: Mapping[str, Evaluation], results: Mapping[str, FitResul
     return tuple(out)
 
 
+#: What a channel is, for axis labels (the unit comes from :data:`~diffship.data.CHANNEL_UNITS`).
+CHANNEL_LABELS = {"x0": "north x0", "y0": "east y0", "z0": "down z0", "psi": "heading ψ", "phi": "roll φ",
+                  "theta": "pitch θ", "u": "surge speed u", "v": "sway speed v", "w": "heave speed w",
+                  "r": "yaw rate r", "p": "roll rate p", "q": "pitch rate q", "delta": "rudder δ"}
+
+
+def axis_label(channel: str) -> str:
+    """``"heading ψ [deg]"``: what the channel is and its display unit (degrees for angles)."""
+    unit = CHANNEL_UNITS.get(channel, ("-", 1.0))[0]
+    return f"{CHANNEL_LABELS.get(channel, channel)} [{unit}]"
+
+
+def _compared(methods: Sequence[str]) -> str:
+    """``"output error against the equation-error baseline"`` (or the methods' names)."""
+    names = [_LABEL.get(m, m.replace("_", " ")) for m in methods]
+    if "output_error" in methods and "equation_error" in methods and len(methods) == 2:
+        return "output error against the equation-error baseline"
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def comparison(results: Mapping[str, FitResult], train: Mapping[str, Evaluation],
+               validation: Mapping[str, Evaluation], train_runs: Sequence[Run], val_runs: Sequence[Run],
+               verdicts: Mapping[str, Verdict] | None = None) -> list[str]:
+    """The point first: every method's RMSE per channel from a whole-horizon simulation of each run from
+    its measured start, held-out runs first (when there are any), each row with the method's verdict."""
+    methods = sorted((m for m in results if m in train or m in validation), key=lambda m: m != "output_error")
+    if not methods:
+        return []
+    lines = [f"{_compared(methods)}: RMSE of a whole-horizon simulation of every run from its measured start"]
+    for kind, evs, runs in (("held-out", validation, val_runs), ("training", train, train_runs)):
+        if not evs:
+            continue
+        chans = [c for c in next(iter(evs.values())).channels]
+        lines.append(f"  {kind + ' (' + str(len(runs)) + ' run' + ('s' if len(runs) != 1 else '') + ')':<22}"
+                     + "".join(f"{c + ' [' + CHANNEL_UNITS.get(c, ('-', 1))[0] + ']':>14}" for c in chans))
+        for m in methods:
+            if m not in evs:
+                continue
+            ev = evs[m]
+            row = f"    {_LABEL.get(m, m):<20}" + "".join(
+                f"{ev.rmse[c] * CHANNEL_UNITS.get(c, ('', 1.0))[1]:>14.4g}" for c in chans)
+            label = (verdicts[m].label if verdicts and m in verdicts
+                     else ("FAILED" if m in failed_methods(train, results) else ""))
+            lines.append(row + (f"   {label}" if label else "") + ("" if ev.ok else "   (simulation blew up)"))
+    return lines
+
+
 def text_report(
     model_name: str,
     results: Mapping[str, FitResult],
@@ -70,18 +120,30 @@ def text_report(
     train_runs: Sequence[Run],
     val_runs: Sequence[Run],
     verdicts: Mapping[str, Verdict] | None = None,
+    *,
+    screen: bool = False,
+    details: str | None = None,
 ) -> str:
-    """A short plain-text report: parameters side by side, each method's verdict
-    (:mod:`diffship.usability`: FAILED / not converged / unidentifiable / runs not followed), then
-    pooled and per-run metrics. Without ``verdicts``, a method is FAILED by :func:`failed_methods`."""
+    """A plain-text report: the comparison first (:func:`comparison`: each method's whole-horizon RMSE,
+    held-out runs first), the parameters side by side, each method's verdict (:mod:`diffship.usability`:
+    FAILED / not converged / unidentifiable / runs not followed) with its notes, then fit % and per-run
+    metrics. Without ``verdicts``, a method is FAILED by :func:`failed_methods`.
+
+    ``screen=True`` is the terminal's view: a method that is not usable gets one line with its reason
+    and where its notes and per-run errors are (``details``, the full report file), instead of them."""
     methods = list(results)
     w = 26
+    failed = (tuple(m for m, v in verdicts.items() if not v.usable) if verdicts is not None
+              else failed_methods(train, results))
     lines = [
         f"diffship fit — model {model_name}",
         f"training runs: {', '.join(r.name for r in train_runs)}",
-        f"validation runs: {', '.join(r.name for r in val_runs) if val_runs else 'none (pass --validate RUN.csv)'}",
+        f"held-out runs: {', '.join(r.name for r in val_runs) if val_runs else 'none (pass --validate RUN.csv)'}",
         "",
-        f"{'parameter [unit]':<22}" + "".join(f"{_LABEL.get(m, m):>{w}}" for m in methods),
+        *comparison(results, train, validation, train_runs, val_runs, verdicts),
+        "",
+        f"{'parameter [unit]':<22}" + "".join(f"{_LABEL.get(m, m) + (' (FAILED)' if m in failed else ''):>{w}}"
+                                              for m in methods),
     ]
     free = []
     for m in methods:
@@ -97,11 +159,17 @@ def text_report(
                 row += f"{'fixed ' + _fmt(r.params[n]):>{w}}"
         lines.append(row)
     lines.append("")
-    failed = (tuple(m for m, v in verdicts.items() if not v.usable) if verdicts is not None
-              else failed_methods(train, results))
+    brief = set(failed) if screen else set()
     for m in methods:
         r = results[m]
         how = r.info.get("programs", "")
+        if m in brief:
+            v = verdicts.get(m) if verdicts is not None else None
+            why = (v.reasons[0] if v is not None and v.reasons else "its simulation is worse than the measured mean")
+            where = (f"its notes and per-run errors: {details}" if details
+                     else "--out DIR writes its notes and per-run errors")
+            lines.append(f"{_LABEL.get(m, m)}: FAILED — {why}; do not use these values ({where})")
+            continue
         if verdicts is not None and m in verdicts:
             lines += verdicts[m].lines()
         elif m in failed:
@@ -115,24 +183,18 @@ def text_report(
         for msg in r.messages:
             lines.append(f"  note: {msg}")
     lines += ["", HORIZON_NOTE]
-    for title, evs in (("training", train), ("validation", validation)):
+    for title, evs in (("held-out", validation), ("training", train)):
         if not evs:
             continue
         chans = next(iter(evs.values())).channels
-        lines.append(f"{title} RMSE" + " " * 6 + "".join(f"{c + ' [' + CHANNEL_UNITS.get(c, ('', 1))[0] + ']':>14}" for c in chans))
-        for m, ev in evs.items():
-            row = f"  {_LABEL.get(m, m):<20}"
-            for c in chans:
-                unit, k = CHANNEL_UNITS.get(c, ("", 1.0))
-                row += f"{ev.rmse[c] * k:>14.4g}"
-            lines.append(row + ("" if ev.ok else "   (simulation blew up)") + ("   FAILED" if m in failed else ""))
-        lines.append(f"{title} fit [%]" + " " * 5 + "".join(f"{c + ' [%]':>14}" for c in chans))
+        lines.append(f"{title} fit [%]" + " " * max(1, 15 - len(title)) + "".join(f"{c + ' [%]':>14}" for c in chans))
         for m, ev in evs.items():
             lines.append(f"  {_LABEL.get(m, m):<20}" + "".join(f"{ev.fit_percent[c]:>14.1f}" for c in chans)
                          + ("   FAILED" if m in failed else ""))
     if train:
         lines.append(_common_cost(train, train_runs, failed))
-    lines += _per_run(train, validation)
+    lines += _per_run({m: e for m, e in train.items() if m not in brief},
+                      {m: e for m, e in validation.items() if m not in brief})
     return "\n".join(lines)
 
 
@@ -143,7 +205,7 @@ def _per_run(train: Mapping[str, Evaluation], validation: Mapping[str, Evaluatio
     prefix = _common_prefix(names)
     if prefix:
         lines += ["", f"per-run tables: run names without their common prefix {prefix}"]
-    for title, evs in (("training", train), ("validation", validation)):
+    for title, evs in (("held-out", validation), ("training", train)):
         for m, ev in (evs or {}).items():
             chans = [c for c in ev.channels]
             lines += ["", f"{title} runs, {_LABEL.get(m, m)}: RMSE and fit [%] per run",
@@ -225,12 +287,12 @@ def plot_fit(
                 bad = m in failed
                 ax.plot(t, ys, color=colors.get(m), lw=0.6 if bad else 1.2, ls="--" if m == "equation_error" else "-",
                         label=f"{_LABEL.get(m, m)}{' FAILED' if bad else ''} "
-                              f"(RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g})")
+                              f"(RMSE {ev.per_run[run.name]['rmse'][c] * k:.3g} {unit})")
                 if not bad:
                     kept.append(ys)
             _limits(ax, kept)
-            ax.set_title(f"{short[run.name]} ({kind}): {c}", fontsize=8)
-            ax.set_ylabel(f"{c} [{unit}]", fontsize=8)
+            ax.set_title(f"{short[run.name]} ({kind}): {CHANNEL_LABELS.get(c, c)}", fontsize=8)
+            ax.set_ylabel(axis_label(c), fontsize=8)
             ax.legend(fontsize=6, loc="best")
             ax.grid(alpha=0.3)
             if i == len(rows) - 1:
@@ -257,6 +319,9 @@ def plot_fit(
             scale = np.max(np.abs(y)) or 1.0
             ax.plot(t, y / scale, lw=1.0, label=f"{n} / {scale:.3g} {unit}")
         ax.set_title(f"{short[run.name]}: inputs (normalised)", fontsize=8)
+        ax.set_ylabel("input / its largest value [-]", fontsize=8)
+        if i == len(rows) - 1:
+            ax.set_xlabel("time [s]", fontsize=8)
         ax.legend(fontsize=6)
         ax.grid(alpha=0.3)
     fig.suptitle(f"diffship — {model_name}: measured vs simulated (whole-horizon simulation)"

@@ -145,7 +145,7 @@ def test_force_residuals_say_when_smoothing_falls_back():
 def test_rudder_offset_on_a_nomoto_ship_is_attributed():
     """A first-order Nomoto ship whose rudder is 0.8° off: the base fit holds the model's own
     delta0 at 0 (the rudder_offset candidate stands for it) and the offset is attributed on the
-    held-out zigzags with its value (issue 28: it used to be absorbed, nothing attributed)."""
+    held-out zigzags with its value (not absorbed by the base fit's delta0)."""
     truth = Nomoto1(K=0.2, T1=8.0, delta0=0.8 * D)
     train, val = _runs(truth, 3)
     d = diagnose(Nomoto1(), train, val, options=DiagnoseOptions(effects=("rudder_offset", "actuator_lag", "damping_rr")))

@@ -18,8 +18,12 @@ from diffship.data import Run
 from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.models import Nomoto1
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-import independent  # noqa: E402  (NumPy-only truths, no diffship inside)
+_BENCH = str(Path(__file__).resolve().parents[2] / "benchmarks")
+sys.path.insert(0, _BENCH)
+try:
+    import independent  # NumPy-only truths, no diffship inside
+finally:
+    sys.path.remove(_BENCH)
 
 
 def _runs(gen):

@@ -1,4 +1,4 @@
-"""The noise floor holds for coloured noise (issue 14): filtered/AR(1) sensor noise is not
+"""The noise floor holds for coloured noise: filtered/AR(1) sensor noise is not
 under-estimated by the second-difference (white-noise) estimator, and the estimate says which
 method it used."""
 

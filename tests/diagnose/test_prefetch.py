@@ -1,4 +1,4 @@
-"""The diagnosis compiles its workspace's programs while the base fit runs (issue 28, speed).
+"""The diagnosis compiles its workspace's programs while the base fit runs.
 
 :func:`diffship.diagnose.diagnosis.workspace_programs` builds the all-effects workspace from the
 base model *before* its fit. Its programs are useful only if they are the fitted workspace's own:

@@ -1,4 +1,4 @@
-"""The shrink is the share of the structural (above-noise) RMS gap closed (issue 14)."""
+"""The shrink is the share of the structural (above-noise) RMS gap closed."""
 
 import math
 

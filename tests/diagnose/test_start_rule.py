@@ -1,4 +1,4 @@
-"""Held-out runs start from what the log knows (issue 28, item 1).
+"""Held-out runs start from what the log knows.
 
 A USV (the fossen3 test truth) in a constant current, or with a biased compass. The base model
 is the truth without the effect; the candidate is the effect *recovered exactly* (the truth's

@@ -1,5 +1,5 @@
-"""The miss in a naval architect's words, and position floors a positioning system can deliver
-(issue 28, item 2). No simulation of a model: signals built by hand."""
+"""The miss in a naval architect's words, and position floors a positioning system can deliver.
+No simulation of a model: signals built by hand."""
 
 import math
 

@@ -1,5 +1,5 @@
 """Structure discovery: the screen on an independent truth, the command's one-line errors, and (slow) the
-whole command on the done-when scenario, the null check and the fit file read by predict."""
+whole command on the USV scenario of ``benchmarks/discover.py``, the null check and the fit file read by predict."""
 
 import json
 import subprocess
@@ -93,7 +93,7 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     doc = json.loads(out.read_text())
     assert "N_v_ar" in doc["selected"]["terms"] and doc["selected"]["confirmed"]
     assert all(v["inclusion_probability"] >= 0.5 for v in doc["selected"]["terms"].values())
-    # --bootstrap (issue 27): percentile intervals of the discovered model, the selected terms among them
+    # --bootstrap: percentile intervals of the discovered model, the selected terms among them
     boot = doc["selected"]["bootstrap"]
     assert boot["n_converged"] >= 6
     for t in doc["selected"]["terms"]:

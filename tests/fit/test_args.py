@@ -1,4 +1,4 @@
-"""The fit command's arguments and its JAX-free first checks (issue 17: a fit that lacks the vessel's
+"""The fit command's arguments and its JAX-free first checks (a fit that lacks the vessel's
 particulars stops at once, with one line naming them)."""
 
 import re

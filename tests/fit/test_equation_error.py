@@ -98,7 +98,7 @@ def test_auto_cutoff_sits_between_the_signal_and_the_noise_floor():
 def test_rov_equation_error_with_the_automatic_cutoff_is_within_its_own_intervals():
     """6-DOF BlueROV2-like vehicle, 10 Hz, ROV-grade sensor noise, 18 free parameters (added masses,
     linear and quadratic damping): with the cut-off chosen from the data at least 15 of 18
-    estimates lie within 3 of their own standard errors (issue 17). The cut-offs are stated, and
+    estimates lie within 3 of their own standard errors. The cut-offs are stated, and
     roll/pitch rates keep their content above the old default (10 % of Nyquist = 0.5 Hz)."""
     import sys
     from pathlib import Path

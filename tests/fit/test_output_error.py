@@ -232,7 +232,7 @@ def test_the_warm_up_stops_a_start_that_still_crawls_above_a_converged_one():
 def test_the_warm_up_and_the_whole_runs_share_one_compiled_solve():
     """With a growing-horizon warm-up, its horizon and its rounds' step cap are data: one compiled
     Levenberg–Marquardt program runs the warm-up on the first quarter and the whole runs (a second
-    program of the same solve cost the issue-28 current case's base fit a 7-s compile). The fit
+    program of the same solve cost the USV current case's base fit a 7-s compile). The fit
     still recovers a noise-free truth from a 30 % start."""
     from diffship import compiled
     from diffship.fit.kernel import Kernel

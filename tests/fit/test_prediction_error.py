@@ -166,7 +166,7 @@ def test_cli_prediction_error(tmp_path, capsys):
     assert main([*paths, "--model", "nomoto1", "--method", "prediction-error", "--init", "K=0.1", "T1=12",
                  "--quiet", "--json", str(tmp_path / "pe.json")]) == 0
     text = capsys.readouterr().out
-    assert "prediction_error" in text and "estimated noise: measurement sd psi" in text
+    assert "prediction error" in text and "estimated noise: measurement sd psi" in text
     assert (tmp_path / "pe.json").exists()
 
 

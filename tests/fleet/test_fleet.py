@@ -1,4 +1,4 @@
-"""Fleet mode on Dask distributed (issue 30): manifest checks, grouping, per-vessel failure isolation,
+"""Fleet mode on Dask distributed: manifest checks, grouping, per-vessel failure isolation,
 rerun skips what is done, one results table, a killed worker loses only its own fits (slow)."""
 
 from __future__ import annotations

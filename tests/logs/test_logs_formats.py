@@ -1,4 +1,4 @@
-"""ArduPilot DataFlash .BIN, PX4 ULog .ulg and parquet as runs with the bundled maps (issue 30).
+"""ArduPilot DataFlash .BIN, PX4 ULog .ulg and parquet as runs with the bundled maps.
 
 The .BIN and .ulg files are written from the formats' documented binary records (tests/logs/logwriters.py)
 and read back by pymavlink and pyulog through diffship's readers."""

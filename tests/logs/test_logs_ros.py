@@ -1,5 +1,5 @@
 """ROS 2 bags (sqlite3 and MCAP, written by rosbags' own writer) as runs: round trips, REP-103 frames,
-clocks, zero-order hold of inputs, gaps split and reported, and the fit through ``--map`` (issue 30)."""
+clocks, zero-order hold of inputs, gaps split and reported, and the fit through ``--map``."""
 
 from __future__ import annotations
 

@@ -201,7 +201,7 @@ def test_all_effects_vector_field_has_no_gather_scatter_or_stacked_intermediates
     """The augmented vector field of the diagnosis's all-effects workspace is written on scalar
     components: its program holds no gather or scatter (index arrays, ``.at[]`` updates) and one
     concatenation (the result). On a CPU each of those is a kernel of its own in every stage of every
-    time step; the issue-28 workspace had 22 scatters, 8 gathers and 14 concatenations per evaluation."""
+    time step; the USV current case's all-effects workspace had 22 scatters, 8 gathers and 14 concatenations per evaluation."""
     import re
 
     base, run = usv

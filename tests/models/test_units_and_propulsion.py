@@ -36,7 +36,7 @@ def _rudder_force(model, u, delta=5 * DEG):
 def test_abkowitz_rudder_force_scales_with_u_squared_at_every_speed():
     """Abkowitz's Y'_uδ = 2Y'_δ, Y'_uuδ = Y'_δ on primes of the approach speed: the rudder force at half
     speed is a quarter of that at U0 (u² scaling, up to the small cubic δ term). On primes of the
-    instantaneous speed the same coefficients make it vanish (≈ 0) — what the issue measured."""
+    instantaneous speed the same coefficients make it vanish (≈ 0)."""
     abk = VMMAbkowitz()
     assert abk.prime_speed == "approach"
     U0 = float(abk.U0)

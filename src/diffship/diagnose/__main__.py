@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "rule against the previous step, and the path stops under the gap gate)")
     add_output_options(p, out_help="write diagnosis.md, diagnosis.json and figures here",
                        json_help="write the JSON result here")
-    add_log_options(p)  # --map (logs), --html (issue 30)
+    add_log_options(p)  # --map (logs), --html (one self-contained report)
     return p
 
 

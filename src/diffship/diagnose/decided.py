@@ -12,10 +12,10 @@ Otherwise every candidate is refitted as before. The decision depends on results
 which refit finished first (the other candidates wait for it); ``refit_all`` or
 ``decided_share = 0`` turn it off.
 
-Measured: on the issue-28 USV current case the six candidates left out (shares 0.0004–0.0023
+Measured: on the USV current case (``benchmarks/diagnose_current_case.py``) the six candidates left out (shares 0.0004–0.0023
 against the current's 0.71) were 28 of the 39 s of refits; the user's command went from 95–102 s to
 70–73 s cold on 2 cores with the same result. On the independent grid (74 scenarios,
-``benchmarks/results/diagnosis_independent_stop47.md``) every selection, confidence level and
+``benchmarks/results/diagnosis_independent.md``, run with and without ``refit_all``) every selection, confidence level and
 validation error was the same as with every candidate refitted.
 """
 

@@ -10,9 +10,9 @@ candidates, side by side (:func:`~.screen.parallel`) → **where** on the valida
 **Effort.** The base fit and every refit stop a crawl early (``DiagnoseOptions.stall``: the cost
 falls by less than 0.1 % over 10 Levenberg–Marquardt steps while the Gauss–Newton model still
 promises more; the base fit then says "stopped early: the cost stalled", not converged). Measured
-on the issue-28 current case (3 + 2 USV runs of 240 s): the base fit's whole-run solve 91 steps
+on the USV current case (3 + 2 runs of 240 s, ``benchmarks/diagnose_current_case.py``): the base fit's whole-run solve 91 steps
 instead of 4 × 200, the wrong candidates' refits 42 steps instead of up to 600, the result the same
-(``benchmarks/results/diagnose_current_case_240s.md``). ``timings`` gives ``refits`` (the reference
+(``benchmarks/results/diagnose_current_case.md``). ``timings`` gives ``refits`` (the reference
 and the single candidates together) and ``where`` (the analysis alone). The workspace's programs
 compile while the base fit runs (:func:`prefetch_workspace`), and the refits' compiled solve also
 gives the screen's and the covariances' Jacobians: on that case a cold whole process went from 133
@@ -216,8 +216,8 @@ def split_varying(effs: Sequence) -> tuple[list, dict]:
     form is never screened nor refitted as a candidate: only :mod:`.variation` refits it, for the
     effect selected first, and only when that leaves a structural gap; it gets a workspace of its
     own then. Kept out of the all-effects workspace, every refit's simulation carries two effects
-    fewer (issue-28 current case, old and new code alternately, slow machine period: diagnosis
-    125 → 110 s, CPU 230 → 199 s, ``benchmarks/results/diagnose_current_case_240s.md``)."""
+    fewer (the USV current case, with and without them in alternation, on 2 CPU cores: diagnosis
+    125 → 110 s, CPU 230 → 199 s, ``benchmarks/results/diagnose_current_case.md``)."""
     return ([e for e in effs if e.name not in POSSIBLE_ONLY],
             {e.name: e for e in effs if e.name in POSSIBLE_ONLY})
 
@@ -271,8 +271,8 @@ def diagnose(
     Args:
         model: base model (its values are the fit's start) or the fitted model when ``fit``
             is given.
-        train, val: training runs and held-out validation runs (validation is required:
-            selection never uses the training fit alone).
+        train: training runs.
+        val: held-out validation runs (required: selection never uses the training fit alone).
         fit: an existing output-error fit of ``model`` on ``train`` (skips the base fit).
         spec: free/fixed parameters of the base fit.
         options: candidates, effort and acceptance rule (default: :class:`DiagnoseOptions()`).
@@ -383,7 +383,7 @@ def diagnose(
     # It, the held-out base score and the candidates' refits are independent: one pool of threads
     # runs them (:func:`.screen.parallel`) — the first screened candidate beside the reference first,
     # and the others only when it does not close the gap alone (:mod:`.decided`). (Candidates started
-    # at the reference's solution instead of the base fit took more steps on the issue-28 current
+    # at the reference's solution instead of the base fit took more steps on the USV current
     # case — 87 instead of 50 for the current: the reference stops in a crawl that they continue —
     # so they start at the base fit.)
     t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-r"""Physical noise floors: what a positioning system can deliver (issue 28, item 2).
+r"""Physical noise floors: what a positioning system can deliver.
 
 The statistical floors of :mod:`.where` measure the scatter of a signal about a smooth curve;
 for a tracked position (smooth by construction) that is the tracker's filter, not its accuracy.

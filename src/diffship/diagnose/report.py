@@ -83,12 +83,12 @@ def to_markdown(d) -> str:
 
 def plot_all(d, out: Path) -> list[Path]:
     """Residuals with phases shaded, ACF/CCF panels, regime heatmap, before/after overlays, waterfall,
-    and the data-consistency checks (:func:`plot_data_checks`)."""
-    import matplotlib
+    and the data-consistency checks (:func:`plot_data_checks`). Values in display units (degrees for
+    angles, :data:`~diffship.data.CHANNEL_UNITS`), every axis labelled with its unit."""
+    from ..figures import pyplot
+    from ..report import axis_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     out = Path(out)
     files = []
     res, lab = d.where.residuals, d.where.phases
@@ -106,12 +106,15 @@ def plot_all(d, out: Path) -> list[Path]:
                 if k == t.size or lb[k] != lb[k0]:
                     ax.axvspan(t[k0], t[k - 1], color=colors.get(lb[k0], "white"), lw=0)
                     k0 = k
-            ax.plot(t, res[run.name][c], lw=0.8, color="k")
-            ax.set_ylabel(f"{c} residual")
+            unit, k = CHANNEL_UNITS.get(c, ("-", 1.0))
+            ax.plot(t, np.asarray(res[run.name][c]) * k, lw=0.8, color="k")
+            ax.set_ylabel(f"{c} residual [{unit}]", fontsize=8)
             if i == 0:
-                ax.set_title(f"{run.name} (red transient, green turn, blue counter-steer)", fontsize=8)
+                ax.set_title(f"held-out run {run.name}", fontsize=9)
             if i == len(d.channels) - 1:
                 ax.set_xlabel("time [s]")
+    fig.suptitle("residual = simulated − measured; shaded: red transient, green turn with rudder held, blue counter-steer",
+                 fontsize=9)
     fig.tight_layout()
     files.append(out / "residuals.png")
     fig.savefig(files[-1], dpi=90)
@@ -128,6 +131,7 @@ def plot_all(d, out: Path) -> list[Path]:
             ax.axhspan(-v["band"], v["band"], color="tab:blue", alpha=0.2, label="95 % band")
             ax.set_title(f"{title}: {c}", fontsize=9)
             ax.set_xlabel("lag [s]")
+            ax.set_ylabel("correlation [-]", fontsize=8)
     fig.tight_layout()
     files.append(out / "acf_ccf.png")
     fig.savefig(files[-1], dpi=90)
@@ -144,8 +148,9 @@ def plot_all(d, out: Path) -> list[Path]:
         im = ax.imshow(M, cmap="viridis", aspect="auto")
         ax.set_yticks(range(len(keys)), keys)
         ax.set_xticks(range(4), ["Q1 (low)", "Q2", "Q3", "Q4 (high)"])
-        ax.set_title("validation error E per operating-region quartile")
-        fig.colorbar(im, ax=ax, label="E (× noise floor)")
+        ax.set_xlabel("quartile of the region's variable [-]")
+        ax.set_title("validation error E per operating-region quartile", fontsize=9)
+        fig.colorbar(im, ax=ax, label="E [× noise floor]")
         fig.tight_layout()
         files.append(out / "regimes.png")
         fig.savefig(files[-1], dpi=90)
@@ -156,21 +161,26 @@ def plot_all(d, out: Path) -> list[Path]:
         t = np.asarray(run.time)
         for i, c in enumerate(d.channels):
             ax = axes[i, j]
-            ax.plot(t, np.asarray(run[c]), color="0.6", lw=0.8, label="measured")
-            ax.plot(t, d.eval_before.simulated[run.name][c], "--", color="tab:red", lw=1, label="base")
-            ax.plot(t, d.eval_after.simulated[run.name][c], color="tab:blue", lw=1, label="+ " + ("+".join(d.selected) or "nothing"))
+            _, k = CHANNEL_UNITS.get(c, ("-", 1.0))
+            meas = np.asarray(run[c]) * k
+            before = np.asarray(d.eval_before.simulated[run.name][c]) * k
+            after = np.asarray(d.eval_after.simulated[run.name][c]) * k
+            ax.plot(t, meas, color="0.6", lw=0.8, label="measured")
+            ax.plot(t, before, "--", color="tab:red", lw=1, label="base")
+            ax.plot(t, after, color="tab:blue", lw=1, label="+ " + ("+".join(d.selected) or "nothing"))
             # the start each model used (the held-out start rule, :mod:`.start`) and the logged one
-            ax.plot(t[0], float(np.asarray(run[c])[0]), "o", mfc="none", color="k", ms=6, label="logged start")
-            ax.plot(t[0], float(d.eval_before.simulated[run.name][c][0]), "x", color="tab:red", ms=6, label="base start")
-            ax.plot(t[0], float(d.eval_after.simulated[run.name][c][0]), "+", color="tab:blue", ms=8, label="final start")
-            ax.set_ylabel(c)
+            ax.plot(t[0], float(meas[0]), "o", mfc="none", color="k", ms=6, label="logged start")
+            ax.plot(t[0], float(before[0]), "x", color="tab:red", ms=6, label="base start")
+            ax.plot(t[0], float(after[0]), "+", color="tab:blue", ms=8, label="final start")
+            ax.set_ylabel(axis_label(c), fontsize=8)
             if i == 0:
-                bound = (d.start or {}).get("bound_noise_floors")
-                rule = f"; start: logged ± {bound:g} noise floors" if bound is not None else ""
-                ax.set_title(f"held-out run {run.name}{rule}", fontsize=9)
+                ax.set_title(f"held-out run {run.name}", fontsize=9)
                 ax.legend(fontsize=7)
             if i == len(d.channels) - 1:
                 ax.set_xlabel("time [s]")
+    bound = (d.start or {}).get("bound_noise_floors")
+    fig.suptitle("held-out runs: measured, the base model and the diagnosed model"
+                 + (f" (starts: logged ± {bound:g} noise floors)" if bound is not None else ""), fontsize=9)
     fig.tight_layout()
     files.append(out / "overlay.png")
     fig.savefig(files[-1], dpi=90)
@@ -185,8 +195,8 @@ def plot_all(d, out: Path) -> list[Path]:
     ax.bar(len(levels), levels[-1], color="tab:blue")
     ax.axhline(1.0, color="k", ls=":", label="noise floor")
     ax.set_xticks(range(len(levels) + 1), labels + ["final"], rotation=20, fontsize=8)
-    ax.set_ylabel("validation E (× noise floor)")
-    ax.set_title("shrink waterfall")
+    ax.set_ylabel("validation E [× noise floor]")
+    ax.set_title("shrink waterfall", fontsize=9)
     ax.legend()
     fig.tight_layout()
     files.append(out / "waterfall.png")
@@ -202,12 +212,10 @@ def plot_data_checks(checks, path: Path) -> Path:
     """The data-consistency checks (:mod:`.consistency`): per run, the heading bias the track implies
     and the rate bias the heading implies, with the pooled estimate and its 95 % band; the yaw
     equation error against the rudder shift, the shift of least error and the runs' own."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    from ..figures import pyplot
     from .consistency import shown_unit
+
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, len(checks), figsize=(5.5 * len(checks), 3.8), squeeze=False)
     for ax, (name, f) in zip(axes[0], checks.items()):

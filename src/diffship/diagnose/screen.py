@@ -336,7 +336,7 @@ class Workspace:
         effect coordinates have zero Jacobian columns and stay at zero). With a warm-up and several
         starts (a delay's, lag's or rate limit's time constant) only the start the warm-up left
         with the lowest whole-run cost goes on to the whole runs: each whole-run solve costs about
-        four warm-ups, and on the issue-28 current case the three whole-run solves of each such
+        four warm-ups, and on the USV current case the three whole-run solves of each such
         candidate were a third of the refits' time. The start with the lowest cost wins, and — when it already removes half the base training cost — is
         continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
         step cap and still lowers the cost by :data:`STALL` (0.1 %) or more (``converged`` says whether it ended before the cap);

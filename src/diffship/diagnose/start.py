@@ -5,7 +5,7 @@ A held-out simulation must start somewhere. Estimating its initial state freely 
 unmodelled current the base model of a USV started 15–30 m away from the logged position,
 6° off in heading and at u = −1.3 m/s where the log said 2.0 m/s, so that the drift only a
 current explains was absorbed by the start, and the current — recovered to the third digit —
-was rejected on the held-out runs (issue 28).
+was rejected on the held-out runs.
 
 **Rule** (:class:`StartRule`, the same for the base and every candidate). Let
 :math:`\hat x_{0}` be the logged state at the first sample (the low-pass filtered measurement,
@@ -106,11 +106,11 @@ def bounded_offsets(rj, n_runs: int, lo: np.ndarray, hi: np.ndarray, max_steps: 
     :math:`g^\top s + \tfrac12 s^\top (J^\top J + \lambda D) s` (:math:`g = J^\top r`,
     :math:`D` the diagonal of :math:`J^\top J`) exactly over the box (:func:`_box_step`), so a
     trial point is never a clipped copy of an earlier one (a clipped unconstrained step took
-    25–40 residual and Jacobian calls per held-out score on the issue-28 current case, this 3–12,
+    25–40 residual and Jacobian calls per held-out score on the USV current case, this 3–12,
     to the same minima). :math:`\lambda` starts at 0.1, shrinks tenfold after an accepted step whose cost fell by at
     least ¾ of the model's prediction (threefold after another accepted one) and grows fourfold
     after a rejected one. The cost over the box is not convex (a heading offset turns the whole track): an
-    undamped first step jumps to a far corner of the box, and on the issue-28 current case it ended
+    undamped first step jumps to a far corner of the box, and on the USV current case it ended
     up to 0.5 % above the minima the damped path reaches. It stops when the undamped model predicts
     a reduction below ``tol·cost`` (no simulation is spent on it), when an accepted step lowers the
     cost by less than that, or after ``max_steps`` calls of ``rj``.

@@ -1,4 +1,4 @@
-"""Structure discovery (issue 29): the terms a vessel's equations need beyond its base model.
+"""Structure discovery: the terms a vessel's equations need beyond its base model.
 
 ``discover(base, train, validate)`` (or ``python -m diffship.discover``): two screens of a term library
 (:mod:`diffship.models.terms`) — greedy forward selection on the output-error Jacobian at the base fit

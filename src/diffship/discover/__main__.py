@@ -44,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "initial-state error of a slow mode lasts for much of a run and candidate terms absorb "
                         "it) or taken from the data (the filtered first samples)")
     add_bootstrap_options(p, what="the discovered model")
-    add_log_options(p)  # --map (logs), --html (issue 30), as in fit, diagnose and predict
+    add_log_options(p)  # --map (logs), --html, as in fit, diagnose and predict
     return p
 
 
@@ -95,7 +95,7 @@ def _run(args) -> int:
                  flt=flt, n_starts=args.starts or 1, x0=args.x0, progress=say)
     text = discovery_text(d, model.name)
     doc = discovery_json(d, model.name)
-    if args.bootstrap:  # issue 27: percentile intervals of the discovered model from refits of resamples
+    if args.bootstrap:  # percentile intervals of the discovered model from refits of resamples
         from ..fit.bootstrap import bootstrap_report
 
         block, doc["selected"]["bootstrap"] = bootstrap_report(d.selected.result, train, args.bootstrap,

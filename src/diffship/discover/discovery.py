@@ -166,7 +166,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
 
     Args:
         base: a 3-DOF model (:mod:`diffship.models.terms`) with its fixed values set.
-        train, validate: training and held-out runs.
+        train: training runs.
+        validate: held-out runs.
         spec: the base model's free/fixed parameters (default ``base.spec()``).
         library: a library name or term names/expressions (:func:`~diffship.models.terms.library_terms`).
         max_terms: the most terms a candidate has (≥ 1); max_candidates: the most structures refitted.

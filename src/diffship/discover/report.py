@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..data import CHANNEL_UNITS
 from ..models.terms import term_label
 from ..report import plot_fit
 from .discovery import Candidate, Discovery
@@ -101,10 +102,12 @@ def discovery_text(d: Discovery, model_name: str) -> str:
                      + (" + ".join(c.terms) or "(base)") + ("   <- selected" if i == d.chosen else ""))
     if sel.validation is not None:
         lines.append("")
-        lines.append("held-out runs, RMSE base → selected:")
+        lines.append("held-out runs, RMSE of a whole-horizon simulation, base → selected:")
         for run, pr in sel.validation.per_run.items():
             b = d.base.validation.per_run[run]["rmse"]
-            lines.append(f"  {run}: " + ", ".join(f"{c} {b[c]:.3g} → {v:.3g}" for c, v in pr["rmse"].items()))
+            lines.append(f"  {run}: " + ", ".join(
+                f"{c} {b[c] * CHANNEL_UNITS.get(c, ('', 1.0))[1]:.3g} → {v * CHANNEL_UNITS.get(c, ('', 1.0))[1]:.3g}"
+                f" {CHANNEL_UNITS.get(c, ('-', 1.0))[0]}" for c, v in pr["rmse"].items()))
         lines.append("confirmed on the held-out runs" if d.confirmed else
                      "NOT confirmed: the selected structure predicts the held-out runs worse than the base model")
     return "\n".join(lines)

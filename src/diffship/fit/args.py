@@ -74,8 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "and check damping over a wide envelope (auto: for models with a rudder input)")
     add_bootstrap_options(p)
     _add_vessel_arguments(p)
-    add_log_options(p)  # --map (logs), --html (issue 30)
-    # -- estimators for sea data (issue 13) --
+    add_log_options(p)  # --map (logs), --html (one self-contained report)
+    # -- estimators for sea data --
     p.add_argument("--shooting", default="single", metavar="single|multiple[:SEGMENT_S]",
                    help="output error by single shooting (default) or multiple shooting with segments of SEGMENT_S "
                         "seconds (default 20), finished by single shooting")
@@ -115,7 +115,7 @@ def precheck(argv: Sequence[str] | None = None) -> str | None:
     """The error line for a fit that cannot start, found without JAX; ``None`` when the full command
     must decide. Argument errors exit here as in the full command (argparse, status 2).
 
-    Covers the case of issue 17: a model that needs particulars, given no vessel, and ``--fix`` /
+    Covers the common case: a model that needs particulars, given no vessel, and ``--fix`` /
     ``--free`` not covering them. With ``--vessel`` (whose file must be read), ``--rigid-body-cg``, a
     malformed ``--fix``/``--init``, or the bundled fossen3 example (which brings its own vessel), the
     full command checks as before.

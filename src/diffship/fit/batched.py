@@ -27,8 +27,8 @@ axis so that a batch advances in lockstep *without* evaluating both branches of 
 6. optionally (``stall_steps`` > 0) an **early stop of a crawl**: when the cost of a problem
    falls by less than ``stall_rtol``·cost over ``stall_steps`` consecutive steps,
    :math:`c_{k-W} - c_k \le \rho\,c_k`, tested at the end of each window of W steps
-   (k = W, 2W, …; a test of every step's trailing window stopped the refits of the issue-28
-   USV case 2–8 steps earlier and saved 3 % of its CPU, but changed borderline diagnoses of
+   (k = W, 2W, …; a test of every step's trailing window stopped the refits of the USV
+   current case 2–8 steps earlier and saved 3 % of its CPU, but changed borderline diagnoses of
    the independent grid: an extra effect after a current, a decided tie left open), it stops
    with the status ``max_steps`` (not converged) before its step cap — a mis-specified model crawls along a curved valley
    for hundreds of steps whose sum moves its cost by a fraction of a percent, while its

@@ -55,7 +55,8 @@ def fit_both(
             ee = fit_equation_error(model, runs, spec=spec.with_values(init) if init else spec,
                                     flt=flt if ee_filter is None else ee_filter)
             out["equation_error"] = ee
-            say(f"equation error: {ee.status} in {ee.fit_seconds + ee.compile_seconds:.2f} s")
+            say(f"equation error: solved in {ee.fit_seconds + ee.compile_seconds:.2f} s ({ee.status}); its verdict "
+                "comes with the metrics")
             starts["the equation-error estimate"] = {n: ee.params[n] for n in ee.free}
         except DiffshipError as exc:  # baseline unavailable (e.g. missing u, v): say so, go on
             say(f"equation error not available: {exc}")

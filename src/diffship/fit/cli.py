@@ -1,7 +1,11 @@
 """``python -m diffship.fit``: the command-line front end of the fits (thin: parse arguments,
 call the library, print, exit).
 
-Errors a user can fix (bad files, columns, units, parameters, divergence) are printed as one
+The screen shows the point first: the methods' whole-horizon errors side by side (held-out runs
+first), then the parameters and each method's verdict; a method that is not usable is one line with
+its reason, its notes going to the report file. With ``--out DIR`` (and, for the bundled example, by
+default in :data:`DEFAULT_OUT`) the full report, the figure, the JSON and the fit file are written
+there. Errors a user can fix (bad files, columns, units, parameters, divergence) are printed as one
 line ``error: ...`` on stderr with exit status 2 and no traceback.
 """
 
@@ -46,7 +50,10 @@ from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
 from .smoother import KalmanSmoother
 
-__all__ = ["main", "build_parser"]
+__all__ = ["DEFAULT_OUT", "main", "build_parser"]
+
+#: Where the bundled example's fit writes its report, figure, JSON and fit file when ``--out`` is not given.
+DEFAULT_OUT = "diffship_fit"
 
 
 def _prior_options(args) -> dict:
@@ -118,7 +125,7 @@ def _example(model_name: str, say):
     if model_name == "fossen3":
         from ..synthetic import usv_runs  # only for the bundled fossen3 example
 
-        say("no runs given: generating the bundled fossen3 example (seed-002 USV truth with added mass, "
+        say("no runs given: generating the bundled fossen3 example (the water-jet USV truth with added mass, "
             "4 runs × 120 s at 10 Hz, realistic GNSS/heading/gyro noise; run usv_3 held out)")
         runs = usv_runs(4, 120.0, 0.1, noise="realistic", seed=7)
         return runs[:3], runs[3:]
@@ -145,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _sea_estimators(args, model, train, spec, init, flt, options, shooting, results, say) -> dict:
-    """Multiple-shooting output error and the prediction-error method (issue 13), started like
+    """Multiple-shooting output error and the prediction-error method, started like
     output error in ``fit_both``: from ``--init`` or the model's values, or the equation-error estimate."""
     out = {}
     if shooting is None and args.method != "prediction-error":
@@ -203,6 +210,8 @@ def _fit(args, say) -> int:
         train, val = _example(args.model, say)
         if args.validate:
             val = _load(args, args.validate)
+        if args.out is None:  # the main job shows its figure: written where the report says
+            args.out = DEFAULT_OUT
     _vessel_checks(args, model, vessel, train + val, say)
     check_channels(model, train + list(val), args.channels)
     if not args.skip_sign_check:
@@ -231,37 +240,45 @@ def _fit(args, say) -> int:
     ev_train, ev_val = evaluate_all(results, train, val, flt)
     verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), val) for m, r in results.items()}
     notes = resample_notes(args, model, spec, results, flt, options, say)
-    report = (text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts) + "\n\n"
-              + fixed_values_text(spec, sources))
-    # what the command adds per method goes into its own JSON entries; the FitResult is not edited (issue 25)
+    details = str(Path(args.out) / "report.txt") if args.out else None
+    screen = text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts, screen=True,
+                         details=details)
+    report = text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts)
+    tail = "\n\n" + fixed_values_text(spec, sources)
+    # what the command adds per method goes into its own JSON entries; the FitResult is not edited
     per_method = {m: {"fixed": fixed_values(spec, sources)} for m in results}
     oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None and verdicts["output_error"].usable else None
     if oe is not None:
-        report += "\n\n" + format_priors(oe)
+        tail += "\n\n" + format_priors(oe)
         if adm is not None:
-            report += "\n\n" + adm.summary()
+            tail += "\n\n" + adm.summary()
             per_method["output_error"]["admissibility"] = adm.as_json()
-    if args.bootstrap and oe is not None:  # issue 27: percentile intervals from refits of resamples
+    if args.bootstrap and oe is not None:  # percentile intervals from refits of resamples
         from .bootstrap import bootstrap_report
 
         text, boot = bootstrap_report(oe, fit_runs, args.bootstrap, args.bootstrap_method, say, spec=spec,
                                       options=dataclasses.replace(options, flt=flt))
-        report += "\n\n" + text
+        tail += "\n\n" + text
         per_method["output_error"]["bootstrap"] = boot
     cross = _cross_manoeuvre(oe, train, val, say)
-    if cross is not None:  # held-out runs of manoeuvre types not trained on (issue 12)
-        report += "\n\n" + cross_text(cross)
+    if cross is not None:  # held-out runs flown as manoeuvres, with their IMO metrics
+        tail += "\n\n" + cross_text(cross)
         per_method["output_error"]["cross_manoeuvre"] = cross_json(cross)
     if notes:
-        report += "\n" + "\n".join(notes)
-    print(report)
+        tail += "\n" + "\n".join(notes)
+    report += tail
+    print(screen + tail)
     write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say, verdicts=verdicts,
                   per_method=per_method, vessel=vessel)
     if cross is not None and cross.checks and args.out:
         plot_cross(cross, Path(args.out) / "cross_manoeuvre.png")
         say(f"wrote {Path(args.out) / 'cross_manoeuvre.png'}")
-    if args.html:  # issue 30: one self-contained file, the figures --out writes embedded
+    if args.out:
+        out = Path(args.out)
+        print(f"\nwritten to {out}/: report.txt (the full report), fit.png (measured against simulated), "
+              f"report.json, fit.json (the fit file: python -m diffship.predict {out / 'fit.json'})")
+    if args.html:  # one self-contained file, the figures --out writes embedded
         def figures(d):
             plot_fit(model.name, train, val, ev_train, ev_val, d / "fit.png", failed=failed_methods(ev_train, results))
             return [d / "fit.png"] + ([plot_cross(cross, d / "cross_manoeuvre.png") or d / "cross_manoeuvre.png"]
@@ -275,11 +292,11 @@ def _fit(args, say) -> int:
 
 
 def _starts(args) -> dict:
-    """``--starts N`` for the fit driver (issue 25); ``{}`` when not given."""
+    """``--starts N`` for the fit driver; ``{}`` when not given."""
     return {} if args.starts is None else {"n_starts": args.starts}
 
 
-# -- vessel particulars (issue 17): --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
+# -- vessel particulars: --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --
 def _with_vessel(args, model, fix, say):
     """The model with its particulars from ``--vessel`` (or stop naming the missing ones)."""
     if args.rigid_body_cg:
@@ -337,7 +354,7 @@ def _vessel_checks(args, model, vessel, runs, say) -> None:
         if w.startswith("warning") or not args.quiet:
             print(w, file=sys.stderr, flush=True)
 # ----------------------------------------------------------------------------------------
-# checks before any compute, metrics, outputs (issue 15: fit -> fit file -> prediction)
+# checks before any compute, metrics, outputs (fit -> fit file -> prediction)
 # ----------------------------------------------------------------------------------------
 def evaluate_all(results, train, val, flt):
     """Metrics with the one initial-state rule for training and validation runs (:mod:`diffship.initial`):

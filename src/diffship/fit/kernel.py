@@ -383,7 +383,7 @@ class Kernel(eqx.Module):
           ``$DIFFSHIP_THREADS``, :func:`default_threads`; XLA releases the interpreter while a program runs);
         * ``"auto"`` (default): ``"threads"`` on a CPU, ``"batched"`` on a GPU/TPU. On a CPU the
           forward-mode Jacobian, most of a step, costs the same per problem in a batch as alone
-          (measured in ``benchmarks/results/batched.md``), so a batch gains nothing there, and
+          (measured in ``benchmarks/results/timing_batched.md``), so a batch gains nothing there, and
           threads use every core without compiling further programs; on a GPU the time-step loop
           is latency-bound and a batch costs about what one problem costs.
 

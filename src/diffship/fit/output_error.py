@@ -106,9 +106,9 @@ class OutputError(AbstractEstimator):
             :meth:`warm_data`; a start still running after a round goes on from where it is, up to
             ``max_steps`` in all). After each round, a start still running whose cost is above that of
             a start that has converged on the warm-up is stopped there (*dominated*: it goes on to no
-            whole-run solve; the starts report says so, with its cost). Measured on the issue-27 USV
-            fit: three starts converged in 11–28 steps, the fourth (the model's reference values)
-            crawled 67 steps to the same point (cost 5.2 after 30 steps against 4.29).
+            whole-run solve; the starts report says so, with its cost). Measured on the USV fit of
+            ``benchmarks/timing``: three starts converged in 11–28 steps, the fourth (the model's reference
+            values) crawled 67 steps to the same point (cost 5.2 after 30 steps against 4.29).
         x0_prior: an estimated initial state that a fitted channel measures is held by the measurement
             of its first sample: a Gaussian prior row centred on the raw first sample with the channel's
             sensor noise (:func:`diffship.initial.start_prior`); states no channel measures are free.

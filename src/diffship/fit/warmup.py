@@ -6,9 +6,9 @@ starts' cost down without letting a start decide the result:
 
 * **Dominated starts** (:func:`warm_rounds`): the warm-up runs in rounds; a start still running
   after a round at a cost above a start that has converged on the warm-up is stopped, and the starts
-  report says so. Measured on the issue-27 USV fit: three starts converged in 11–28 steps, the fourth
-  (the model's reference values) crawled 67 steps to the same point (cost 5.2 after 30 steps against
-  4.29): stopped after 30, the same optimum.
+  report says so. Measured on the USV fit of ``benchmarks/timing``: three starts converged in 11–28
+  steps, the fourth (the model's reference values) crawled 67 steps to the same point (cost 5.2 after
+  30 steps against 4.29): stopped after 30, the same optimum.
 * **Same points** (:func:`same_points`): starts the warm-up brought to one point share one whole-run
   solve; an initial angle a whole turn apart is the same point.
 """

@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "python -m diffship.fit; repeatable)")
     add_data_options(p, validate=False, resample=False)
     add_output_options(p, out_help="write prediction.txt, prediction.json, prediction.png and the simulated runs (CSV)")
-    add_log_options(p)  # --map (logs for --measured), --html (issue 30)
+    add_log_options(p)  # --map (logs for --measured), --html (one self-contained report)
     return p
 
 

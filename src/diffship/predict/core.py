@@ -411,7 +411,7 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
         notes.append(dnote)
     if "u" not in model.state_names:
         notes.append(f"model {model.name} has no surge speed: the track is kinematic at the constant speed "
-                     f"{sp} m/s (no speed loss in the turn)" if sp else f"model {model.name}: no speed, no track")
+                     f"{sp:.4g} m/s (no speed loss in the turn)" if sp else f"model {model.name}: no speed, no track")
     cond = Condition(sp, inp, how, rate, rate_src, float(delay_s), scale, length, dt, durs)
     fscale = FroudeScale(scale) if scale else None
     has_cov = fit.has_covariance and samples > 0

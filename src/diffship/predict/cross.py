@@ -385,7 +385,7 @@ def cross_validate(fit, train: Sequence[Run] | Sequence[RunType], heldout: Seque
     """Judge ``fit`` on the held-out runs whose manoeuvre type is not among the training runs' types.
 
     Args:
-        fit: a :class:`~diffship.fit.FitResult` or :class:`~diffship.fitfile.LoadedFit`.
+        fit (FitResult | LoadedFit): a :class:`~diffship.fit.FitResult` or :class:`~diffship.fitfile.LoadedFit`.
         train: the training runs (classified here) or their :class:`RunType` s (e.g. from a fit file).
         heldout: measured runs to predict (open loop with their measured inputs).
         samples: parameter draws for the 95 % intervals (0: none; needs a finite covariance).

@@ -101,7 +101,7 @@ def plot_cross(cv: CrossValidation, path: str | Path | None = None):
                 ax.plot(j, y, "o", color="C3" if m.flagged else "C0")
         ax.axhline(1.0, color="k", lw=0.8)
         ax.set_xticks(range(len(ms)), [m.name for m in ms], rotation=30, ha="right", fontsize=7)
-        ax.set_ylabel("predicted / measured", fontsize=8)
+        ax.set_ylabel("predicted / measured [-]", fontsize=8)
         ax.set_title(f"{c.run}: {c.type.label} — {'MISS' if c.flagged else 'ok'} (bars: 95 % interval, red: "
                      "flagged)", fontsize=8)
         ax.grid(alpha=0.3)

@@ -97,6 +97,7 @@ def plot_prediction(p: Prediction, path: str | Path | None = None):
         if run.has("r"):
             ax.plot(t, np.degrees(np.asarray(run["r"])) * 10.0, lw=0.8, label="yaw rate × 10 [deg/s]")
         ax.set_xlabel("time [s] (fit's scale)", fontsize=8)
+        ax.set_ylabel("angle [deg]; yaw rate × 10 [deg/s]", fontsize=8)
         ax.set_title(f"{m.spec.label}: time histories", fontsize=9)
         ax.legend(fontsize=6)
         ax.grid(alpha=0.3)

@@ -14,9 +14,9 @@ exactly like the base model (the tests check 1e-12). Effects act through one hoo
 Each hook is written once, on arrays (``apply_input``, ``force``) or on tuples of scalar components
 (``apply_input_parts``, ``force_parts``); the other form follows. :class:`~.augmented.Augmented`
 composes the parts forms, so the all-effects model of a diagnosis evaluates as one expression per
-stage: on the issue-28 workspace (Fossen 3-DOF with 13 effects) the time step's forward-mode
+stage: on the USV current case's workspace (Fossen 3-DOF with 13 effects) the time step's forward-mode
 Jacobian went from 331 to 180 kernels per step and from about 185 to 125 ms per evaluation on a
-2-core CPU (``benchmarks/results/diagnose_current_case_240s.md``, stop 39).
+2-core CPU (``benchmarks/diagnose_current_case.py``).
 
 Each effect class also says when it applies (:meth:`Effect.applicability`) and how it is
 configured from the training data (:meth:`Effect.for_data`, from :class:`DataFacts`).
@@ -158,7 +158,7 @@ class Effect(eqx.Module):
     # components (``apply_input_parts``, ``force_parts``: what :class:`~.augmented.Augmented` calls
     # inside the integrator). An effect defines one form; the other follows from it. The parts form
     # keeps the time step free of stacked intermediate vectors: XLA on a CPU makes every stacked
-    # vector with several users a kernel of its own, in every stage of every step (the issue-28
+    # vector with several users a kernel of its own, in every stage of every step (the USV current case's
     # all-effects workspace: ~100 such kernels per step with arrays).
     def apply_input(self, base, t, xb, xe, ub):
         """``(u_new, xe_dot)``: transformed base inputs and extra-state derivatives."""

@@ -1,6 +1,6 @@
 """The effect library: names, families, which effects apply to a base model, and factories.
 
-Library (names as on the command line, in the order of the issue):
+Library (names as on the command line, in the order a diagnosis lists them):
 
 =================  ===============================  ==============================================
 name               parameters (null = 0)            model
@@ -60,7 +60,7 @@ from .wind import Wind
 
 __all__ = ["EFFECTS", "EFFECT_NAMES", "POSSIBLE_ONLY", "FAMILY", "applicability", "make_effect", "library", "augment"]
 
-#: Implementations per effect name, in the order of the issue (first applicable wins).
+#: Implementations per effect name, in the library's order (first applicable wins).
 EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "current": (Current,),
     "input_delay": (InputDelay,),
