@@ -1,6 +1,6 @@
 """The robustness matrix's quick subset (``benchmarks/robustness.py --quick``): one fit, one answer.
 
-On an independent second-order Nomoto truth (closed-loop zigzags, sensor noise on every sample) and on the
+On an independent first-order Nomoto truth (closed-loop zigzags, sensor noise on every sample) and on the
 bundled SSPA zigzag, the default fit lands on the best point sixteen whole-run starts find (within 0.5 of the
 likelihood and one standard error in every parameter), and so do the fit without the warm-up and, on the real
 zigzag, a fit at half the sample rate. The two variants that change the problem say why they do not land
@@ -22,7 +22,7 @@ def test_the_quick_matrix_lands_every_default_and_names_why_the_others_do_not(tm
     for case in rb.cases(quick=True).values():
         rows += rb.run_case(case, rb.QUICK_VARIANTS, lambda s: None)
     cell = {(r["case"], r["variant"]): r for r in rows}
-    for name in ("nomoto2", "sspa"):
+    for name in ("nomoto1", "sspa"):
         for v in ("default", "no warm-up"):
             r = cell[(name, v)]
             assert r["lands"], (name, v, r["delta_objective"], r["max_abs_z"])
@@ -31,7 +31,7 @@ def test_the_quick_matrix_lands_every_default_and_names_why_the_others_do_not(tm
     for r in rows:
         assert r["lands"] or r["why"] != "DOES NOT LAND" or r["variant"] == "rate", r
     # the first sample held exactly costs the likelihood more than a standard error on both
-    assert cell[("nomoto2", "x0 data")]["delta_objective"] > 0.5 and cell[("sspa", "x0 data")]["delta_objective"] > 0.5
+    assert cell[("nomoto1", "x0 data")]["delta_objective"] > 0.5 and cell[("sspa", "x0 data")]["delta_objective"] > 0.5
     rb.write(rows, rb.cases(quick=True), tmp_path, "robustness_quick")
     text = (tmp_path / "robustness_quick.md").read_text()
     assert "## nomoto2" in text and "## sspa" in text and "| default | yes |" in text

@@ -8,6 +8,11 @@ with what the whole-horizon simulations of the training and held-out runs show
   diverges, every start diverges), or the simulation is worse than the measured mean
   (NRMSE fit < 0 %) on *every* training run, or on the pooled training runs while no held-out run
   is followed either;
+* **FAILED** also — held-out runs a fit does not predict: a fitted channel whose pooled NRMSE fit on the
+  held-out runs is below :data:`HELD_OUT_SHARE` (half) of its training fit, or below 0 %; or a held-out standard
+  manoeuvre of a type the fit was trained on (a zigzag of a zigzag-trained fit) whose metric misses the measured
+  one by more than its 95 % interval and its tolerance (:mod:`diffship.predict.cross`) — the run, channel or
+  metric named;
 * **not followed (per run)** — a training or held-out run whose simulation is worse than its
   mean in a fitted channel is named with the channel and the time from which the error stays
   above the level the other runs reach (:func:`run_problems`); when the other training runs and
@@ -38,10 +43,13 @@ import numpy as np
 from .data import Run
 from .metrics import Evaluation
 
-__all__ = ["WEAK_RATIO", "RunProblem", "Verdict", "run_problems", "unidentified", "verdict"]
+__all__ = ["HELD_OUT_SHARE", "WEAK_RATIO", "RunProblem", "Verdict", "held_out_problem", "manoeuvre_miss",
+           "run_problems", "unidentified", "verdict"]
 
 #: A free parameter whose standard error exceeds this multiple of its magnitude is not identified.
 WEAK_RATIO = 10.0
+#: A fit is not usable when a fitted channel's held-out fit % falls below this share of its training fit %.
+HELD_OUT_SHARE = 0.5
 #: Surge or sway "hardly varies" when the spread of its measured speed is below this share of the
 #: mean surge speed.
 QUIET_SHARE = 0.02
@@ -175,9 +183,44 @@ def unidentified(params: Mapping[str, float], stderr: Mapping[str, float], free:
     return out
 
 
+def held_out_problem(train_ev: Evaluation | None, val_ev: Evaluation | None, channels: Sequence[str]) -> str:
+    """Why a fit does not predict its held-out runs, or "": a fitted channel whose pooled held-out NRMSE fit is
+    below :data:`HELD_OUT_SHARE` of its training fit (or below 0 %), or a held-out simulation that blows up."""
+    if val_ev is None or train_ev is None:
+        return ""
+    if not val_ev.ok:
+        return "its simulation of the held-out runs blows up"
+    for c in channels:
+        ft, fv = train_ev.fit_percent.get(c, math.nan), val_ev.fit_percent.get(c, math.nan)
+        if not (math.isfinite(ft) and math.isfinite(fv)):
+            continue
+        if fv < 0.0 or (ft > 0.0 and fv < HELD_OUT_SHARE * ft):
+            runs = ", ".join(f"{r} {v['fit_percent'].get(c, math.nan):.0f} %" for r, v in val_ev.per_run.items())
+            return (f"it does not predict its held-out runs: {c} fit {fv:.0f} % on them against {ft:.0f} % in training "
+                    f"(below {HELD_OUT_SHARE:.0%} of it; per run: {runs})")
+    return ""
+
+
+def manoeuvre_miss(checks) -> str:
+    """Why a fit misses a held-out standard manoeuvre of a type it was trained on, or "": ``checks`` is the
+    cross-manoeuvre validation (:func:`diffship.predict.cross.cross_validate` with ``trained_types``); a metric
+    of a trained type's run that misses the measured value by more than its interval and tolerance (MISS)."""
+    trained = {t.kind for t in getattr(checks, "train_types", ())}
+    for c in getattr(checks, "checks", ()):
+        if c.type.kind not in trained:
+            continue
+        for mt in c.metrics:
+            if mt.flagged and getattr(mt, "outside_tolerance", True):
+                iv = f" (95 % interval {mt.interval[0]:.4g}–{mt.interval[1]:.4g})" if mt.interval else ""
+                return (f"it misses a held-out {c.type.label}, a manoeuvre type it was trained on: {c.run} "
+                        f"{mt.name} predicted {mt.predicted:.4g} {mt.unit}, measured {mt.measured:.4g} {mt.unit}{iv}")
+    return ""
+
+
 def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: Evaluation | None = None,
-            val: Sequence[Run] = ()) -> Verdict:
-    """The verdict of one method's fit (see the module docstring)."""
+            val: Sequence[Run] = (), manoeuvres=None) -> Verdict:
+    """The verdict of one method's fit (see the module docstring); ``manoeuvres``: the cross-manoeuvre validation of
+    the held-out runs (trained types included), whose misses of a trained type make the fit not usable."""
     m = result.method
     angles = tuple(getattr(result.model, "angle_outputs", ("psi",)))
     if not result.usable:
@@ -205,6 +248,12 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
                                             f"({worst[0]} fit {worst[1]:.0f} %)"
                                             + ("" if val else "; no held-out run shows it predicts"),),
                        tuple(probs + vprobs))
+    held = held_out_problem(train_ev, val_ev, chans) if val else None
+    if held:
+        return Verdict(m, "FAILED", False, (held,), tuple(probs + vprobs))
+    miss = manoeuvre_miss(manoeuvres) if manoeuvres is not None else None
+    if miss:
+        return Verdict(m, "FAILED", False, (miss,), tuple(probs + vprobs))
     label = "usable"
     if probs:
         followed = len(train) - len(bad_train)

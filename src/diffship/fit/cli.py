@@ -43,6 +43,7 @@ from ..predict.cross_report import cross_json, cross_text, plot_cross
 from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_json
 from ..usability import verdict
 from .args import build_parser
+from .conditioning import thinning
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import format_priors, load_priors, parse_priors
@@ -225,6 +226,11 @@ def _fit(args, say) -> int:
     if args.horizon:  # fit the first seconds only; metrics, verdicts and the fit file's data use whole runs
         fit_runs = [r.slice(None, r.time[0] + args.horizon) for r in train]
         say(f"--horizon {args.horizon:g}: fitting the first {args.horizon:g} s of each training run")
+    thin = None
+    if not args.resample:  # the rate chosen from the data and the model, said in one line
+        thin = thinning(model, fit_runs)
+        fit_runs = thin.apply(fit_runs)
+        say(thin.text)
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods
     if args.bootstrap and ("output_error" not in methods or multiple):
@@ -237,9 +243,18 @@ def _fit(args, say) -> int:
     results.update(_sea_estimators(args, model, fit_runs, spec, init, flt, options, shooting if multiple else None,
                                    results, say))
     say("simulating every run over its whole horizon for the metrics...")
+    if thin is not None and thin.factor > 1:  # the channel scales of the logged samples: √k those of k-sample averages
+        results = {m: dataclasses.replace(r, channel_scales={c: v * math.sqrt(thin.factor)
+                                                             for c, v in (r.channel_scales or {}).items()})
+                   for m, r in results.items()}
     ev_train, ev_val = evaluate_all(results, train, val, flt)
-    verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), val) for m, r in results.items()}
-    notes = resample_notes(args, model, spec, results, flt, options, say)
+    oe = results.get("output_error")
+    # held-out standard manoeuvres (trained types included): a miss of a trained type makes the fit not usable
+    cross = _cross_manoeuvre(oe, train, val, say) if oe is not None and oe.usable else None
+    verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), val, manoeuvres=cross if m == "output_error"
+                           else None) for m, r in results.items()}
+    notes = ([""] + [thin.text] if thin is not None else []) + resample_notes(args, model, spec, results, flt, options,
+                                                                               say)
     details = str(Path(args.out) / "report.txt") if args.out else None
     screen = text_report(model.name, results, ev_train, ev_val, train, val, verdicts=verdicts, screen=True,
                          details=details)
@@ -247,7 +262,6 @@ def _fit(args, say) -> int:
     tail = "\n\n" + fixed_values_text(spec, sources)
     # what the command adds per method goes into its own JSON entries; the FitResult is not edited
     per_method = {m: {"fixed": fixed_values(spec, sources)} for m in results}
-    oe = results.get("output_error")
     adm = _admissibility(args, oe, train, say) if oe is not None and verdicts["output_error"].usable else None
     if oe is not None:
         tail += "\n\n" + format_priors(oe)
@@ -261,7 +275,6 @@ def _fit(args, say) -> int:
                                       options=dataclasses.replace(options, flt=flt))
         tail += "\n\n" + text
         per_method["output_error"]["bootstrap"] = boot
-    cross = _cross_manoeuvre(oe, train, val, say)
     if cross is not None:  # held-out runs flown as manoeuvres, with their IMO metrics
         tail += "\n\n" + cross_text(cross)
         per_method["output_error"]["cross_manoeuvre"] = cross_json(cross)

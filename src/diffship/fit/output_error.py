@@ -58,7 +58,8 @@ from .kernel import PENALTY, Kernel, kernel_data, stalled
 from .priors import Priors, prior_arrays
 from .problem import make_batch
 from .result import FitResult
-from .search import ROUND_STEPS, bound_escape, candidates, objective_or_cost, reweighted_solves
+from .starts import spread_starts
+from .search import DOMINATED, adaptive, bound_escape, root, candidates, objective_or_cost, reweighted_solves
 from .warmup import warm_rounds, wrap_periodic
 from .weights import channel_rms, channel_spread, correlation_time, x0_scales
 
@@ -204,7 +205,7 @@ class OutputError(AbstractEstimator):
         x0_w = x0_m = None
         start = None
         if o.x0_prior and est:
-            start = start_prior(model, batch.channels, batch.ys, batch.mask, batch.x0, est, x0_scale)
+            start = start_prior(model, batch.channels, batch.ys, batch.mask, batch.x0, est, x0_scale, ts=batch.ts)
             x0_w, x0_m = start.weight.reshape(-1), start.mean.reshape(-1)
         data = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, scales, x0_scale=x0_scale,
                            prior_mean=p_mean, prior_w=p_w, x0_prior_w=x0_w, x0_prior_mean=x0_m)
@@ -307,10 +308,21 @@ class OutputError(AbstractEstimator):
         mask = np.asarray(data.mask)
         reweight = self.weights == "noise" and not self.channel_scales
         first = st_["noise"] if reweight else np.asarray(data.scales)
-        sols = reweighted_solves(kernel, [c[1] for c in cands], data, first, {"jacobian": True, **self.lm},
-                                 cap=min(ROUND_STEPS, int(self.max_steps)), total=2 * int(self.max_steps),
-                                 floor=1e-6 * st_["spread"], reweight=reweight, effective_samples=self.effective_samples,
-                                 period=per, progress=say, label="output error, whole runs")
+
+        def solve(cs):
+            return reweighted_solves(kernel, [c[1] for c in cs], data, first, {"jacobian": True, **self.lm},
+                                     cap=int(self.max_steps), total=3 * int(self.max_steps), floor=1e-6 * st_["spread"],
+                                     reweight=reweight, effective_samples=self.effective_samples, period=per,
+                                     progress=say, label="output error, whole runs")
+        spec = problem.spec
+
+        def more(best: dict, k: int, seed: int) -> list:  # spread around the best candidate and the first start
+            around = [dict(zip(spec.free_names, map(float, spec.from_z(z[:problem.n_params])))) for z in (best["z"], zs[0])]
+            vals = (spread_starts(spec, {**spec.values(), **around[0]}, k - k // 2, seed=101 + seed)
+                    + spread_starts(spec, {**spec.values(), **around[1]}, k // 2, seed=201 + seed))
+            zz = [wrap_periodic(problem.z_start(v), per) for v in vals]
+            return [z for z in zz if math.isfinite(self.start_cost(problem, z))]
+        cands, sols = adaptive(cands, solve(cands), solve, more, mask, n if reweight and self.choose == "best" else 0, say)
         good = [s_ for s_ in sols if not s_["blew_up"] and s_["merged_into"] is None]
         # one scale for every candidate: the smallest correlation time of each channel among them
         tau = np.min(np.stack([s_["tau"] for s_ in good]), axis=0) if good and reweight else None
@@ -318,7 +330,7 @@ class OutputError(AbstractEstimator):
         res = [(np.asarray(zs[i]), math.inf, steps[i]) for i in range(n)]
         cand_out = []
         for (i, _, kind), s_ in zip(cands, sols):
-            src = sols[s_["merged_into"]] if s_["merged_into"] is not None else s_
+            src = root(sols, s_)
             f = math.inf if src["blew_up"] else objective_or_cost(src["r"], src["r_prior"], mask, src["scales"], tau)
             cand_out.append((i, kind, src["z"], f, src))
             if f < res[i][1]:
@@ -327,9 +339,12 @@ class OutputError(AbstractEstimator):
         st_["dominated"] = tuple(dominated)  # the starts report says which (driver)
         st_["cost_tolerance"] = 0.5  # one standard error along one direction of the likelihood
         n_m = sum(1 for s_ in sols if s_["merged_into"] is not None)
+        n_d = sum(1 for s_ in sols if s_.get("dominated"))
         st_["search_note"] = (f"search: {len(cands)} whole-run candidate(s) ({sum(1 for c in cands if c[2] == 'start')} "
                               f"start(s) as they are, {len(cands) - sum(1 for c in cands if c[2] == 'start')} warm-up "
-                              f"point(s)), each solved at its own channel scales; {n_m} reached another's point")
+                              f"point(s)), each solved at its own channel scales; {n_m} reached another's point"
+                              + (f", {n_d} stopped far behind the best (likelihood more than {DOMINATED:g} worse)"
+                                 if n_d else ""))
         return res
 
     def angle_periods(self, problem: Problem) -> np.ndarray:
@@ -402,7 +417,8 @@ class OutputError(AbstractEstimator):
                 if np.all(np.isfinite(r_alt)) and not (r_new @ r_new <= r_alt @ r_alt):
                     z_new = z_alt
                 kept = (z, r, list(passes), list(last_jac), list(steps_per_pass))
-                z_try, r_try = run_solve(z_new, data)
+                # from a point near the optimum: a quarter of the step cap (a longer solve is a crawl along a ridge)
+                z_try, r_try = run_solve(z_new, data.with_step_cap(max(int(o.max_steps) // 4, 10)))
                 r_full = np.asarray(res_fn(jnp.asarray(z_try), data))
                 if (np.all(np.isfinite(r_full)) and r_full @ r_full < r_old @ r_old
                         and not np.any(kernel.split(r_full, data)[0] == PENALTY)):

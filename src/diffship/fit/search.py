@@ -21,6 +21,10 @@ property of the data and the model:
    SSPA zigzag: K 0.79, 1.10 or 0.67 for three option sets); at the self-consistent scales it is K 0.826–0.834
    at 5, 10, 20 and 50 Hz, with or without the warm-up, from 4 or 64 starts.
 
+4. **Adaptive** (:func:`adaptive`): while fewer than two candidates reach the best point, the likelihood has
+   optima the candidates went to instead, and more candidates are drawn (spread around the best and around the
+   first start), up to :data:`MAX_CANDIDATES`; where every candidate agrees, nothing more is spent.
+
 A parameter stopped on a log-mapped bound is released by :func:`bound_escape` (the Gauss–Newton step in
 the parameters themselves, where the fit space hides it).
 """
@@ -41,13 +45,24 @@ from .kernel import PENALTY
 from .warmup import same_points, wrap_periodic
 from .weights import concentrated_cost, correlation_time, self_consistent_scales
 
-__all__ = ["REWEIGHT_RTOL", "ROUND_STEPS", "bound_escape", "candidates", "objective_or_cost", "reweighted_solves"]
+__all__ = ["DOMINATED", "F_TOL", "FIRST_ROUND_STEPS", "MAX_CANDIDATES", "adaptive", "reached", "REWEIGHT_RTOL", "SAME_OBJECTIVE",
+           "bound_escape", "candidates", "objective_or_cost", "reweighted_solves"]
 
 #: A candidate is done when its channel scales change by less than this (relative) at a converged point.
 REWEIGHT_RTOL = 2e-3
-#: Levenberg–Marquardt steps per round of the whole-run candidates (their scales re-estimated between rounds);
-#: the first round, at the channels' sensor noise, is shorter: the scales adapt before the solve goes far.
-ROUND_STEPS = 25
+#: From the fourth round on, a candidate whose objective is this far above the best's stops (dominated: on one
+#: scale, a likelihood 50 units worse is far outside any standard error); of two within SAME_OBJECTIVE (one standard
+#: error along one direction) of each other, the higher merges into the lower: on that scale it is no better, and
+#: following both costs a second whole-run solve for the same answer.
+DOMINATED = 50.0
+SAME_OBJECTIVE = 0.5
+#: From the third round on, a candidate whose likelihood changed by less than this over a round is done (a tenth
+#: of a standard error: further rounds move it along a ridge the data do not determine).
+F_TOL = 0.05
+#: The adaptive search draws candidates up to this many in all (:func:`adaptive`).
+MAX_CANDIDATES = 32
+#: Levenberg–Marquardt steps of a candidate's first round, at the channels' sensor noise: a few, so that its
+#: scales adapt to its own residuals before the solve goes far; each later round may take twice as many.
 FIRST_ROUND_STEPS = 5
 
 
@@ -74,28 +89,32 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
                       floor: np.ndarray, reweight: bool = True, effective_samples: bool = True,
                       period: np.ndarray | None = None, progress=None, label: str = "solve") -> list[dict]:
     """Every candidate solved on the whole runs at its own self-consistent channel scales (module docstring,
-    rule 3), together: rounds of ``cap`` Levenberg–Marquardt steps (the data's traced step cap), after each
-    round each candidate's scales :math:`s_c = \sqrt{\tau_c\,\mathrm{SSE}_c/N}` re-estimated from its residuals
+    rule 3), together: rounds of :data:`FIRST_ROUND_STEPS`, twice as many, … up to ``cap`` Levenberg–Marquardt
+    steps (the data's traced step cap), after each round each candidate's scales :math:`s_c = \sqrt{\tau_c\,\mathrm{SSE}_c/N}` re-estimated from its residuals
     (``reweight``; τ its residuals' correlation times where ``effective_samples``); a candidate is done when
-    its solve converged at scales that moved by less than :data:`REWEIGHT_RTOL`, or after ``total`` steps; a
-    candidate that reaches another's point (every unknown within 10⁻³ of a scale, angles modulo ``period``)
-    is merged into it. Every candidate's first round runs at ``scales`` (the channels' sensor noise: a start far
+    its solve converged at scales that moved by less than :data:`REWEIGHT_RTOL`, when its likelihood changed by less
+    than :data:`F_TOL` over a round (from the third), or after ``total`` steps. After
+    the third round the candidates are compared by the likelihood on one scale: one :data:`DOMINATED` behind the
+    best stops there, and of two within :data:`SAME_OBJECTIVE` of each other the higher is merged into the lower. Every candidate's first round runs at ``scales`` (the channels' sensor noise: a start far
     from the optimum has drifting residuals whose scales would leave the data almost no weight in that round).
     Returns per candidate ``{"z", "status", "steps", "r", "r_prior", "scales", "tau",
-    "jac", "merged_into", "blew_up"}``."""
+    "jac", "merged_into", "blew_up", "dominated"}``."""
     n_c = len(scales)
     per = np.zeros(len(zs[0])) if period is None else np.asarray(period)
     out = [{"z": np.asarray(z), "status": None, "steps": 0, "r": None, "r_prior": None, "scales": np.asarray(scales),
-            "tau": np.ones(n_c), "jac": None, "merged_into": None, "blew_up": False, "done": False} for z in zs]
+            "tau": np.ones(n_c), "jac": None, "merged_into": None, "blew_up": False, "done": False, "dominated": False}
+           for z in zs]
     mask = np.asarray(data.mask)
     capped = data.with_step_cap(cap)
-    first = data.with_step_cap(min(FIRST_ROUND_STEPS, cap)) if reweight else capped
     n_round = 0
     while True:
         active = [i for i, c in enumerate(out) if not c["done"] and c["merged_into"] is None and c["steps"] < total]
         if not active:
             break
-        stacked = jax.tree_util.tree_map(lambda a: jnp.stack([a] * len(active)), first if n_round == 0 else capped)
+        # rounds that grow: short while the scales adapt to the candidate's residuals (the solve follows the
+        # likelihood, as iteratively reweighted least squares does), long once they have settled
+        k_cap = min(FIRST_ROUND_STEPS * 2 ** n_round, cap) if reweight else cap
+        stacked = jax.tree_util.tree_map(lambda a: jnp.stack([a] * len(active)), data.with_step_cap(k_cap))
         n_round += 1
         stacked = stacked.replace(scales=jnp.asarray(np.stack([out[i]["scales"] for i in active])))
         solved = kernel.solve_many(np.stack([out[i]["z"] for i in active]), stacked, per_problem=True, progress=progress,
@@ -111,20 +130,34 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
                 continue
             converged = _code(res) == _code(optx.RESULTS.successful)
             if not reweight:
-                c["done"] = converged or int(k) < cap
+                c["done"] = converged or int(k) < k_cap
                 continue
             tau = correlation_time(rd, mask, n_c) if effective_samples else np.ones(n_c)
             new = self_consistent_scales(rd, mask, c["scales"], tau, floor)
-            if converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL:
+            f_own = concentrated_cost(rd, mask, c["scales"], tau, rp)
+            settled = n_round >= 3 and abs(f_own - c.get("f_last", np.inf)) < F_TOL
+            c["f_last"] = f_own
+            if (converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL) or settled:
                 c.update(done=True, tau=tau)
             else:
                 c.update(scales=new, tau=tau)
         live = [i for i, c in enumerate(out) if c["merged_into"] is None and not c["blew_up"]]
-        for a_, i in enumerate(live):
-            for j in live[:a_]:
-                if out[j]["merged_into"] is None and np.all(np.abs(wrap_periodic(out[i]["z"] - out[j]["z"], per)) <= 1e-3):
-                    out[i]["merged_into"] = j
-                    break
+        if reweight and n_round > 3 and len(live) > 1:
+            # after a full round the candidates compare on one scale (the likelihood at their smallest correlation
+            # times): one that reaches another's point merges into it; one far behind the best is dominated
+            tau_ref = np.min(np.stack([out[i]["tau"] for i in live]), axis=0)
+            f = {i: concentrated_cost(out[i]["r"], mask, out[i]["scales"], tau_ref, out[i]["r_prior"]) for i in live}
+            best = min(f.values())
+            for a_, i in enumerate(live):
+                if f[i] > best + DOMINATED:
+                    out[i].update(done=True, dominated=True)
+                    continue
+                for j in live[:a_]:
+                    if out[j]["merged_into"] is None and abs(f[i] - f[j]) <= SAME_OBJECTIVE:
+                        lo, hi = (i, j) if f[i] <= f[j] else (j, i)
+                        out[hi]["merged_into"] = lo
+                        if hi == i:
+                            break
     return out
 
 
@@ -177,3 +210,52 @@ def bound_escape(spec: ParamSpec, z: np.ndarray, r: np.ndarray, J: np.ndarray, n
     except Exception:  # pragma: no cover - clipped inside the bounds
         return None
     return np.concatenate([z_theta, z[n_p:] + step[n_p:] / col[n_p:]]), length
+
+
+def reached(sols: list[dict], mask: np.ndarray) -> int:
+    """How many candidates (a merged one with the point it reached) are within 0.5 of the best objective on one
+    scale (the likelihood at the smallest correlation times among them); each candidate's objective is stored
+    as ``"f"``."""
+    good = [s_ for s_ in sols if not s_["blew_up"] and s_["r"] is not None]
+    if not good:
+        return 0
+    tau = np.min(np.stack([s_["tau"] for s_ in good]), axis=0)
+    for s_ in sols:
+        src = root(sols, s_)
+        s_["f"] = (np.inf if src["blew_up"] or src["r"] is None else
+                   objective_or_cost(src["r"], src["r_prior"], mask, src["scales"], tau))
+    best = min(s_["f"] for s_ in sols)
+    return sum(1 for s_ in sols if s_["f"] <= best + 0.5)
+
+
+def adaptive(cands: list, sols: list[dict], solve, more, mask: np.ndarray, n: int, say=None) -> tuple[list, list]:
+    """The adaptive part of the search: while fewer than two candidates reach the best point (the likelihood has
+    other optima the candidates went to), ``n`` more are drawn — ``more(best candidate, n, round)`` gives their
+    unknowns — and solved (``solve``), up to :data:`MAX_CANDIDATES` in all; ``n = 0``: none. Returns the
+    candidates ``(start index, z, kind)`` and their solutions, extended."""
+    round_ = 0
+    while n > 0 and len(cands) < MAX_CANDIDATES and reached(sols, mask) < 2:
+        live = [j for j, s_ in enumerate(sols) if not s_["blew_up"]]
+        if not live:
+            break
+        b = min(live, key=lambda j: sols[j].get("f", np.inf))
+        zs = more(sols[b], min(n, MAX_CANDIDATES - len(cands)), round_)
+        if not zs:
+            break
+        round_ += 1
+        if say:
+            say(f"output error: {reached(sols, mask)} of {len(sols)} candidates reached the best point: {len(zs)} more")
+        new = [(cands[b][0], z, "spread around the best") for z in zs]
+        extra = solve(new)
+        for s_ in extra:  # merged within the new batch: its index in the whole list
+            s_["merged_into"] = None if s_["merged_into"] is None else s_["merged_into"] + len(sols)
+        cands, sols = cands + new, sols + extra
+    return cands, sols
+
+
+def root(sols: list[dict], s_: dict) -> dict:
+    """The candidate ``s_`` ended at: itself, or the one it merged into (followed to the end of a chain)."""
+    seen = 0
+    while s_["merged_into"] is not None and seen < len(sols):
+        s_, seen = sols[s_["merged_into"]], seen + 1
+    return s_
