@@ -54,3 +54,39 @@ def test_unidentified_parameter_named_with_its_cause():
     assert "surge speed hardly varies" in out[0] and "fix Xu" in out[0], out[0]
     out = unidentified({"Nr": -1.0}, {"Nr": math.inf}, ("Nr",), [run])
     assert "Nr" in out[0] and "hardly varies" not in out[0]
+
+
+def test_a_fit_that_does_not_predict_its_held_out_runs_is_not_usable():
+    """Held-out runs fitted less than half as well as the training runs (here a heading that drifts away on the
+    held-out run only): FAILED, with the channel, both fit percentages and the run named."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=3, duration=60.0, dt=0.1, seed=4)
+    train, val = runs[:2], [_drifting(runs[2], 5.0, 3.0)]
+    ev_t, ev_v = evaluate(truth, train), evaluate(truth, val)
+    v = verdict(_result(truth), ev_t, train, ev_v, val)
+    assert not v.usable and v.label == "FAILED", v
+    assert "does not predict its held-out runs: psi fit" in v.reasons[0] and runs[2].name in v.reasons[0], v.reasons
+    # the same held-out run without the drift: usable
+    assert verdict(_result(truth), ev_t, train, evaluate(truth, runs[2:]), runs[2:]).usable
+
+
+def test_a_missed_held_out_manoeuvre_of_a_trained_type_makes_the_fit_not_usable():
+    from types import SimpleNamespace as NS
+
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, seed=4)
+    ev = evaluate(truth, runs)
+    zz = NS(kind="zigzag", label="zigzag 10/10")
+    miss = NS(name="first_overshoot", unit="deg", measured=9.7, predicted=6.1, interval=(5.5, 6.7), flagged=True,
+              outside_tolerance=True)
+    ok = NS(name="first_overshoot", unit="deg", measured=9.7, predicted=9.5, interval=(9.0, 10.0), flagged=False,
+            outside_tolerance=False)
+    checks = NS(train_types=(zz,), checks=(NS(run="zz_held", type=zz, metrics=(miss,)),))
+    v = verdict(_result(truth), ev, runs[:1], ev, runs[1:], manoeuvres=checks)
+    assert not v.usable and "zz_held first_overshoot predicted 6.1 deg, measured 9.7 deg" in v.reasons[0], v.reasons
+    fine = NS(train_types=(zz,), checks=(NS(run="zz_held", type=zz, metrics=(ok,)),))
+    assert verdict(_result(truth), ev, runs[:1], ev, runs[1:], manoeuvres=fine).usable
+    # a manoeuvre type not trained on is validation of extrapolation, not of the fit's own type: not this rule
+    turn = NS(kind="turning_circle", label="turning circle 35°")
+    other = NS(train_types=(zz,), checks=(NS(run="turn", type=turn, metrics=(miss,)),))
+    assert verdict(_result(truth), ev, runs[:1], ev, runs[1:], manoeuvres=other).usable

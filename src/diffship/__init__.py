@@ -14,7 +14,7 @@ A saved fit (``python -m diffship.fit ... --out DIR`` writes ``DIR/fit.json``) i
 
 from . import jaxconfig as jaxconfig
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 __all__ = ["cache", "precision", "load_fit", "save_fit", "LoadedFit"]
 
 # lazily loaded names (PEP 562): name -> module that defines it

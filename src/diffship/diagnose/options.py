@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 
 from ..errors import DataError
@@ -53,10 +54,10 @@ class DiagnoseOptions:
             rule. ``None``: off (the step caps alone).
 
     Held-out start (:mod:`.start`):
-        start_bound: every compared model starts each held-out run at the logged state, its
-            logged states (position, heading, velocities, rate) moved at most this many noise
-            floors to fit the run (the same rule for the base and every candidate; ``inf``: the
-            former free estimate, which lets a wrong model hide its error in the start).
+        start_bound: every compared model starts each held-out run at its initial state estimated within its
+            sensor noise (:mod:`diffship.initial`: a prior row on each logged state, centred on its first sample);
+            a finite bound also keeps the logged states within that many noise floors of the log (default
+            ``inf``: the prior alone, the rule of every fit and metric).
 
     Acceptance rule (see :mod:`.which`):
         gap_gate: a structural gap exists when E ≥ gap_gate (E = 1 at the noise floor). None
@@ -96,7 +97,7 @@ class DiagnoseOptions:
     max_iter: int = 30
     fit_steps: int = 200
     stall: tuple[int, float] | None = (10, 1e-3)
-    start_bound: float = 3.0
+    start_bound: float = math.inf
     gap_gate: float | None = None
     gate_z: float = 3.0
     min_gain: float = 0.05

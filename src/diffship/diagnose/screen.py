@@ -26,9 +26,9 @@ o_k ≈ 0 means the base parameters can mimic the effect to first order).
 
 **Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base
 parameters, the chosen effects' parameters and the per-run initial states, warm-started at θ̂
-from each given φ start, with the base fit's growing horizon (the first quarter of every run,
-then the whole runs: :meth:`Workspace._warmup`); of several starts, the whole runs are solved
-from the one the warm-up left lowest there, and the lowest cost wins. Which candidates are refitted,
+from each given φ start (the base parameters from the base fit and from the model's reference values), with the
+base fit's growing horizon (the first quarter of every run, then the whole runs: :meth:`Workspace._warmup`); the
+whole runs are solved from the lowest warm-up point of each base start, and the lowest whole-run cost wins. Which candidates are refitted,
 from which starts, and how they are judged on the held-out runs is decided in :mod:`.which`
 and :mod:`.shrink`.
 """
@@ -51,6 +51,7 @@ from ..fit.covariance import covariance
 from ..fit.kernel import PENALTY, Kernel, KernelData, kernel_data, stalled
 from ..fit.output_error import x0_scales
 from ..fit.problem import make_batch
+from ..initial import start_prior
 from ..integrators import AbstractIntegrator, Diffrax
 from ..models import AbstractModel
 from ..models.effects import Augmented, Effect
@@ -137,9 +138,8 @@ class Workspace:
         self.z_theta = spec.to_z()
         states = base.states_for_channels(self.channels)
         self.x0_idx = tuple(i for i, s in enumerate(base.state_names) if s in states)
-        # One kernel for the screen, the refits and evaluation (the spec's structure only: other
-        # data of the same shapes share the compiled programs), and one for the initial states
-        # alone (every parameter held).
+        # one kernel for the screen, the refits and evaluation (data of the same shapes share its programs), and one
+        # for the initial states alone (every parameter held)
         common = dict(out_idx=tuple(self.model.output_names.index(c) for c in self.channels),
                       angle=tuple(c in self.model.angle_outputs for c in self.channels), x0_idx=self.x0_idx,
                       integrator=integrator)
@@ -151,17 +151,35 @@ class Workspace:
         self.x0_scale = x0_scales(base, batch, [base.state_names[i] for i in self.x0_idx])
         self.train = self._data(runs, x0_train, batch)
         self.base_cost = math.inf  # the base fit's training cost, set by the screen
+        self.reference_start = self._reference_start()
         self.warmup = warmup
         self.max_iter, self.stall, self.refits = int(max_iter), stall, bool(refits)
+
+    def _reference_start(self) -> np.ndarray | None:
+        """The unknowns with the base parameters at the model's declared (reference) values, nudged inside their
+        bounds; ``None`` where they are the base fit's own."""
+        try:
+            ref, _ = self.spec.nudged({**self.spec.values(), **{p.name: p.value for p in type(self.base).PARAMS}})
+            z = self.z0(base_values=ref)
+        except Exception:  # a model without declared values, or values the spec cannot map
+            return None
+        return None if np.allclose(z[:self.n_theta], self.z_theta) else z
 
     def _data(self, runs, x0_base=None, batch=None) -> dict:
         b = batch if batch is not None else make_batch(self.model, runs, self.channels)
         x0 = np.asarray(b.x0).copy()
         if x0_base is not None:
             x0[:, :len(self.base.state_names)] = np.stack([np.asarray(v)[:len(self.base.state_names)] for v in x0_base])
+        # every run's initial state is held by its first samples within their sensor noise (:mod:`diffship.initial`,
+        # the one rule of every fit and metric)
+        states = [self.base.state_names[i] for i in self.x0_idx]
+        prior = start_prior(self.base, self.channels, b.ys, b.mask, x0[:, :len(self.base.state_names)], states,
+                            self.x0_scale, ts=b.ts) if states else None
         kd = kernel_data(self.model, b.ts, b.us, b.ys, b.mask, x0, self.scales, x0_scale=self.x0_scale,
-                         S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo,
-                         hi=self.hi).with_horizon()  # the warm-up's horizon is data: one compiled solve
+                         S=self.selection([]), phi0=self.phi_null, phi_scale=self.phi_scale, lo=self.lo, hi=self.hi,
+                         x0_prior_w=None if prior is None else prior.weight.reshape(-1),
+                         x0_prior_mean=None if prior is None else prior.mean.reshape(-1)
+                         ).with_horizon()  # the warm-up's horizon is data: one compiled solve
         kd = kd.with_step_cap()  # so is the step cap (:meth:`jacobian`)
         return dict(batch=b, x0=x0, kd=kd)
 
@@ -263,10 +281,8 @@ class Workspace:
         nk = self.n_theta + P_MAX
         smooth = [n for n in self.phi_names if self.owner[n].smooth_null]
         cols: dict[str, np.ndarray] = {}
-        # one forward-mode Jacobian gives the base columns (θ and initial states) and the first
-        # P_MAX smooth effect columns; the other smooth columns are central differences of the
-        # residual in the same scaled coordinate (one simulation each instead of a whole
-        # Jacobian pass per P_MAX columns: the effects are smooth, most are linear in φ)
+        # one forward-mode Jacobian gives the base columns and the first P_MAX smooth effect columns; the others
+        # are central differences in the same scaled coordinate (one simulation each; most effects are linear in φ)
         chunk = smooth[:P_MAX]
         J = self.jacobian(z0, self.selection(chunk), phi0)
         J_theta = np.concatenate([J[:, :self.n_theta], J[:, nk:]], axis=1)
@@ -328,26 +344,17 @@ class Workspace:
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               progress: Callable[[str], None] | None = None, rounds: int = 3,
               finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
-        """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect
-        values held, e.g. already accepted effects that are refitted jointly are in ``names``).
+        """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect values held).
 
-        Each start is solved by the output-error kernel's Levenberg–Marquardt, first on the first
-        quarter of every run (:meth:`_warmup`), then on the whole runs (the unselected
-        effect coordinates have zero Jacobian columns and stay at zero). With a warm-up and several
-        starts (a delay's, lag's or rate limit's time constant) only the start the warm-up left
-        with the lowest whole-run cost goes on to the whole runs: each whole-run solve costs about
-        four warm-ups, and on the USV current case the three whole-run solves of each such
-        candidate were a third of the refits' time. The start with the lowest cost wins, and — when it already removes half the base training cost — is
-        continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the
-        step cap and still lowers the cost by :data:`STALL` (0.1 %) or more (``converged`` says whether it ended before the cap);
-        ``finish=True`` continues it whatever its cost (the no-effect reference refit of
-        :func:`~.diagnosis.diagnose`, so that it gets at least the effort of any candidate). Standard errors come from :func:`diffship.fit.covariance.covariance`
-        on the active unknowns: an effect parameter the data do not inform gets an infinite one.
-        ``stall`` ``(W, ρ)``: every solve stops early when its cost falls by less than ρ·cost over W
-        steps (:mod:`diffship.fit.batched`, item 6); such a refit is not ``converged`` and is not
-        continued (its cost has stalled). ``max_iter`` and ``stall`` are the workspace's, so every
-        refit runs the one compiled solve (:meth:`programs`).
-        ``base_start``: the base parameters' values to start from (default: the base fit's).
+        Every start (each φ start, from the base fit's values — or ``base_start`` — and, with effects, from the
+        model's reference values) is solved by the output-error kernel's Levenberg–Marquardt on the first
+        quarter of every run (:meth:`_warmup`); the lowest warm-up point of each base start then goes on to the
+        whole runs, and the lowest whole-run cost wins. When it already removes half the base training cost (or ``finish``) it is
+        continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the step cap and
+        still lowers the cost by :data:`STALL` (0.1 %) or more; a solve whose cost falls by less than ρ·cost over
+        W steps (the workspace's ``stall``) is not continued. Standard errors come from
+        :func:`diffship.fit.covariance.covariance` on the active unknowns (infinite for an effect parameter the
+        data do not inform). Every refit runs the workspace's one compiled solve (:meth:`programs`).
         """
         max_iter = self.max_iter
         lm = self._solve_static(max_iter, self.stall)
@@ -360,9 +367,14 @@ class Workspace:
         nk = self.n_theta + P_MAX
         active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))] + \
             list(range(nk, nk + self.n_x0()))
-        z_start = self.z0(base_values=base_start)  # the base fit's values unless given
+        # with effects, also from the reference values: a base fit biased by the missing effect is a poor start (a
+        # withheld 2.5-s lag: 2.16 s from the biased base alone, 2.45 s and a lower cost from the reference values)
+        bases = [self.z0(base_values=base_start)]
+        if pn and base_start is None and self.reference_start is not None:
+            bases.append(self.reference_start)
         best = None
-        def warm(st):  # the warm-up from one start (non-smooth effects have flat regions: several starts)
+        def warm(pair):  # the warm-up from one start (non-smooth effects have flat regions: several starts)
+            z_start, st = pair
             phi0 = base_phi.copy()
             for n in pn:
                 phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
@@ -380,17 +392,16 @@ class Workspace:
             return np.asarray(z), r, 0.5 * float(r @ r), int(steps) + warm_steps, phi0, warm_steps, \
                 stalled(res, steps, 4 * max_iter), np.asarray(J)
         warmed = []
-        for got in parallel(warm, starts):  # the starts side by side
+        pairs = [(k, b, st) for k, b in enumerate(bases) for st in starts]
+        for got, (k, _, _) in zip(parallel(lambda p: warm(p[1:]), pairs), pairs):  # the starts side by side
             if isinstance(got, Exception):
                 raise got
             if got is not None:
-                warmed.append(got)
-        if len(warmed) > 1 and any(w[1] for w in warmed):
-            # several starts, warmed up on the first quarter: the whole runs are solved from the one
-            # the warm-up left lowest on the whole runs only (each whole-run solve costs four
-            # warm-ups; the warm-up is what separates the basins of a delay's or lag's time constant)
-            warmed = [min(warmed, key=lambda w: w[2])]
-        for got in parallel(whole, warmed):  # the lowest cost wins
+                warmed.append((k, got))
+        # the warm-up proposes, the whole runs decide: the lowest warm-up point of each base start goes on to the
+        # whole runs (each whole-run solve costs about four warm-ups)
+        distinct = [min((w for k, w in warmed if k == kb), key=lambda w: w[2]) for kb in sorted({k for k, _ in warmed})]
+        for got in parallel(whole, distinct):  # the lowest whole-run cost wins
             if isinstance(got, Exception):
                 raise got
             if math.isfinite(got[2]) and (best is None or got[2] < best[2]):
@@ -399,12 +410,10 @@ class Workspace:
             raise FitError(f"refit with {names}: every start blows up")
         z, r, cost, it, phi0, warm_steps, crawl, J = best
         it_whole = it - warm_steps
-        # a refit that stops at the step cap has not converged: continue the best start (same
-        # compiled program) while it still lowers the cost, up to ``rounds`` more times (not one
-        # whose cost stalled: the stall rule already says further steps buy nothing)
+        # a refit that stops at the step cap has not converged: continue the best start while it still lowers the
+        # cost, up to ``rounds`` more times (not one whose cost stalled)
         converged = it_whole < 4 * max_iter and not crawl
-        # only a refit that already explains most of the training cost is worth finishing (a
-        # wrong candidate far from the data crawls; its verdict does not depend on the last digits)
+        # only a refit that already explains most of the training cost is worth finishing (a wrong one crawls)
         promising = cost < 0.5 * self.base_cost if finish is None else finish
         for _ in range(rounds if promising and not crawl else 0):
             if converged:
@@ -500,8 +509,8 @@ def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:
 
 
 def inflation(r: np.ndarray, batch, n_ch: int, max_lag: int = 50) -> float:
-    """1 + 2 Σ ρ_l (Bartlett-weighted) of the residuals, averaged over channels; ≥ 1."""
-    e = r.reshape(batch.mask.shape + (n_ch,))
+    """1 + 2 Σ ρ_l (Bartlett-weighted) of the residuals' data rows, averaged over channels; ≥ 1."""
+    e = np.asarray(r)[: batch.mask.size * n_ch].reshape(batch.mask.shape + (n_ch,))  # the data rows
     vals = []
     for j in range(n_ch):
         for i in range(e.shape[0]):

@@ -7,26 +7,19 @@ unmodelled current the base model of a USV started 15–30 m away from the logge
 current explains was absorbed by the start, and the current — recovered to the third digit —
 was rejected on the held-out runs.
 
-**Rule** (:class:`StartRule`, the same for the base and every candidate). Let
-:math:`\hat x_{0}` be the logged state at the first sample (the low-pass filtered measurement,
-as every fit's start, :func:`diffship.simulate.initial_state`) and :math:`\sigma_c` the noise
-floor of the channel :math:`c` that logs state :math:`s`. The initial state of each run is
-
-.. math::
-    x_0 = \arg\min_{x}\ \sum_{k,c} \big(\hat y_c(t_k; x) - y_{kc}\big)^2/\sigma_c^2
-    \quad\text{s.t.}\quad |x_s - \hat x_{0,s}| \le b\,\sigma_{c(s)}
-    \ \text{for every logged state } s,
-
-with the model held (b = ``bound`` noise floors, 3 by default): logged position, heading,
-velocities and rate move only within their noise, so an offset of more than a few noise floors
-cannot be bought by the start. States not logged themselves (filter states of a Nomoto model,
-for example) are estimated without bound. With no structural error the unconstrained optimum
-is already within :math:`\sigma/\sqrt{N}` of the logged value, so the bound is inactive and the
-null scatter of E (the gap gate, :func:`~.where.structural_gate`) is unchanged.
+**Rule** (:class:`StartRule`, the same for the base and every candidate): the one initial-state rule of every
+fit and metric (:mod:`diffship.initial`). With the model held, each run's initial state minimises its output
+errors, weighted by the base fit's channel scales (residual RMS times the square root of the residuals'
+correlation time), plus a prior row per logged state centred on its first sample with the channel's sensor
+noise; an unlogged state that is a logged channel's rate is held within that rate's spread, others are free.
+A structurally wrong model has drifting residuals with few effective samples, so the prior holds its start
+near the log and it cannot buy its error away; with no structural error the data determine the start to
+:math:`\sigma/\sqrt{N}` and the true model scores at the noise. An optional box (``bound`` noise floors,
+``--start-bound``; off by default) also keeps each logged state within that many noise floors of the log.
 
 The solver is a projected Levenberg–Marquardt over the per-run initial-state offsets only
-(a few unknowns per run): each step minimises the damped Gauss–Newton model exactly over the box
-(:func:`bounded_offsets`). Every trial point gets its residuals and Jacobian from one compiled program of the
+(a few unknowns per run): each step minimises the damped Gauss–Newton model exactly over the box, where there
+is one (:func:`bounded_offsets`). Every trial point gets its residuals and Jacobian from one compiled program of the
 initial-state kernel (:meth:`~diffship.fit.kernel.Kernel.residuals_and_jacobian`): an accepted
 step's Jacobian is already there, and the diagnosis compiles one program for the rule, not two.
 """
@@ -34,6 +27,7 @@ step's Jacobian is already there, and the diagnosis compiles one program for the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -48,18 +42,18 @@ class StartRule:
     """How a held-out run's initial state is set (module docstring).
 
     Args:
-        bound: logged states move at most this many noise floors from their logged value
-            (``inf``: the former free estimate).
+        bound: logged states move at most this many noise floors from their logged value besides their prior
+            (default ``inf``: the prior alone).
         max_steps: projected Levenberg–Marquardt steps (calls of the residual-and-Jacobian program).
     """
 
-    bound: float = 3.0
+    bound: float = math.inf
     max_steps: int = 30
 
     def describe(self) -> str:
-        return (f"held-out runs start at the logged state; logged states (position, heading, velocities, rate) "
-                f"move at most {self.bound:g} noise floors to fit the run, unlogged states are estimated; "
-                "the same rule for the base and every candidate")
+        text = ("held-out runs start at their initial state estimated within its sensor noise (the one rule of every "
+                "fit and metric, diffship.initial); the same rule for the base and every candidate")
+        return text + (f"; logged states move at most {self.bound:g} noise floors" if math.isfinite(self.bound) else "")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -45,7 +45,6 @@ from ..data import Run
 from ..errors import DiffshipError
 from ..fit import FitResult, OutputError, fit
 from ..fit.driver import fit_priors
-from ..fit.problem import default_channels
 from ..metrics import Evaluation, evaluate
 from ..models import AbstractModel
 from ..models.terms import library_terms, term_class, with_terms
@@ -198,9 +197,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     terms = library_terms(library)
     spec = spec or base.spec()
     options = dataclasses.replace(options, ee_start=False)
-    if x0 == "estimate" and not options.estimate_x0:
-        options = dataclasses.replace(options, x0_prior=True,
-                                      estimate_x0=base.states_for_channels(default_channels(base, train)))
+    if x0 == "data":  # the first samples taken as exact starts (the default is the one rule, diffship.initial)
+        options = dataclasses.replace(options, estimate_x0=())
     # every structure under the base's priors (a model with terms has no reference set of its own)
     priors, _ = fit_priors(base, spec, options)
     term_options = dataclasses.replace(options, priors=priors if len(priors) else None, reference_priors=False)
@@ -235,7 +233,9 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         start = {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand}
         starts = {"the base fit, terms from the screens": {**{n: fitted[n] for n in spec.free_names}, **start}}
         try:
-            res = fit(model, train, term_options, spec=cspec, starts=starts, n_starts=1, progress=say, throw=False)
+            # the search's candidates: the base fit with the screens' term values, the model's and the reference
+            # values, spread starts (a structure refitted from the base fit alone inherits its bias)
+            res = fit(model, train, term_options, spec=cspec, starts=starts, progress=say, throw=False)
         except DiffshipError as exc:
             say(f"  refit failed: {exc}")
             continue

@@ -46,7 +46,7 @@ from .args import build_parser
 from .conditioning import thinning
 from .both import fit_both
 from .output_error import OutputErrorOptions
-from .priors import format_priors, load_priors, parse_priors
+from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
 from .smoother import KalmanSmoother
@@ -228,7 +228,7 @@ def _fit(args, say) -> int:
         say(f"--horizon {args.horizon:g}: fitting the first {args.horizon:g} s of each training run")
     thin = None
     if not args.resample:  # the rate chosen from the data and the model, said in one line
-        thin = thinning(model, fit_runs)
+        thin = thinning(model, fit_runs, known=bool(len(default_priors(model, spec, 0.5)[0])))
         fit_runs = thin.apply(fit_runs)
         say(thin.text)
     shooting = parse_shooting(args.shooting)
@@ -251,8 +251,10 @@ def _fit(args, say) -> int:
     oe = results.get("output_error")
     # held-out standard manoeuvres (trained types included): a miss of a trained type makes the fit not usable
     cross = _cross_manoeuvre(oe, train, val, say) if oe is not None and oe.usable else None
-    verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), val, manoeuvres=cross if m == "output_error"
-                           else None) for m, r in results.items()}
+    # a --validate run that is one of the training runs is not held out: its manoeuvre is no prediction
+    held = [r for r in val if not any(r.name == t.name and r.n == t.n for t in train)]
+    verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), held, manoeuvres=cross if m == "output_error"
+                           and len(held) == len(val) else None) for m, r in results.items()}
     notes = ([""] + [thin.text] if thin is not None else []) + resample_notes(args, model, spec, results, flt, options,
                                                                                say)
     details = str(Path(args.out) / "report.txt") if args.out else None

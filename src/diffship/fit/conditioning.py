@@ -9,10 +9,11 @@ fit takes. Runs logged far faster than the model's dynamics are thinned before t
   :math:`T = 1/\max|\lambda|`;
 * **the rate** (:func:`thinning`): the runs are averaged over blocks of ``k`` samples
   (:func:`block_average`: the noise of the average falls as the block grows, so a white-noise channel keeps
-  its information about the slow dynamics) where ``k`` samples still leave :data:`SAMPLES_PER_T` samples in
-  ``T``, and only where ``k ≥`` :data:`MIN_FACTOR` (a smaller gain is not worth a second look at the data).
+  its information about the slow dynamics), ``k`` the factor that leaves nearest :data:`SAMPLES_PER_T` samples in
+  ``T`` (never fewer than :data:`MIN_SAMPLES_PER_T`), and only where ``k ≥`` :data:`MIN_FACTOR` (a smaller gain is not worth a second look at the data).
   The HSVA KVLCC2 zigzags (20 Hz) are fitted at 5 Hz: the MMG's fastest mode there is 2.0 s; a USV at 10 Hz
-  (fastest mode 2.3 s) is fitted as logged.
+  (fastest mode 2.3 s) is fitted as logged. Only a model whose start values are a real vessel's (its reference
+  set on its reference vessel) tells the time scale before the fit; other models are fitted at the logged rate.
 
 ``--resample DT`` overrides the choice; the fit's report prints it.
 """
@@ -31,10 +32,12 @@ from ..data import Run
 from ..models import AbstractModel
 from ..simulate import initial_state, model_inputs
 
-__all__ = ["MIN_FACTOR", "SAMPLES_PER_T", "Thinning", "block_average", "fastest_time_constant", "thinning"]
+__all__ = ["MIN_FACTOR", "MIN_SAMPLES_PER_T", "SAMPLES_PER_T", "Thinning", "block_average", "fastest_time_constant", "thinning"]
 
-#: Samples the thinned runs keep within the model's fastest time constant.
+#: Samples the thinned runs keep within the model's fastest time constant (the nearest factor; never fewer than
+#: MIN_SAMPLES_PER_T).
 SAMPLES_PER_T = 10
+MIN_SAMPLES_PER_T = 8
 #: Runs are thinned only by a factor of at least this.
 MIN_FACTOR = 4
 
@@ -83,11 +86,17 @@ class Thinning:
         return [block_average(r, self.factor) for r in runs] if self.factor > 1 else list(runs)
 
 
-def thinning(model: AbstractModel, runs: Sequence[Run]) -> Thinning:
-    """The block-averaging factor for ``runs`` (module docstring) and the line that says why."""
+def thinning(model: AbstractModel, runs: Sequence[Run], known: bool = True) -> Thinning:
+    """The block-averaging factor for ``runs`` (module docstring) and the line that says why. ``known``: the
+    model's start values are a real vessel's (its reference set on its reference vessel); a generic start (a
+    Nomoto model's default time constant) says nothing of the runs' time scale, and they are fitted as logged."""
     dt = float(np.median(np.concatenate([np.diff(np.asarray(r.time, dtype=np.float64)) for r in runs])))
+    if not known:
+        return Thinning(1, math.nan, dt, f"conditioning: runs fitted at their own rate ({1 / dt:.3g} Hz; the model's "
+                                         "start values are not a known vessel's, so they do not tell its time scale)")
     T = fastest_time_constant(model, runs)
-    k = int(math.floor(T / SAMPLES_PER_T / dt)) if math.isfinite(T) else 1
+    # the factor nearest to ten samples in T, with never fewer than MIN_SAMPLES_PER_T
+    k = min(int(round(T / SAMPLES_PER_T / dt)), int(math.floor(T / MIN_SAMPLES_PER_T / dt))) if math.isfinite(T) else 1
     if k >= MIN_FACTOR:
         return Thinning(k, T, dt, f"conditioning: runs averaged over blocks of {k} samples ({1 / dt:.3g} Hz → "
                                   f"{1 / (k * dt):.3g} Hz): the model's fastest time constant at the runs' operating "

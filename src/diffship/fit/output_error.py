@@ -76,7 +76,9 @@ class OutputError(AbstractEstimator):
             measured values); ``"auto"`` (default): the one initial-state rule (:mod:`diffship.initial`),
             every state the fitted channels measure or depend on; ``()`` takes every initial state from
             the data as exact (``--x0 data``: a noisy first sample then biases the estimates).
-        weights: ``"noise"`` (two passes, noise-normalised) or ``"spread"`` (one pass).
+        weights: ``"noise"`` (default: the likelihood with every channel's noise level unknown — each candidate
+            solved at its self-consistent channel scales, :mod:`diffship.fit.search`) or ``"spread"`` (one solve
+            at each channel's spread).
         channel_scales: fixed per-channel normalisation (overrides ``weights``).
         integrator: how simulations advance between samples (:mod:`diffship.integrators`).
         max_steps, rtol, atol: Levenberg–Marquardt limits and tolerances.
@@ -93,9 +95,9 @@ class OutputError(AbstractEstimator):
         reference_priors: use the model's reference set as priors where it applies
             (:func:`~diffship.fit.priors.default_priors`); ``False`` is ``--no-prior``.
         prior_rel_sd: relative standard deviation of the reference priors.
-        effective_samples: with priors, weight each channel's data by its effective sample size
-            (:func:`~diffship.fit.weights.correlation_time`): autocorrelated residuals carry less
-            information than their count says, and must not outvote a prior. No effect without priors.
+        effective_samples: weight each channel's data by its effective sample size
+            (:func:`~diffship.fit.weights.correlation_time`): autocorrelated residuals carry less information
+            than their count says, and must not outvote a prior (the initial states' or the parameters').
         ee_start: the equation-error estimate is one of the starts, where the model has an
             equation-error form (:func:`~diffship.fit.equation_error.equation_error_start`).
         stall: ``(W, ρ)``: stop a solve early when its cost falls by less than ρ·cost over W
@@ -263,12 +265,11 @@ class OutputError(AbstractEstimator):
 
         Returns, per start, its best whole-run candidate ``(z, objective, steps)``: the objective is the
         concentrated likelihood :func:`~diffship.fit.weights.concentrated_cost`, on one scale for every
-        candidate (the correlation times of the best candidate's residuals)."""
+        candidate (the smallest correlation times among them)."""
         if self.choose == "first":
             zs = zs[:1]
         st_ = problem.state
         kernel, data, n_warm = st_["kernel"], st_["data"], st_["n_warm"]
-        batch = st_["batch"]
         per = self.angle_periods(problem)
         zs = [wrap_periodic(np.asarray(z), per) for z in zs]
         n = len(zs)
@@ -280,7 +281,6 @@ class OutputError(AbstractEstimator):
             wdata = self.warm_data(data, n_warm, self.warm_cap)
             warm, dominated = warm_rounds(kernel, zs, wdata, {"jacobian": True, **self.lm}, int(self.max_steps), say,
                                           f"output error, first {n_warm} samples", cap=self.warm_cap)
-            best_w = None
             ok = int(jax.tree_util.tree_leaves(optx.RESULTS.successful)[0])
             for i, (zw, res, k, rw, *_) in enumerate(warm):
                 steps[i] += int(k)
@@ -288,18 +288,8 @@ class OutputError(AbstractEstimator):
                 if not math.isfinite(self.start_cost(problem, zw)):
                     continue
                 rw = np.asarray(kernel.split(np.asarray(rw), wdata)[0])
-                cw = 0.5 * float(rw @ rw)
-                proposals.append((i, zw, cw, int(jax.tree_util.tree_leaves(res)[0]) == ok and i not in dominated))
-                if best_w is None or cw < best_w[0]:
-                    best_w = (cw, rw)
-            if best_w is not None and self.weights == "noise" and not self.channel_scales:
-                # the candidates' weights from the best proposal's residuals on the first part, the same for
-                # every candidate (their costs stay comparable)
-                rms = channel_rms(best_w[1], np.asarray(wdata.mask), np.asarray(data.scales))
-                tau = (correlation_time(best_w[1], np.asarray(wdata.mask), len(batch.channels))
-                       if self.effective_samples else np.ones(len(batch.channels)))
-                data = data.replace(scales=jnp.asarray(np.maximum(rms * np.sqrt(tau), 1e-6 * st_["spread"])))
-                st_["data"] = data
+                proposals.append((i, zw, 0.5 * float(rw @ rw),
+                                  int(jax.tree_util.tree_leaves(res)[0]) == ok and i not in dominated))
         cands = candidates(zs, proposals, per)
         if n_warm:
             n_w = sum(1 for c in cands if c[2] == "warm-up point")
@@ -340,9 +330,10 @@ class OutputError(AbstractEstimator):
         st_["cost_tolerance"] = 0.5  # one standard error along one direction of the likelihood
         n_m = sum(1 for s_ in sols if s_["merged_into"] is not None)
         n_d = sum(1 for s_ in sols if s_.get("dominated"))
-        st_["search_note"] = (f"search: {len(cands)} whole-run candidate(s) ({sum(1 for c in cands if c[2] == 'start')} "
-                              f"start(s) as they are, {len(cands) - sum(1 for c in cands if c[2] == 'start')} warm-up "
-                              f"point(s)), each solved at its own channel scales; {n_m} reached another's point"
+        kinds = {k: sum(1 for c in cands if c[2] == k) for k in ("warm-up point", "start", "spread around the best")}
+        st_["search_note"] = (f"search: {len(cands)} whole-run candidate(s) ({kinds['warm-up point']} warm-up point(s), "
+                              f"{kinds['start']} start(s) as they are, {kinds['spread around the best']} drawn as the "
+                              f"search went on), each solved at its own channel scales; {n_m} reached another's point"
                               + (f", {n_d} stopped far behind the best (likelihood more than {DOMINATED:g} worse)"
                                  if n_d else ""))
         return res

@@ -88,7 +88,7 @@ def candidates(starts: Sequence[np.ndarray], proposals: Sequence[tuple[int, np.n
 def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray, lm: dict, *, cap: int, total: int,
                       floor: np.ndarray, reweight: bool = True, effective_samples: bool = True,
                       period: np.ndarray | None = None, progress=None, label: str = "solve") -> list[dict]:
-    """Every candidate solved on the whole runs at its own self-consistent channel scales (module docstring,
+    r"""Every candidate solved on the whole runs at its own self-consistent channel scales (module docstring,
     rule 3), together: rounds of :data:`FIRST_ROUND_STEPS`, twice as many, … up to ``cap`` Levenberg–Marquardt
     steps (the data's traced step cap), after each round each candidate's scales :math:`s_c = \sqrt{\tau_c\,\mathrm{SSE}_c/N}` re-estimated from its residuals
     (``reweight``; τ its residuals' correlation times where ``effective_samples``); a candidate is done when

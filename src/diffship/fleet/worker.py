@@ -47,8 +47,8 @@ def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
     vessel = load_vessel(job.vessel_file) if job.vessel_file else None
     model, _ = require_particulars(model, vessel)
     options = OutputErrorOptions(integrator=get_integrator("diffrax-rk4"), weights="noise")
-    res = fit_both(model, runs, spec=model.spec(), methods=("output_error",), estimate_x0=(),  # --x0 data
-                   options=options)["output_error"]
+    # the defaults of python -m diffship.fit (every run's initial state estimated within its noise)
+    res = fit_both(model, runs, spec=model.spec(), methods=("output_error",), options=options)["output_error"]
     fit_path = save_fit(res, out / "fits" / f"{job.key}.json", runs, registry=job.model,
                         extra={"fleet": {"vessel": job.vessel, "run": job.run, "files": list(job.runs)}})
     row = {"key": job.key, "vessel": job.vessel, "run": job.run, "model": job.model,
