@@ -24,13 +24,12 @@ the predicted fraction of the training cost it removes, :math:`f_k = \hat\sigma^
 e^\top e`, and the orthogonal fraction :math:`o_k = \|G_\perp\|^2/\|G\|^2` (identifiability:
 o_k ≈ 0 means the base parameters can mimic the effect to first order).
 
-**Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base
-parameters, the chosen effects' parameters and the per-run initial states, warm-started at θ̂
-from each given φ start (the base parameters from the base fit and from the model's reference values), with the
-base fit's growing horizon (the first quarter of every run, then the whole runs: :meth:`Workspace._warmup`); the
-whole runs are solved from the lowest warm-up point of each base start, and the lowest whole-run cost wins. Which candidates are refitted,
-from which starts, and how they are judged on the held-out runs is decided in :mod:`.which`
-and :mod:`.shrink`.
+**Refit** (:meth:`Workspace.refit`): Levenberg–Marquardt with Marquardt scaling over the base parameters, the
+chosen effects' parameters and the per-run initial states, warm-started from each given φ start (the base
+parameters from the base fit, and for a non-smooth effect also from the model's reference values), with the base
+fit's growing horizon (the first quarter of every run, then the whole runs: :meth:`Workspace._warmup`); the whole
+runs are solved from the lowest warm-up point of each base start, and the lowest whole-run cost wins. Which
+candidates are refitted, from which starts, and how they are judged is decided in :mod:`.which` and :mod:`.shrink`.
 """
 
 from __future__ import annotations
@@ -156,8 +155,7 @@ class Workspace:
         self.max_iter, self.stall, self.refits = int(max_iter), stall, bool(refits)
 
     def _reference_start(self) -> np.ndarray | None:
-        """The unknowns with the base parameters at the model's declared (reference) values, nudged inside their
-        bounds; ``None`` where they are the base fit's own."""
+        """The unknowns at the model's declared values (nudged inside the bounds); ``None``: the base fit's own."""
         try:
             ref, _ = self.spec.nudged({**self.spec.values(), **{p.name: p.value for p in type(self.base).PARAMS}})
             z = self.z0(base_values=ref)
@@ -346,8 +344,8 @@ class Workspace:
               finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect values held).
 
-        Every start (each φ start, from the base fit's values — or ``base_start`` — and, with effects, from the
-        model's reference values) is solved by the output-error kernel's Levenberg–Marquardt on the first
+        Every start (each φ start, from the base fit's values — or ``base_start`` — and, for a non-smooth effect,
+        from the model's reference values) is solved by the output-error kernel's Levenberg–Marquardt on the first
         quarter of every run (:meth:`_warmup`); the lowest warm-up point of each base start then goes on to the
         whole runs, and the lowest whole-run cost wins. When it already removes half the base training cost (or ``finish``) it is
         continued for up to ``rounds`` more solves of ``4·max_iter`` steps while it stops at the step cap and
@@ -367,10 +365,11 @@ class Workspace:
         nk = self.n_theta + P_MAX
         active = list(range(self.n_theta)) + [self.n_theta + j for j in range(len(pn))] + \
             list(range(nk, nk + self.n_x0()))
-        # with effects, also from the reference values: a base fit biased by the missing effect is a poor start (a
-        # withheld 2.5-s lag: 2.16 s from the biased base alone, 2.45 s and a lower cost from the reference values)
+        # a non-smooth effect (delay, lag, rate limit) also from the reference values: a base fit biased by the missing
+        # effect is a poor start (a withheld 2.5-s lag: 2.16 s from the biased base alone, 2.45 s from the reference)
         bases = [self.z0(base_values=base_start)]
-        if pn and base_start is None and self.reference_start is not None:
+        rough = any(not self.owner[n].smooth_null for n in pn)
+        if rough and base_start is None and self.reference_start is not None:
             bases.append(self.reference_start)
         best = None
         def warm(pair):  # the warm-up from one start (non-smooth effects have flat regions: several starts)
@@ -479,8 +478,7 @@ class Workspace:
         c0 = 0.5 * float(r_start @ r_start)
         if not np.all(np.isfinite(rw)) or np.any(np.abs(rw) >= PENALTY):
             return z_start, int(steps), c0
-        # kept only when it also helps on the whole runs: from a base already fitted to the whole
-        # runs, a short-horizon fit of a wrong candidate (or of no effect) lands in a worse basin
+        # kept only when it also helps on the whole runs (a wrong candidate's short-horizon fit lands in a worse basin)
         cw = 0.5 * float(rw @ rw)
         if cw >= c0:
             return z_start, int(steps), c0
@@ -488,13 +486,9 @@ class Workspace:
 
 
 def parallel(fn: Callable, items: Sequence, workers: int | None = None) -> list:
-    """``[fn(x) for x in items]``, in order, spread over ``workers`` threads (default one per core).
-
-    Independent refits (the starts of one refit, the candidates, the no-effect reference, greedy
-    and pair trials) run side by side: each is one compiled program at a time that keeps about
-    one core busy (XLA releases the interpreter while it runs), so on a CPU with ``k`` cores ``k``
-    refits take about the time of one. An exception of ``fn`` is returned in place of its result
-    (the caller decides, as it would have in a loop)."""
+    """``[fn(x) for x in items]``, in order, spread over ``workers`` threads (default one per core): independent
+    refits side by side, each one compiled program keeping about one core busy (XLA releases the interpreter). An
+    exception of ``fn`` is returned in place of its result (the caller decides, as it would have in a loop)."""
     def safe(x):
         try:
             return fn(x)

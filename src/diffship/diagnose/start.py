@@ -9,8 +9,8 @@ was rejected on the held-out runs.
 
 **Rule** (:class:`StartRule`, the same for the base and every candidate): the one initial-state rule of every
 fit and metric (:mod:`diffship.initial`). With the model held, each run's initial state minimises its output
-errors, weighted by the base fit's channel scales (residual RMS times the square root of the residuals'
-correlation time), plus a prior row per logged state centred on its first sample with the channel's sensor
+errors, weighted by the scored model's own channel scales (residual RMS times the square root of the residuals'
+correlation time, found self-consistently from the base fit's), plus a prior row per logged state centred on its first sample with the channel's sensor
 noise; an unlogged state that is a logged channel's rate is held within that rate's spread, others are free.
 A structurally wrong model has drifting residuals with few effective samples, so the prior holds its start
 near the log and it cannot buy its error away; with no structural error the data determine the start to
@@ -30,9 +30,11 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
+import jax.numpy as jnp
 import numpy as np
 
 from ..fit.kernel import PENALTY
+from ..fit.weights import correlation_time, self_consistent_scales
 
 __all__ = ["StartRule", "StartInfo", "bounded_offsets"]
 
@@ -45,10 +47,13 @@ class StartRule:
         bound: logged states move at most this many noise floors from their logged value besides their prior
             (default ``inf``: the prior alone).
         max_steps: projected Levenberg–Marquardt steps (calls of the residual-and-Jacobian program).
+        rescale: rounds of self-consistent channel scales (the scored model's residual RMS times the square root
+            of their correlation time, at least the noise floor; 0: the base fit's scales throughout).
     """
 
     bound: float = math.inf
     max_steps: int = 30
+    rescale: int = 2
 
     def describe(self) -> str:
         text = ("held-out runs start at their initial state estimated within its sensor noise (the one rule of every "
@@ -89,12 +94,13 @@ def _box_step(M: np.ndarray, g: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: n
 
 
 def bounded_offsets(rj, n_runs: int, lo: np.ndarray, hi: np.ndarray, max_steps: int = 30,
-                    tol: float = 1e-10) -> np.ndarray:
+                    tol: float = 1e-10, d0: np.ndarray | None = None) -> np.ndarray:
     r"""Projected Levenberg–Marquardt: minimise ½‖r(d)‖² over the box lo ≤ d ≤ hi.
 
     ``rj(d)`` gives the residual vector and its Jacobian (NumPy arrays) at the flat offset vector
     ``d`` (``n_runs`` × per-run offsets) from one program; ``lo``/``hi`` per-run bounds, repeated
-    over the runs. Returns the offsets (0 when the start itself blows up).
+    over the runs; ``d0``: the offsets to start from (default 0). Returns the offsets (``d0`` when the start itself
+    blows up).
 
     Each step minimises the damped Gauss–Newton model
     :math:`g^\top s + \tfrac12 s^\top (J^\top J + \lambda D) s` (:math:`g = J^\top r`,
@@ -111,7 +117,7 @@ def bounded_offsets(rj, n_runs: int, lo: np.ndarray, hi: np.ndarray, max_steps: 
     """
     lo = np.tile(np.asarray(lo, float), n_runs)
     hi = np.tile(np.asarray(hi, float), n_runs)
-    d = np.clip(np.zeros(lo.size), lo, hi)
+    d = np.clip(np.zeros(lo.size) if d0 is None else np.asarray(d0, float), lo, hi)
 
     def cost_of(r):
         return 0.5 * float(r @ r) if np.all(np.isfinite(r)) and not np.any(np.abs(r) >= PENALTY) else np.inf
@@ -171,6 +177,18 @@ def held_out_starts(ws, data, values: dict[str, float], base_values: dict[str, f
         return ws.x0_kernel.call("residuals_and_jacobian", d, kd)
 
     d = bounded_offsets(rj, R, -half, half, max_steps=rule.max_steps)
+    # the data weighted at the scored model's own residual scales, as in every fit (self-consistent: RMS times the
+    # square root of the correlation time, at least the noise floor): a model at the truth has white residuals and
+    # the data place its start; a wrong one drifts, and the prior holds its start at the log
+    C, mask = len(ws.channels), np.asarray(kd.mask)
+    noise = np.asarray([floor.get(c, 0.0) for c in ws.channels], float)
+    for _ in range(rule.rescale):
+        r = np.asarray(ws.x0_kernel.call("residuals", d, kd))[: mask.size * C]
+        if not np.all(np.isfinite(r)):
+            break
+        kd = kd.replace(scales=jnp.asarray(self_consistent_scales(r, mask, np.asarray(kd.scales),
+                                                                  correlation_time(r, mask, C), noise)))
+        d = bounded_offsets(rj, R, -half, half, max_steps=rule.max_steps, d0=d)
     x0 = list(np.asarray(ws.x0_kernel.initial_states(d, kd)))
     D = d.reshape(R, len(names)) * s
     off, at = {}, {}
