@@ -18,12 +18,13 @@ property of the data and the model:
    channel's noise level unknown, on ``N/τ_c`` effective samples); candidates are then compared by that
    likelihood at one set of correlation times — a number that does not depend on the weights a candidate was
    solved with. Weights taken from a warm-up's or a start's residuals made the answer depend on the path (the
-   SSPA zigzag: K 0.79, 1.10 or 0.67 for three option sets); at the self-consistent scales it is K 0.826–0.834
+   SSPA zigzag: K 0.79, 1.10 or 0.67 for three option sets); at the self-consistent scales it is K 0.840–0.846
    at 5, 10, 20 and 50 Hz, with or without the warm-up, from 4 or 64 starts.
 
 4. **Adaptive** (:func:`adaptive`): while fewer than two candidates reach the best point, the likelihood has
    optima the candidates went to instead, and more candidates are drawn (spread around the best and around the
-   first start), up to :data:`MAX_CANDIDATES`; where every candidate agrees, nothing more is spent.
+   first start), up to :data:`MAX_CANDIDATES`, until a batch neither reaches nor beats the best; where every
+   candidate agrees, nothing more is spent.
 
 A parameter stopped on a log-mapped bound is released by :func:`bound_escape` (the Gauss–Newton step in
 the parameters themselves, where the fit space hides it).
