@@ -335,13 +335,14 @@ def default_scales(model: AbstractModel, runs: Sequence[Run], channels, x0, ys, 
     out = []
     for j in range(len(channels)):
         rms = math.sqrt(float(np.mean(np.concatenate([e[:, j] ** 2 for e in errs]))))
-        tau = _correlation_time([e[:, j] for e in errs])
+        tau = correlation_time_of([e[:, j] for e in errs])
         out.append(max(rms * math.sqrt(tau), noise[j]))
     return np.asarray(out)
 
 
-def _correlation_time(series: Sequence[np.ndarray], max_lag: int = 400) -> float:
-    """Integrated autocorrelation time (samples) pooled over runs, summed to the first negative lag."""
+def correlation_time_of(series: Sequence[np.ndarray], max_lag: int = 400) -> float:
+    """Integrated autocorrelation time (samples) of one channel pooled over runs, summed to the first negative lag
+    (at most ``max_lag`` or a quarter of the shortest run); ≥ 1."""
     n_min = min(s.size for s in series)
     K = max(1, min(max_lag, n_min // 4))
     num, den = np.zeros(K + 1), 0.0

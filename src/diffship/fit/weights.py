@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..initial import state_scales
+from ..initial import correlation_time_of, state_scales
 from ..models import AbstractModel
 from .problem import Batch
 
@@ -49,23 +49,8 @@ def correlation_time(r: np.ndarray, mask: np.ndarray, n_channels: int, max_lag: 
     residuals give τ ≈ 1; residuals dominated by a slowly varying model error give τ ≫ 1.
     """
     e = np.asarray(r).reshape(mask.shape + (n_channels,))
-    n_min = int(np.min(np.sum(mask, axis=1)))
-    K = max(1, min(max_lag, n_min // 4))
-    out = []
-    for c in range(n_channels):
-        num = np.zeros(K + 1)
-        den = 0.0
-        for i in range(e.shape[0]):
-            x = e[i, mask[i], c]
-            x = x - x.mean()
-            den += float(x @ x)
-            for k in range(1, K + 1):
-                num[k] += float(x[:-k] @ x[k:])
-        rho = num[1:] / den if den > 0 else np.zeros(K)
-        neg = np.flatnonzero(rho < 0)
-        rho = rho[: neg[0]] if neg.size else rho
-        out.append(max(1.0, 1.0 + 2.0 * float(np.sum(rho))))
-    return np.asarray(out)
+    return np.asarray([correlation_time_of([e[i, mask[i], c] for i in range(e.shape[0])], max_lag)
+                       for c in range(n_channels)])
 
 
 def x0_scales(model: AbstractModel, batch: Batch, states: Sequence[str]) -> np.ndarray:
