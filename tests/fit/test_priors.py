@@ -79,3 +79,25 @@ def test_unidentifiable_direction_is_named_and_a_prior_pins_it(usv_clean):
 
 def test_direction_text():
     assert direction_text({"a": 0.7, "b": -0.71}) == "−0.71·b + 0.70·a"
+
+
+def test_a_parameter_on_its_bound_is_named():
+    """A damping coefficient the data push onto its bound 0 is named, with the bound, in the warnings and the
+    JSON; one well inside its bounds is not."""
+    import numpy as np
+
+    from diffship.fit.identifiability import identifiability
+    from diffship.models import Nomoto1
+
+    spec = Nomoto1().spec()
+    names = spec.free_names
+    J = np.eye(len(names))
+    vals = {n: spec[n].value for n in names}
+    assert not identifiability(J, spec, vals, np.eye(len(names))).on_bound
+    bounded = next(n for n in names if np.isfinite(spec[n].lower) or np.isfinite(spec[n].upper))
+    b = spec[bounded].lower if np.isfinite(spec[bounded].lower) else spec[bounded].upper
+    ident = identifiability(J, spec, {**vals, bounded: b + 1e-4 * spec[bounded].scale * (1 if b == spec[bounded].lower else -1)},
+                            np.eye(len(names)))
+    assert [n for n, _, _ in ident.on_bound] == [bounded]
+    assert any(f"{bounded} = " in w and "on its bound" in w for w in ident.warnings)
+    assert ident.as_json()["on_bound"][0]["bound"] == b

@@ -57,3 +57,38 @@ def test_the_likelihood_does_not_depend_on_the_weights_and_its_scales_are_self_c
     # a prior row adds ½ p²
     assert math.isclose(concentrated_cost(e.reshape(-1), mask, np.ones(2), tau, np.array([2.0])) -
                         concentrated_cost(e.reshape(-1), mask, np.ones(2), tau), 2.0)
+
+
+def test_candidates_out_of_steps_keep_residuals_and_their_scales_together():
+    """A candidate whose step budget runs out between two reweighting rounds keeps ``r`` (and its Jacobian)
+    normalised by the scales of the solve that made them (``r_scales``), not by the next round's: its
+    likelihood is then the likelihood of its point. (Comparing ``r`` against the next round's scales made a
+    drifting candidate on the USV look 60 000 log-likelihood units better than the truth.)"""
+    import jax.numpy as jnp
+
+    from tests.fit.test_kernel import _problem
+    from diffship.fit.search import reweighted_solves
+    from diffship.fit.weights import correlation_time
+
+    runs, spec, kernel, data = _problem(2, 40.0, 0.2, seed=3)
+    n_z = len(spec.free_names) + 2 * len(kernel.x0_idx)
+    rng = np.random.default_rng(1)
+    zs = [rng.normal(0.0, 1.0, n_z) for _ in range(3)]
+    first = np.array([0.01, 0.002])
+    out = reweighted_solves(kernel, zs, data, first, {"jacobian": True, "max_steps": 8, "rtol": 1e-6, "atol": 1e-6,
+                                                          "gntol": 0.05}, cap=8, total=7,
+                            floor=np.full(2, 1e-9))  # a budget that ends mid-round: scales moved after the last solve
+    mask = np.asarray(data.mask)
+    moved = 0
+    for c in out:
+        if c["blew_up"]:
+            continue
+        again = np.asarray(kernel.split(np.asarray(kernel.residuals(jnp.asarray(c["z"]),
+                                                                    data.replace(scales=jnp.asarray(c["r_scales"])))),
+                                        data)[0])
+        np.testing.assert_allclose(c["r"], again, rtol=1e-9, atol=1e-12)
+        moved += int(not np.allclose(c["scales"], c["r_scales"]))
+        tau = correlation_time(c["r"], mask, 2)
+        f_true = concentrated_cost(again, mask, c["r_scales"], tau)
+        assert math.isclose(concentrated_cost(c["r"], mask, c["r_scales"], tau), f_true, rel_tol=1e-9)
+    assert moved >= 1  # the case the test is about: scales re-estimated after the residuals were made

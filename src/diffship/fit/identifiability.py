@@ -20,7 +20,9 @@ Warnings (also in ``FitResult.messages``):
 * a coefficient that moved by more than its own magnitude from its start (``|Δθ| > max(|θ₀|,
   scale)``), or more than 3 prior standard deviations from its prior mean;
 * a coefficient whose sign differs from the model's reference value or from its start (a
-  physical sign flip, such as a yaw damping term turning destabilising).
+  physical sign flip, such as a yaw damping term turning destabilising);
+* a coefficient on one of its bounds (within :data:`ON_BOUND` of its scale): the data push it past what
+  the model allows, so its standard error is no interval (a missing effect, or a bound to reconsider).
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ POOR = 1.0
 MAX_NAMED = 3
 #: Correlation magnitude above which a pair is reported.
 CORRELATED = 0.95
+#: A free parameter closer than this share of its scale to a finite bound is "on its bound".
+ON_BOUND = 2e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,6 +63,7 @@ class Identifiability:
             (``against="reference"``) or from the start.
         correlation: the correlation matrix of the free parameters (posterior).
         warnings: one sentence per finding.
+        on_bound: ``(name, value, bound)`` of the parameters on a bound.
     """
 
     names: tuple[str, ...]
@@ -70,6 +75,7 @@ class Identifiability:
     sign_flips: tuple[tuple[str, float, float, str], ...]
     correlation: np.ndarray
     warnings: tuple[str, ...]
+    on_bound: tuple[tuple[str, float, float], ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -84,6 +90,7 @@ class Identifiability:
             "correlated": [{"a": a, "b": b, "rho": rho} for a, b, rho in self.correlated],
             "moved": [{"name": n, "start": s, "value": v, "why": w} for n, s, v, w in self.moved],
             "sign_flips": [{"name": n, "reference": r, "value": v, "against": a} for n, r, v, a in self.sign_flips],
+            "on_bound": [{"name": n, "value": v, "bound": b} for n, v, b in self.on_bound],
             "warnings": list(self.warnings),
         }
 
@@ -195,10 +202,19 @@ def identifiability(
         elif start is not None and n in start and start[n] != 0 and v != 0 \
                 and math.copysign(1, start[n]) != math.copysign(1, v):
             flips.append((n, float(start[n]), v, "start"))
+    on_bound = []
+    for n in names:
+        v, par = float(values[n]), spec[n]
+        for b in (par.lower, par.upper):
+            if math.isfinite(b) and abs(v - b) < ON_BOUND * par.scale:
+                on_bound.append((n, v, float(b)))
+                warnings.append(f"{n} = {v:.4g} is on its bound {b:g}: the data push it past what the model allows, "
+                                "so its standard error is no interval — look for a missing effect (diagnose) or "
+                                "reconsider the bound")
     for n, s0, v, why in moved:
         warnings.append(f"{n} {why}")
     for n, ref, v, against in flips:
         warnings.append(f"{n} changed sign against its {against} value ({ref:.4g} → {v:.4g}): check that "
                         "the fitted model is physically admissible outside the training runs")
     return Identifiability(names, sv, condition, tuple(weak), tuple(correlated), tuple(moved), tuple(flips),
-                           corr, tuple(warnings))
+                           corr, tuple(warnings), tuple(on_bound))

@@ -321,7 +321,7 @@ class OutputError(AbstractEstimator):
         cand_out = []
         for (i, _, kind), s_ in zip(cands, sols):
             src = root(sols, s_)
-            f = math.inf if src["blew_up"] else objective_or_cost(src["r"], src["r_prior"], mask, src["scales"], tau)
+            f = math.inf if src["blew_up"] else objective_or_cost(src["r"], src["r_prior"], mask, src["r_scales"], tau)
             cand_out.append((i, kind, src["z"], f, src))
             if f < res[i][1]:
                 res[i] = (src["z"], f, steps[i] + s_["steps"])
@@ -381,13 +381,15 @@ class OutputError(AbstractEstimator):
         chosen = next((c[4] for c in st_.get("candidates", ()) if np.allclose(c[2], z, rtol=0, atol=0)), None)
         if chosen is not None and chosen["jac"] is not None:
             # the search solved this candidate at its own channel scales: its point, residuals and Jacobian
-            z, r, scales = np.asarray(chosen["z"]), chosen["r"], chosen["scales"]
+            z, r, scales = np.asarray(chosen["z"]), chosen["r"], chosen["r_scales"]
             data = data.replace(scales=jnp.asarray(scales))
             passes.append(chosen["status"])
             last_jac[:] = [chosen["jac"]]
             if tau is not None:
-                st_["objective"], tau = objective_or_cost(r, chosen["r_prior"], np.asarray(batch.mask), scales, tau), \
-                    chosen["tau"]
+                # reported at the chosen point's own correlation times (the search compared the candidates at
+                # their smallest: a number that depends on which other candidates there were)
+                tau = chosen["tau"]
+                st_["objective"] = objective_or_cost(r, chosen["r_prior"], np.asarray(batch.mask), scales, tau)
         else:
             # the first solve's point again, with its Jacobian (one compiled program: no extra compile)
             z, r = run_solve(z, data)
