@@ -159,7 +159,7 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
             else:
                 c.update(scales=new, tau=tau)
         live = [i for i, c in enumerate(out) if c["merged_into"] is None and not c["blew_up"]]
-        if reweight and n_round > 3 and len(live) > 1:
+        if reweight and n_round > 2 and len(live) > 1:
             # after a full round the candidates compare on one scale (the likelihood at their smallest correlation
             # times): one that reaches another's point merges into it; one far behind the best is dominated
             tau_ref = np.min(np.stack([out[i]["tau"] for i in live]), axis=0)
