@@ -103,8 +103,8 @@ def _heading(r_sim: np.ndarray, rec: dict) -> float:
 
 
 def _diverged(t, x):
-    """solve_ivp event: stop when a velocity leaves ±50 (m/s, rad/s): the peer's model has diverged."""
-    return 50.0 - float(np.max(np.abs(x)))
+    """solve_ivp event: stop when a velocity leaves ±20 (m/s, rad/s): the peer's model has diverged."""
+    return 20.0 - float(np.max(np.abs(x)))
 
 
 _diverged.terminal = True
@@ -115,7 +115,7 @@ def _simulate(model, rec) -> float:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            sim = model.simulate(x[0][0], t[0], u=u[0], integrator_kws={"method": "RK45", "rtol": 1e-6, "atol": 1e-8,
+            sim = model.simulate(x[0][0], t[0], u=u[0], integrator_kws={"method": "RK45", "rtol": 1e-4, "atol": 1e-6,
                                                                        "events": _diverged})
         return _heading(np.asarray(sim)[:, 2], rec)
     except Exception:  # noqa: BLE001 - a peer's model that diverges
@@ -132,7 +132,7 @@ def sindy_peers(train: list[dict], held: list[dict]) -> dict[str, dict]:
     out = {}
     t0 = time.perf_counter()
     best = None
-    for thr in np.logspace(-5, 1, 13):
+    for thr in np.logspace(-4, 0, 9):
         lib, labels = _library()
         m = ps.SINDy(feature_library=lib, optimizer=ps.STLSQ(threshold=thr, normalize_columns=True),
                      differentiation_method=diff)
