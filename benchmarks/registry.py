@@ -41,6 +41,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "wave_family": ("benchmarks.wave_family", "the wave effect on the generator's wave scenarios"),
     "wave_false_periods": ("benchmarks.wave_false_periods", "does a wave candidate appear without waves (prints)"),
     "discover": ("benchmarks.discover", "structure discovery on a USV with withheld terms"),
+    "discover_independent": ("benchmarks.discover_independent", "structure discovery on independent USV truths "
+                             "with extra terms (5 + null), beside SINDy and FROLS peers"),
     "robustness": ("benchmarks.robustness", "one fit, one answer: cases × variants (rate, initial-state rule, starts, "
                    "warm-up, integrator) on one fixed scale (robustness[_quick].md)"),
 }

@@ -18,11 +18,39 @@ for their moduli, in the order u, v, r, au, av, ar. The name is also the coeffic
 (fossen3's own ``Xuu, Yvv, Nrr, ...`` have no underscore, so names never clash). An expression is
 accepted too (:func:`parse_term`): ``"N: v*r"``, ``"Y:r|r|"``, ``"N: v^2 r"``.
 
-**Libraries** (:data:`LIBRARIES`): ``symmetric`` (default) keeps only the terms a port–starboard
-symmetric hull can have — even in :math:`(v, r)` in surge, odd in sway and yaw (Fossen 2021, §6.4; the
-same argument gives Abkowitz's expansion its shape, Abkowitz 1964) — and drops those that duplicate a
-base parameter (``Y_v_av`` is fossen3's ``Yvv``) or its Coriolis/Munk terms (``X_v_r``, ``Y_u_r``,
-``N_u_v``); ``all`` has every product up to third order in each equation.
+**Libraries** (:data:`LIBRARIES`). ``all`` has every product of :math:`u, v, r` and their moduli up
+to third order in each equation: for each variable with exponent :math:`k \ge 1` the two distinct
+functions :math:`x^k` and :math:`x^{k-1}|x|` (:math:`|x|^2 = x^2`, so no other product is new), 43
+monomials per equation, less those that duplicate a base parameter exactly: ``X_u`` (fossen3's
+``Xu``), ``X_u_au`` and ``X_u_u`` (``Xuu``: equal wherever :math:`u > 0`), ``Y_v``, ``Y_r``,
+``Y_v_av``, ``N_v``, ``N_r``, ``N_r_ar``. The surge speed enters with its sign only (``u``, never
+``au``): manoeuvring data of a surface vessel have :math:`u > 0`, where :math:`|u|^k` and
+:math:`u^k` are the same regressor and a library with both holds exactly collinear pairs (a name
+with ``au`` is still accepted). ``symmetric`` (default) keeps the terms a port–starboard symmetric
+hull can have: the mirror image :math:`(v, r, Y, N) \to (-v, -r, -Y, -N)` leaves the equations
+unchanged only if the surge terms are even in :math:`(v, r)` and the sway and yaw terms odd (Fossen
+2021, §6.4; the same argument gives Abkowitz's expansion its shape, Abkowitz 1964) — ``X_v_r``,
+``X_v_v``, ``X_av``, ``Y_v_v_r``, ``Y_u_r``, ``N_v_r_r``, ``N_r_r_r``, ``N_u_v``, ``N_v_ar``, ...
+
+**Monomials that the rigid-body and added-mass terms carry are in the libraries.** fossen3's
+:math:`C(\nu)\nu = C_{RB}(\nu)\nu + C_A(\nu)\nu` holds
+
+.. math::
+    X:\ -(m - Y_{\dot v})\,vr - (m x_g - \tfrac12(N_{\dot v} + Y_{\dot r}))\,r^2, \qquad
+    Y:\ (m - X_{\dot u})\,ur, \qquad
+    N:\ (X_{\dot u} - Y_{\dot v})\,uv + (m x_g - \tfrac12(N_{\dot v} + Y_{\dot r}))\,ur,
+
+so :math:`vr` in surge, :math:`ur` in sway and :math:`uv` (the Munk moment) in yaw are already
+there — but each with a coefficient tied to the masses, which the fit also needs for the
+accelerations (:math:`M\dot\nu`) and, with :math:`m` known, cannot move freely. A hull's own
+hydrodynamic :math:`X_{vr}\,vr` (lift-induced surge force in a turn, Abkowitz's :math:`X_{vr}`),
+:math:`Y_{ur}\,ur` or :math:`N_{uv}\,uv` is a coefficient *beside* the tied one; without
+``X_v_r`` in the library a model with that physics can only be approximated by stand-ins (on the
+USV truths :math:`X_{vv}v^2 + X_{rr}r^2`), which predict worse off the training manoeuvres. The
+terms ``X_v_r``, ``X_r_r``, ``Y_u_r``, ``N_u_v`` and ``N_u_r`` are therefore terms of their own
+(:math:`\Delta\tau_X = X_{vr}vr` adds to :math:`-C(\nu)\nu`; the sum's coefficient
+:math:`X_{vr} + m - Y_{\dot v}` is what the data determine, the added mass being fixed by the
+accelerations). Only pure duplicates of base parameters are left out.
 
 Each coefficient's unit is the equation's force unit over the term's; its declared ``scale`` (100) is
 a placeholder: structure discovery sets scales from the data (force RMS over term RMS).
@@ -47,7 +75,7 @@ from .effects import Augmented, Effect, is_ship3
 from .effects._base import body_velocity, param
 
 __all__ = ["Term", "EQUATIONS", "FACTORS", "LIBRARIES", "term_class", "parse_term", "library_terms", "with_terms",
-           "terms_of", "base_of", "term_label", "term_values"]
+           "terms_of", "base_of", "term_label", "term_values", "monomials"]
 
 #: The equations of a 3-DOF model a term may enter, and their force units.
 EQUATIONS: dict[str, str] = {"X": "N", "Y": "N", "N": "N m"}
@@ -118,7 +146,20 @@ def _split(name: str) -> tuple[str, tuple[str, ...]]:
     if _order(factors) != factors:
         raise ModelError(f"term {name!r}: write its factors in the order {', '.join(FACTORS)} "
                          f"({eq}_{'_'.join(_order(factors))})")
+    if _canonical(factors) != factors:
+        raise ModelError(f"term {name!r} is the same function as {eq}_{'_'.join(_canonical(factors))} "
+                         "(|x|·|x| = x·x): use that name")
     return eq, factors
+
+
+def _canonical(factors: Sequence[str]) -> tuple[str, ...]:
+    r"""The one name of a monomial: per variable :math:`x^{k-m}|x|^m` is :math:`x^k` for even m and
+    :math:`x^{k-1}|x|` for odd m."""
+    out: list[str] = []
+    for x in ("u", "v", "r"):
+        k, m = sum(f in (x, "a" + x) for f in factors), sum(f == "a" + x for f in factors)
+        out += [x] * (k - m % 2) + ["a" + x] * (m % 2)
+    return _order(out)
 
 
 @functools.cache
@@ -152,27 +193,41 @@ def parse_term(text: str) -> str:
     if not factors or re.sub(r"(\|[uvr]\||[uvr])(\^\d)?", "", body):
         raise ModelError(f"term {text!r}: cannot read the expression; use products of u, v, r, |u|, |v|, |r| "
                          "with ^ for powers, e.g. 'N: v*r', 'Y: r|r|', 'N: v^2 r'")
-    name = f"{eq}_{'_'.join(_order(factors))}"
+    name = f"{eq}_{'_'.join(_canonical(factors))}"
     _split(name)
     return name
 
 
-# what the base fossen3 already has (parameters or Coriolis/Munk terms), per equation
-_IN_BASE = {"X": {("au", "u"), ("u", "au"), ("v", "r"), ("u", "u"), ("u", "au")},
-            "Y": {("v", "av"), ("u", "r")}, "N": {("r", "ar"), ("u", "v")}}
-_QUADRATIC = [("u", "v"), ("u", "r"), ("v", "v"), ("v", "r"), ("r", "r"), ("v", "av"), ("v", "ar"), ("r", "av"),
-              ("r", "ar"), ("u", "au")]
-_CUBIC = [("v", "v", "v"), ("v", "v", "r"), ("v", "r", "r"), ("r", "r", "r")]
+# monomials that are exactly a base (fossen3) parameter's, per equation: left out of every library
+_DUPLICATES = {"X": {("u",), ("u", "au"), ("u", "u")}, "Y": {("v",), ("r",), ("v", "av")},
+               "N": {("v",), ("r",), ("r", "ar")}}
+
+
+def _forms(x: str, k: int) -> list[tuple[str, ...]]:
+    """The distinct functions of degree ``k`` in one variable: :math:`x^k` and :math:`x^{k-1}|x|`
+    (``u`` only signed: module docstring)."""
+    if k == 0:
+        return [()]
+    return [(x,) * k] + ([] if x == "u" else [(x,) * (k - 1) + ("a" + x,)])
+
+
+def monomials(max_degree: int = 3) -> list[tuple[str, ...]]:
+    """Every distinct product of u, v, r and |v|, |r| of degree 1..``max_degree``, lowest degree first,
+    canonical factor order (module docstring)."""
+    out = []
+    for deg in range(1, max_degree + 1):
+        for a in range(deg, -1, -1):
+            for b in range(deg - a, -1, -1):
+                c = deg - a - b
+                out += [_order(("u",) * a + fv + fr) for fv in _forms("v", b) for fr in _forms("r", c)]
+    return out
 
 
 def _library(symmetric: bool) -> tuple[str, ...]:
     out = []
     for eq in EQUATIONS:
-        for f in _QUADRATIC + _CUBIC:
-            f = _order(f)
-            if f in _IN_BASE[eq] or (eq == "X" and f[0] == "u" and len(f) == 2 and f[1] in ("u", "au")):
-                continue
-            if symmetric and _odd_in_vr(f) != (eq != "X"):
+        for f in monomials(3):
+            if f in _DUPLICATES[eq] or (symmetric and _odd_in_vr(f) != (eq != "X")):
                 continue
             out.append(f"{eq}_{'_'.join(f)}")
     return tuple(out)
