@@ -9,7 +9,7 @@ fitted under every **variant** of what a user may leave at its default or change
   same experiment logged at that interval (regenerated with the same seed: its own noise draws). A subsampled
   command log is not the command the vessel had: linear interpolation between every other sample cuts the
   corners of the jet commands, the heading integrates that, and the USV's optimum at 5 Hz moved with it (heading
-  residuals correlated over 9 samples, Nrdot 3.6 deviations away) while the same runs logged at 5 Hz fit white;
+  residuals correlated over 30 samples, Nrdot 3.6 deviations away) while the same runs logged at 5 Hz fit white;
 * ``x0 data`` — the data's filtered first sample taken as the exact initial state (``--x0 data``);
 * ``starts 1`` / ``starts 16`` / ``starts 64 whole`` — one start; sixteen; sixty-four started on the whole
   runs (no warm-up): the **best** the search can find, the reference of every row (``--quick``: sixteen);

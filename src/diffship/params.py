@@ -8,7 +8,7 @@ Fits run in a *scaled, unconstrained* space ``z`` (one entry per free parameter)
 
     no bounds        θ = s·z
     lower bound a    θ = a + s·exp(z)
-    upper bound b    θ = b − s·exp(z)
+    upper bound b    θ = b − s·exp(z)      (never rounded onto a bound: one number inside)
     both a < b       θ = a + (b − a)·sigmoid(z)
 
 so that every entry of ``z`` is O(1) near the solution (Levenberg–Marquardt damps with λI and
@@ -259,12 +259,15 @@ def values_from_z(z: Float[Array, " n_free"], kind, lo, hi, s) -> Float[Array, "
     compiled program takes as data where one program serves several spaces, e.g. the equation-error
     fit's linear and bounded spaces). Jittable.
     """
-    # Clamp the exponent argument so that a wild trial step cannot overflow to inf.
+    # Clamp the exponent argument so that a wild trial step cannot overflow to inf; a value never rounds onto its
+    # bound (deep in the tail, l + s·e^z == l in floating point: a fit file's value on its bound could not start a
+    # later fit), it stays one representable number inside
     ez = jnp.exp(jnp.clip(z, -50.0, 50.0))
     lin = s * z
-    lower = lo + s * ez
-    upper = hi - s * ez
-    both = lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0))))
+    inside_lo, inside_hi = jnp.nextafter(lo, jnp.inf), jnp.nextafter(hi, -jnp.inf)
+    lower = jnp.maximum(lo + s * ez, inside_lo)
+    upper = jnp.minimum(hi - s * ez, inside_hi)
+    both = jnp.clip(lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0)))), inside_lo, inside_hi)
     return jnp.where(kind == _LINEAR, lin, jnp.where(kind == _LOWER, lower, jnp.where(kind == _UPPER, upper, both)))
 
 

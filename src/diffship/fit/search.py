@@ -17,12 +17,7 @@ property of the data and the model:
    residuals, so that it ends where the weighted least-squares optimum is the likelihood's (with each
    channel's noise level unknown, on ``N/τ_c`` effective samples); candidates are then compared by that
    likelihood at one set of correlation times — a number that does not depend on the weights a candidate was
-   solved with. The correlation times come in a **second step** (two-step feasible GLS): each candidate first
-   converges with white weights (:math:`\tau_c = 1`), then :math:`\tau_c` is measured on that point's residuals
-   and held fixed while it converges again. Re-measured after every round, they fed back: a channel that
-   drifted early (every start far from the optimum drifts in heading) got a long correlation time, so a small
-   weight, so it was never corrected — on an independent USV truth sampled at 5 Hz the heading stayed drifting
-   (τ 30 samples) and Nrdot landed 3.6 standard deviations from the 10 Hz estimate. Weights taken from a warm-up's or a start's residuals made the answer depend on the path (the
+   solved with. Weights taken from a warm-up's or a start's residuals made the answer depend on the path (the
    SSPA zigzag: K 0.79, 1.10 or 0.67 for three option sets); at the self-consistent scales it is K 0.840–0.846
    at 5, 10, 20 and 50 Hz, with or without the warm-up, from 4 or 64 starts.
 
@@ -139,27 +134,17 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
             if not reweight:
                 c["done"] = converged or int(k) < k_cap
                 continue
-            # two steps: white weights (τ = 1) to a converged point, then the correlation times of that point's
-            # residuals, held fixed to the end (module docstring, rule 3)
-            tau = c["tau_fixed"] if c.get("tau_fixed") is not None else np.ones(n_c)
+            tau = correlation_time(rd, mask, n_c) if effective_samples else np.ones(n_c)
             new = self_consistent_scales(rd, mask, c["scales"], tau, floor)
             f_own = concentrated_cost(rd, mask, c["scales"], tau, rp)
-            c["rounds"] = c.get("rounds", 0) + 1
-            settled = c["rounds"] >= 3 and abs(f_own - c.get("f_last", np.inf)) < F_TOL
+            settled = n_round >= 3 and abs(f_own - c.get("f_last", np.inf)) < F_TOL
             c["f_last"] = f_own
             if (converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL) or settled:
-                if effective_samples and c.get("tau_fixed") is None:
-                    tau = np.maximum(correlation_time(rd, mask, n_c), 1.0)
-                    c["tau_fixed"] = tau
-                    if np.max(np.abs(tau - 1.0)) > REWEIGHT_RTOL:  # correlated residuals: the second step
-                        c.update(scales=self_consistent_scales(rd, mask, c["scales"], tau, floor), tau=tau,
-                                 rounds=0, f_last=np.inf)
-                        continue
                 c.update(done=True, tau=tau)
             else:
                 c.update(scales=new, tau=tau)
         live = [i for i, c in enumerate(out) if c["merged_into"] is None and not c["blew_up"]]
-        if reweight and n_round > 2 and len(live) > 1:
+        if reweight and n_round > 3 and len(live) > 1:
             # after a full round the candidates compare on one scale (the likelihood at their smallest correlation
             # times): one that reaches another's point merges into it; one far behind the best is dominated
             tau_ref = np.min(np.stack([out[i]["tau"] for i in live]), axis=0)
@@ -207,12 +192,18 @@ def bound_escape(spec: ParamSpec, z: np.ndarray, r: np.ndarray, J: np.ndarray, n
     """
     n = J.shape[1]
     col = per_scale_columns(spec, z, n)
-    Jt = J * col
-    m = int(np.sum(r != 0))
-    s2 = float(r @ r) / max(m - n, 1)
-    step, *_ = np.linalg.lstsq(Jt, -r, rcond=None)
-    cov = np.linalg.pinv(Jt.T @ Jt, hermitian=True)[:n_p, :n_p]
-    length = math.sqrt(max(float(step[:n_p] @ np.linalg.pinv(cov, hermitian=True) @ step[:n_p]) / s2, 0.0))
+    with np.errstate(over="ignore", invalid="ignore"):
+        Jt = J * col
+        if not np.all(np.isfinite(Jt)):  # a parameter so deep on its bound that θ's column overflows: no step
+            return None
+        m = int(np.sum(r != 0))
+        s2 = float(r @ r) / max(m - n, 1)
+        try:
+            step, *_ = np.linalg.lstsq(Jt, -r, rcond=None)
+            cov = np.linalg.pinv(Jt.T @ Jt, hermitian=True)[:n_p, :n_p]
+            length = math.sqrt(max(float(step[:n_p] @ np.linalg.pinv(cov, hermitian=True) @ step[:n_p]) / s2, 0.0))
+        except (np.linalg.LinAlgError, ValueError):
+            return None
     if not length > gntol:
         return None
     names = spec.free_names
