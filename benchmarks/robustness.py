@@ -251,7 +251,8 @@ def run_case(case: Case, variants, say) -> list[dict]:
                          objective=f, params={n: res.params[n] for n in best.free}, z=z,
                          reached=res.starts.reached if res.starts else 0, n_starts=len(res.starts.labels) if res.starts else 0))
     f_best = next(r["objective"] for r in rows if r["variant"] == ref)
-    k = sum(x.n for x in runs) / max(sum(x.n for x in _variant(case, "rate", runs)[0]), 1) if "rate" in cells else 1.0
+    # how many times fewer samples the rate cell fitted (its runs are not made again)
+    k = best.info["n_residuals"] / max(cells["rate"][0].info["n_residuals"], 1) if "rate" in cells else 1.0
     for r in rows:
         r["best"] = r["variant"] == ref
     for r in rows:

@@ -51,11 +51,12 @@ import math
 
 import numpy as np
 
+from .integrate import rk4_interval
+from .robust_truths import NOISE
+
 __all__ = ["NOISE", "PARAMS", "FREE", "Truth", "truths", "simulate", "term_effects", "MANOEUVRES"]
 
 DEG = math.pi / 180.0
-#: One standard deviation of white sensor noise per channel (seed-002 USV sensors).
-NOISE = {"x0": 0.5, "y0": 0.5, "psi": 0.5 * DEG, "u": 0.05, "v": 0.05, "r": 0.2 * DEG}
 #: The base hydrodynamics (SI units; mass and inertia known to a fit).
 PARAMS = dict(m=4935.14, Iz=20928.0, Xudot=-350.0, Yvdot=-700.0, Nrdot=-7000.0, Xu=-65.0, Xuu=-300.0,
               Yv=-280.0, Yvv=-2600.0, Nv=1600.0, Nr=-1900.0, Nrr=-2600.0)
@@ -113,17 +114,9 @@ def _rhs(p: dict, terms: dict, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def _rk4(f, x: np.ndarray, tau0: np.ndarray, tau1: np.ndarray, dt: float, substeps: int) -> np.ndarray:
-    """One sample interval: ``substeps`` classical RK4 steps, the input linear from ``tau0`` to ``tau1``."""
-    h = dt / substeps
-    for j in range(substeps):
-        ta, tc = tau0 + (tau1 - tau0) * (j / substeps), tau0 + (tau1 - tau0) * ((j + 1) / substeps)
-        tb = 0.5 * (ta + tc)
-        k1 = f(x, ta)
-        k2 = f(x + 0.5 * h * k1, tb)
-        k3 = f(x + 0.5 * h * k2, tb)
-        k4 = f(x + h * k3, tc)
-        x = x + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
-    return x
+    """One sample interval: ``substeps`` classical RK4 steps (:func:`.integrate.rk4_interval`), the input linear
+    from ``tau0`` to ``tau1``."""
+    return rk4_interval(lambda t, xx: f(xx, tau0 + (tau1 - tau0) * (t / dt)), 0.0, dt, x, substeps)
 
 
 def _jet(t: np.ndarray, rng: np.random.Generator, thrust: tuple[float, float], hold: tuple[float, float],

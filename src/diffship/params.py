@@ -8,12 +8,13 @@ Fits run in a *scaled, unconstrained* space ``z`` (one entry per free parameter)
 
     no bounds        θ = s·z
     lower bound a    θ = a + s·exp(z)
-    upper bound b    θ = b − s·exp(z)      (never rounded onto a bound: one number inside)
+    upper bound b    θ = b − s·exp(z)
     both a < b       θ = a + (b − a)·sigmoid(z)
 
 so that every entry of ``z`` is O(1) near the solution (Levenberg–Marquardt damps with λI and
 does not converge on raw hydrodynamic coefficients that span eight orders of magnitude), and
-sign constraints such as ``X_u < 0`` hold by construction. Standard errors are mapped back by
+sign constraints such as ``X_u < 0`` hold by construction (a bounded value never rounds onto its
+bound: deep in the tail it stays one representable number inside). Standard errors are mapped back by
 the delta method, ``σ_θ = |dθ/dz|·σ_z``.
 """
 

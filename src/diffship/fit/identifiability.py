@@ -183,10 +183,12 @@ def identifiability(
                 correlated.append((names[i], names[j], float(rho)))
                 warnings.append(f"{names[i]} and {names[j]} are correlated (ρ = {rho:+.3f}): the data constrain "
                                 "a combination of them better than either")
-    moved, flips = [], []
+    moved, flips, on_bound = [], [], []
     for n in names:
         v = float(values[n])
         par = spec[n]
+        on_bound += [(n, v, float(b)) for b in (par.lower, par.upper)
+                     if math.isfinite(b) and abs(v - b) < ON_BOUND * par.scale]
         if start is not None and n in start:
             s0 = float(start[n])
             if abs(v - s0) > max(abs(s0), par.scale):
@@ -202,15 +204,9 @@ def identifiability(
         elif start is not None and n in start and start[n] != 0 and v != 0 \
                 and math.copysign(1, start[n]) != math.copysign(1, v):
             flips.append((n, float(start[n]), v, "start"))
-    on_bound = []
-    for n in names:
-        v, par = float(values[n]), spec[n]
-        for b in (par.lower, par.upper):
-            if math.isfinite(b) and abs(v - b) < ON_BOUND * par.scale:
-                on_bound.append((n, v, float(b)))
-                warnings.append(f"{n} = {v:.4g} is on its bound {b:g}: the data push it past what the model allows, "
-                                "so its standard error is no interval — look for a missing effect (diagnose) or "
-                                "reconsider the bound")
+    for n, v, b in on_bound:
+        warnings.append(f"{n} = {v:.4g} is on its bound {b:g}: the data push it past what the model allows, so its "
+                        "standard error is no interval — look for a missing effect (diagnose) or reconsider the bound")
     for n, s0, v, why in moved:
         warnings.append(f"{n} {why}")
     for n, ref, v, against in flips:

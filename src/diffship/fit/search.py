@@ -104,7 +104,8 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
     n_c = len(scales)
     per = np.zeros(len(zs[0])) if period is None else np.asarray(period)
     out = [{"z": np.asarray(z), "status": None, "steps": 0, "r": None, "r_prior": None, "scales": np.asarray(scales),
-            "r_scales": np.asarray(scales), "tau": np.ones(n_c), "jac": None, "merged_into": None, "blew_up": False, "done": False, "dominated": False}
+            "r_scales": np.asarray(scales), "tau": np.ones(n_c), "jac": None, "merged_into": None, "blew_up": False,
+            "done": False, "dominated": False}
            for z in zs]
     mask = np.asarray(data.mask)
     capped = data.with_step_cap(cap)
