@@ -30,12 +30,11 @@ optimum is then the MAP estimate), and per estimated initial state :math:`w_k(d_
 **Solver.** The batched Levenberg–Marquardt of :mod:`diffship.fit.batched` (a single fit is a
 batch of one; :meth:`Kernel.solve_many` runs many starts or resamples in one program), the
 forward-mode Jacobian materialised once per accepted step, the algorithm of
-:class:`~diffship.fit._lm.MaterialisedLM`. The compiled programs hold no
-host callback (no progress print inside the solve): JAX does not keep programs with host
-callbacks in its persistent cache, and a solve loaded from the cache saves a new process more
-time than per-step progress would show. Progress is reported between passes by the caller.
-
-All compiled programs come from the one cache, :func:`diffship.compiled.compiled`.
+:class:`~diffship.fit._lm.MaterialisedLM`. The compiled programs hold no host callback (no progress print
+inside the solve): JAX does not keep programs with host callbacks in its persistent cache, and a solve
+loaded from the cache saves a new process more time than per-step progress would show. Progress is
+reported between passes by the caller. All compiled programs come from the one cache,
+:func:`diffship.compiled.compiled`.
 """
 
 from __future__ import annotations
@@ -67,8 +66,7 @@ __all__ = ["Kernel", "KernelData", "kernel_data", "PENALTY", "stalled", "wrap_an
 #: Normalised residual assigned to every sample after a simulation blew up (exactly: a blow-up is ``r == PENALTY``).
 PENALTY = 1e3
 
-#: Tree structure of an optimistix result (to rebuild one from its integer code).
-_RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)
+_RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)  # to rebuild a result from its integer code
 
 def stalled(result, steps, max_steps: int) -> bool:
     """Whether a solve that reports the step cap stopped before it (a crawl's early stop, ``stall_steps``)."""
@@ -104,6 +102,7 @@ class KernelData(eqx.Module):
         step_cap: ``None``, or a traced cap on :meth:`Kernel.solve`'s steps under its static
             ``max_steps``: one compiled solve serves solves of any length (``1``: the residuals and
             Jacobian at ``z0``, no step), so a caller needs no Jacobian program of its own.
+        stall_gate: ``None``, or a traced factor (1, 0: off) on the solve's static ``stall_rtol`` (:meth:`with_step_cap`).
     """
 
     model: AbstractModel
@@ -125,6 +124,7 @@ class KernelData(eqx.Module):
     x0_prior_mean: Float[Array, " n_x0_prior"]
     horizon: Int[Array, ""] | None
     step_cap: Int[Array, ""] | None
+    stall_gate: Float[Array, ""] | None = None
 
     @property
     def n_prior(self) -> int:
@@ -150,10 +150,11 @@ class KernelData(eqx.Module):
         keep = jnp.arange(N) < n
         return dataclasses.replace(self, mask=self.mask & keep, horizon=jnp.asarray(n))
 
-    def with_step_cap(self, n: int | None = None) -> KernelData:
-        """These data with a traced step cap of ``n`` (default: none below the solve's static
-        ``max_steps``, still as data, so capped and uncapped solves share one compiled program)."""
-        return dataclasses.replace(self, step_cap=jnp.asarray(2 ** 30 if n is None else int(n), jnp.int32))
+    def with_step_cap(self, n: int | None = None, stall: bool = True) -> KernelData:
+        """These data with a traced step cap of ``n`` (default: none below the solve's static ``max_steps``) and
+        stall gate (``False``: no stall rule; a finished crawl): capped, uncapped, stalling or not, one program."""
+        return dataclasses.replace(self, step_cap=jnp.asarray(2 ** 30 if n is None else int(n), jnp.int32),
+                                   stall_gate=jnp.asarray(float(stall)))
 
 
 class Kernel(eqx.Module):
@@ -328,20 +329,19 @@ class Kernel(eqx.Module):
         stalled cost stops it only when the Gauss–Newton step is shorter than ``gntol`` standard
         errors (residual variance ``variance``, estimated when ``None``; :mod:`diffship.fit._lm`), judged
         on the first ``gn_params`` unknowns (default ``-1``: the parameters ``(z_θ, w)``, not the
-        nuisance unknowns after them; ``None``: all). With ``stall_steps`` > 0 a crawl stops early: a
-        cost falling by less than ``stall_rtol``·cost over ``stall_steps`` steps ends the solve with
-        the status ``nonlinear_max_steps_reached`` after fewer than ``max_steps`` steps
-        (:mod:`diffship.fit.batched`, item 6; :func:`stalled` tells the two apart).
+        nuisance unknowns after them; ``None``: all). With ``stall_steps`` > 0 a crawl stops early: a cost falling
+        by less than ``stall_rtol``·cost over ``stall_steps`` steps ends the solve with the status
+        ``nonlinear_max_steps_reached`` before ``max_steps`` (:mod:`diffship.fit.batched`, item 6; :func:`stalled`).
 
-        The solve is the batched LM (:mod:`diffship.fit.batched`) at ``B = 1``; a final point whose
-        simulation still blows up has the status ``nonlinear_divergence``; ``data.step_cap`` lowers
-        the step cap at run time (:class:`KernelData`)."""
+        The batched LM (:mod:`diffship.fit.batched`) at ``B = 1``; a final point that still blows up has the status
+        ``nonlinear_divergence``; ``data.step_cap``/``stall_gate`` set the cap and the stall rule at run time."""
         lm = self._lm_static(max_steps=max_steps, rtol=rtol, atol=atol, ftol=ftol, jacobian=jacobian, gntol=gntol,
                              variance=variance, gn_params=gn_params, stall_steps=stall_steps, stall_rtol=stall_rtol)
         z0 = jnp.asarray(z0)[None]
         st = self.batch_start(z0, data, jnp.ones(z0.shape, bool), **lm)
         cap = lm["max_steps"] if data.step_cap is None else jnp.minimum(data.step_cap, lm["max_steps"])
-        st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **dict(lm, max_steps=cap))
+        gate = {} if data.stall_gate is None else {"stall_rtol": lm["stall_rtol"] * data.stall_gate}
+        st = self.batch_advance(st, data, jnp.asarray(0, jnp.int32), **dict(lm, max_steps=cap, **gate))
         result = jax.tree_util.tree_unflatten(_RESULT_TREE, [st["status"][0]])
         out = (st["z"][0], result, st["steps"][0], st["r"][0])
         return (*out, st["jac"][0]) if jacobian else out
