@@ -124,7 +124,7 @@ class KernelData(eqx.Module):
     x0_prior_mean: Float[Array, " n_x0_prior"]
     horizon: Int[Array, ""] | None
     step_cap: Int[Array, ""] | None
-    stall_gate: Float[Array, ""] | None = None
+    stall_gate: Float[Array, ""] | None
 
     @property
     def n_prior(self) -> int:
@@ -517,4 +517,4 @@ def kernel_data(model: AbstractModel, ts, us, ys, mask, x0, scales, *, x0_scale=
         model=model, ts=f(ts), us=f(us), ys=f(ys), mask=jnp.asarray(mask, dtype=bool), x0=f(x0), x0_scale=f(x0_scale),
         scales=f(scales), S=f(np.zeros((0, 0)) if S is None else S), phi0=f(phi0), phi_scale=f(phi_scale), lo=f(lo),
         hi=f(hi), prior_mean=f(prior_mean), prior_w=f(prior_w), x0_prior_w=f(x0_prior_w), x0_prior_mean=f(x0_prior_mean),
-        horizon=None, step_cap=None)
+        horizon=None, step_cap=None, stall_gate=None)
