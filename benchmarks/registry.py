@@ -21,6 +21,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
                        "(prints)"),
     "fossen3_speed": ("benchmarks.fossen3_speed", "fossen3 3 × 300 s: diffship vs scipy at equal final cost"),
     "fossen3_coverage": ("benchmarks.fossen3_coverage", "standard-error coverage of the fossen3 fit over seeds"),
+    "at_sea_hakusan": ("benchmarks.at_sea_hakusan", "a real ship at sea under autopilot (HAKUSAN, 1 Hz; --data "
+                       "HAKUSAN.txt.gz): output error, prediction error, k-step-ahead predictions"),
+    "at_sea_synthetic": ("benchmarks.at_sea_synthetic", "autopilot in narrow-band waves: output error against "
+                         "prediction error (OU, wave), the closed-loop test"),
     "lm_stop": ("benchmarks.lm_stop", "cost of the LM stopping rule on ordinary fits"),
     "coverage": ("benchmarks.coverage", "coverage of 95 % intervals with noisy inputs and outputs"),
     "coverage_metrics": ("benchmarks.coverage_metrics", "coverage of 95 % intervals of predicted manoeuvre metrics"),

@@ -32,8 +32,9 @@ from ..data import Run
 from ..compiled import Prefetch, prefetch
 from ..errors import DataError, FitError
 from ..fit import FitResult, OutputErrorOptions, fit_output_error
+from ..fit.feedback import loop_evidence
 from ..fit.problem import default_channels
-from ..metrics import Evaluation
+from ..metrics import Evaluation, evaluate
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import simulation_request
@@ -357,6 +358,12 @@ def diagnose(
     if period is not None:
         say(f"periodic training residual at {period['period_s']:.4g} s in {', '.join(period['channels'])}: "
             "the wave candidate starts there")
+    # closed loop? an input that reacts to the base fit's errors (an autopilot) biases every output-error refit
+    ev0 = evaluate(base, train, fit.initial_states if len(fit.initial_states) == len(train) else None, channels=chans,
+                   integrator=fit.integrator)
+    if ev0.ok and (loop := loop_evidence(base, train, ev0.simulated, chans)) is not None and loop["closed"]:
+        notes.append(loop["text"])
+        say(notes[-1])
     timings["period"] = time.perf_counter() - t0
 
     # -- which: screen -----------------------------------------------------------------------

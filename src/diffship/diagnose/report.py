@@ -21,6 +21,7 @@ __all__ = ["to_markdown", "plot_all", "write_json", "write_report"]
 def to_markdown(d) -> str:
     L = ["# Gap diagnosis: " + d.model_name, ""]
     L += [f"> {x}  " for x in d.verdict] + [""]
+    L += [f"- note: {n}" for n in getattr(d, "notes", ())] + ([""] if getattr(d, "notes", ()) else [])
     checks = getattr(d, "in_data", None) or {}
     if checks:
         L += ["## In the data (consistency of the logs, no hull coefficient)", "",

@@ -44,6 +44,7 @@ from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_
 from ..usability import verdict
 from .args import build_parser
 from .conditioning import thinning
+from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .priors import default_priors, format_priors, load_priors, parse_priors
@@ -280,6 +281,16 @@ def _fit(args, say) -> int:
     if cross is not None:  # held-out runs flown as manoeuvres, with their IMO metrics
         tail += "\n\n" + cross_text(cross)
         per_method["output_error"]["cross_manoeuvre"] = cross_json(cross)
+    if (pe := results.get("prediction_error")) is not None and pe.usable:  # a sea state is predicted, not simulated
+        from .ahead import ahead_table
+
+        say("prediction from the Kalman filter's state: one sample and 30 s ahead, with and without the disturbance...")
+        text, per_method["prediction_error"]["ahead"], _ = ahead_table(pe, train, held)
+        tail += "\n\n" + text
+    for m, r in results.items():  # does an input react to the model's errors (an autopilot)? said for every fit
+        if (loop := ev_train.get(m) and loop_evidence(r.model, train, ev_train[m].simulated, r.channels, m)) is not None:
+            tail += f"\n\n{m.replace('_', ' ')}: {loop['text']}"
+            per_method[m]["feedback"] = loop
     if notes:
         tail += "\n" + "\n".join(notes)
     report += tail

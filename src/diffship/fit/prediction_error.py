@@ -22,14 +22,16 @@ inputs, exactly as in simulation) and :math:`A_k = \partial F_k/\partial x`,
     \ell(\theta, Q, R) = \tfrac12 \sum_k \big(\varepsilon_k^\top\varepsilon_k + \log\det S_k\big) + \text{const},
     \qquad \varepsilon_k = L_k^{-1} e_k,\ S_k = L_k L_k^\top.
 
-**Disturbance model.** With ``disturbance="ou"`` (default) the unmeasured forces are not white:
-each state in ``process_states`` (velocities, yaw rate) gets an extra filter state :math:`w_i`
-added to its rate, :math:`\dot x_i = f_i(x, u) + w_i`, an Ornstein–Uhlenbeck process
+**Disturbance model** (:mod:`diffship.fit.disturbance`). With ``disturbance="ou"`` (default) the unmeasured
+forces are not white: each state in ``process_states`` (velocities, yaw rate) gets an extra filter state
+:math:`w_i` added to its rate, :math:`\dot x_i = f_i(x, u) + w_i`, an Ornstein–Uhlenbeck process
 :math:`\dot w = -w/\tau + \sqrt{2/\tau}\,q\,\xi(t)` (stationary standard deviation ``q``
 [state unit/s], one time constant ``τ`` estimated with the noise levels). Wind and wave drift
 forces are coloured like this; a white-noise filter on such data leaves correlated innovations
-and biased estimates (measured on a Nomoto test: 2–4 standard errors off). ``"white"`` is the
-plain white process noise :math:`Q` on those states.
+and biased estimates (measured on a Nomoto test: 2–4 standard errors off). ``"wave"``: a narrow-band
+resonator (period, damping estimated); ``"walk"``: a random walk; ``"white"``: white process noise
+:math:`Q`. Under feedback (an autopilot reacting to the wave yaw) only a right noise model gives
+consistent dynamics (Ljung 1999, §13.4: the direct approach).
 
 **Least-squares form.** The residual rows are the normalised innovations :math:`\varepsilon_k`
 (``n_c`` per sample). When the noise covariances are estimated, one more row per sample,
@@ -47,13 +49,12 @@ Noise parametrisation (diagonal, square-root with floors): process-noise standar
 :math:`q_i = q_{0,i}\sqrt{q_f^2 + \eta_{q,i}^2}` [state unit/√s] on ``process_states`` (default: the
 states of the fitted channels that are not kinematic — x0, y0, psi are integrals of velocities),
 measurement standard deviations :math:`\sqrt{R_c} = \sqrt{r_{\min,c}^2 + (r_{0,c}\eta_{r,c})^2}`
-per fitted channel; the unknowns start at :math:`\eta = 1`. Not a logarithm on purpose: a noise
-level the data cannot tell from zero (no process noise in calm water) has its optimum on the
-floor, which a logarithmic parameter approaches by ever smaller steps towards −∞ (measured: 200
-LM steps without meeting the tolerances on a Nomoto problem); here it is an ordinary smooth
-minimum at :math:`\eta = 0` and the fit converges. Starting values: the
-measurement noise from the sample-to-sample differences of each channel (``std(Δy)/√2``), the
-process noise ``q_start`` times each state's spread per √s.
+per fitted channel; the unknowns start at :math:`\eta = 1`. Not a logarithm on purpose: a noise level the data
+cannot tell from zero (no process noise in calm water) has its optimum on the floor, which a logarithmic
+parameter approaches by ever smaller steps towards −∞ (measured: 200 LM steps without meeting the tolerances
+on a Nomoto problem); here it is an ordinary smooth minimum at :math:`\eta = 0` and the fit converges.
+Starts: the measurement noise from each channel's ``std(Δy)/√2``, the process noise ``q_start`` times each
+state's spread per √s.
 
 **Standard errors** are from the innovation rows only, :math:`(J_\varepsilon^\top J_\varepsilon)^{-1}`
 with unit variance (the innovations are normalised by their own predicted covariance), joint
@@ -75,26 +76,24 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
 import numpy as np
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Float
 
 from ..data import Run
 from ..errors import FitError
-from ..integrators import AbstractIntegrator
 from ..models import AbstractModel
 from ..params import ParamSpec
-from ..simulate import MAX_ABS
+from . import disturbance as dist
 from . import status as st
 from .driver import fit
+from .ekf import FilterPass, ekf
 from .estimator import OnOutputError, Problem, Solved
 from .identifiability import per_scale_columns
-from .kernel import PENALTY, Kernel, KernelData, kernel_data, wrap_angle
+from .kernel import PENALTY, Kernel, KernelData, kernel_data
 from .output_error import OutputErrorOptions
 from .priors import prior_arrays
 from .problem import make_batch
@@ -128,8 +127,10 @@ class PredictionErrorOptions:
         disturbance: ``"ou"`` (default): the process noise is an Ornstein–Uhlenbeck disturbance
             added to the rates of ``process_states`` (extra filter states, time constant
             estimated with the noise levels; ``process_noise`` is then its stationary standard
-            deviation [state unit/s]); ``"white"``: white noise on those states [state unit/√s].
-        tau: the disturbance time constant's start (or fixed value) [s].
+            deviation [state unit/s]); ``"wave"``, ``"walk"``: :mod:`diffship.fit.disturbance`; ``"white"``:
+            white noise on those states [state unit/√s].
+        tau, wave_period, wave_damping: starts (or fixed values) of the hyper-parameters [s, s, -]; the wave's
+            period ``None``: :func:`~diffship.fit.disturbance.spectral_period` of the fitted channels.
     """
 
     process_states: tuple[str, ...] | None = None
@@ -141,92 +142,22 @@ class PredictionErrorOptions:
     noise_floor: float = 1e-4
     disturbance: str = "ou"
     tau: float = 10.0
+    wave_period: float | None = None
+    wave_damping: float = 0.1
 
     def __post_init__(self):
         for what, d in (("process_noise", self.process_noise), ("measurement_noise", self.measurement_noise)):
             for k, v in (d or {}).items():
                 if not (math.isfinite(v) and v > 0):
                     raise FitError(f"prediction error: {what}[{k!r}] must be a positive standard deviation, got {v!r}")
-        if self.disturbance not in ("ou", "white"):
-            raise FitError(f"prediction error: disturbance must be 'ou' or 'white', got {self.disturbance!r}")
-        if not (math.isfinite(self.tau) and self.tau > 0):
-            raise FitError(f"prediction error: the disturbance time constant tau must be positive, got {self.tau!r}")
+        if self.disturbance not in dist.KINDS:
+            raise FitError(f"prediction error: disturbance must be one of {', '.join(dist.KINDS)}, got {self.disturbance!r}")
+        for what, v in (("time constant tau", self.tau), ("wave period", self.wave_period or 1.0),
+                        ("wave damping", self.wave_damping)):
+            if not (math.isfinite(v) and v > 0):
+                raise FitError(f"prediction error: the disturbance {what} must be positive, got {v!r}")
         if self.process_states is not None:
             object.__setattr__(self, "process_states", tuple(self.process_states))
-
-
-class FilterPass(NamedTuple):
-    """One extended-Kalman-filter pass over a run (per sample ``k``).
-
-    Attributes:
-        eps: normalised innovations :math:`L_k^{-1}e_k` ``(N, n_c)`` (0 on masked samples,
-            ``PENALTY`` after a blow-up).
-        logdet: :math:`\\log\\det S_k` ``(N,)`` (0 on masked samples).
-        valid: no blow-up up to sample ``k``.
-        xf, Pf: filtered state and covariance at ``k`` (``keep=True`` only, else empty).
-        xp, Pp: prediction of sample ``k + 1`` from ``k`` and its covariance.
-        A: the transition Jacobian from ``k`` to ``k + 1``.
-    """
-
-    eps: Float[Array, "N n_c"]
-    logdet: Float[Array, " N"]
-    valid: Bool[Array, " N"]
-    xf: Array
-    Pf: Array
-    xp: Array
-    Pp: Array
-    A: Array
-
-
-def ekf(f: Callable, h: Callable, integrator: AbstractIntegrator, angle: tuple[bool, ...],
-        q_var: Float[Array, " n_x"], r_var: Float[Array, " n_c"], ts: Float[Array, " N"], us: Float[Array, "N n_u"],
-        ys: Float[Array, "N n_c"], mask: Bool[Array, " N"], x0: Float[Array, " n_x"], P0: Float[Array, "n_x n_x"],
-        keep: bool = False) -> FilterPass:
-    """The extended Kalman filter over one run (module docstring); pure, forward-differentiable.
-
-    ``f(t, x, u)`` is the vector field, ``h(x, u)`` the fitted channels, ``q_var`` the
-    continuous process-noise intensity per state (variance per second), ``r_var`` the
-    measurement variance per channel; heading innovations (``angle``) are wrapped.
-    """
-    ang = jnp.asarray(angle)
-    n_x = x0.shape[0]
-    eye = jnp.eye(n_x, dtype=x0.dtype)
-    R = jnp.diag(r_var)
-
-    def step(carry, inp):
-        x, P, ok = carry
-        t0, t1, u0, u1, y, m = inp
-        H = jax.jacfwd(h)(x, u0)
-        e = y - h(x, u0)
-        e = jnp.where(ang, wrap_angle(e), e)
-        S = H @ P @ H.T + R
-        L = jnp.linalg.cholesky(0.5 * (S + S.T))
-        eps = jsl.solve_triangular(L, e, lower=True)
-        logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
-        K = jsl.cho_solve((L, True), H @ P).T
-        IKH = eye - K @ H
-        xf = jnp.where(m, x + K @ e, x)
-        Pf = jnp.where(m, IKH @ P @ IKH.T + K @ R @ K.T, P)
-
-        def F(xx):
-            return integrator.interval(f, t0, t1, xx, u0, u1)
-
-        xp = F(xf)
-        A = jax.jacfwd(F)(xf)
-        Pp = A @ Pf @ A.T + jnp.diag(q_var) * (t1 - t0)
-        Pp = 0.5 * (Pp + Pp.T)
-        ok_now = ok & jnp.all(jnp.isfinite(xp)) & jnp.all(jnp.abs(xp) < MAX_ABS) & jnp.all(jnp.isfinite(Pp))
-        eps = jnp.where(ok, jnp.where(m, eps, 0.0), PENALTY)
-        logdet = jnp.where(ok & m, logdet, 0.0)
-        out = (eps, logdet, ok) + ((xf, Pf, xp, Pp, A) if keep else ())
-        return (jnp.where(ok_now, xp, x), jnp.where(ok_now, Pp, P), ok_now), out
-
-    dt_last = ts[-1:] - ts[-2:-1]
-    t1 = jnp.concatenate([ts[1:], ts[-1:] + dt_last])
-    u1 = jnp.concatenate([us[1:], us[-1:]])
-    _, out = jax.lax.scan(step, (x0, P0, jnp.array(True)), (ts, t1, us, u1, ys, mask))
-    empty = jnp.zeros((0,))
-    return FilterPass(*out) if keep else FilterPass(out[0], out[1], out[2], empty, empty, empty, empty, empty)
 
 
 class PEData(KernelData):
@@ -238,7 +169,7 @@ class PEData(KernelData):
         r_floor: measurement standard-deviation floor per channel.
         eta_q, eta_r: the noise unknowns used when the noise is not estimated.
         P0: initial state covariance ``(n_x, n_x)``.
-        tau0: disturbance time constant at ``ζ = 0`` (coloured noise) [s].
+        hyper0: the disturbance's hyper-parameters at ``ζ = 0`` (:data:`~diffship.fit.disturbance.HYPER`, NaN-padded).
     """
 
     q_scale: Float[Array, " n_q"]
@@ -247,7 +178,7 @@ class PEData(KernelData):
     eta_q: Float[Array, " n_q"]
     eta_r: Float[Array, " n_c"]
     P0: Float[Array, "n_x n_x"]
-    tau0: Float[Array, ""]
+    hyper0: Float[Array, " 2"]
 
 
 class PEKernel(Kernel):
@@ -258,49 +189,62 @@ class PEKernel(Kernel):
 
     q_idx: tuple[int, ...] = eqx.field(static=True, default=())
     estimate_noise: bool = eqx.field(static=True, default=True)
-    coloured: bool = eqx.field(static=True, default=True)
+    disturbance: str = eqx.field(static=True, default="ou")
+
+    @property
+    def coloured(self) -> bool:  # the disturbance has filter states of its own
+        return self.disturbance != "white"
 
     @property
     def n_noise(self) -> int:
         """Number of noise unknowns (0 when the noise is given)."""
         if not self.estimate_noise:
             return 0
-        return len(self.q_idx) + len(self.out_idx) + int(self.coloured)
+        return len(self.q_idx) + len(self.out_idx) + dist.n_hyper(self.disturbance)
 
     def noise(self, z: Float[Array, " n_z"], data: PEData):
-        """``(q, r, τ)``: process standard deviation per noisy state (white: [unit/√s]; coloured:
+        """``(q, r, h)``: process standard deviation per noisy state (white: [unit/√s]; coloured:
         the disturbance's stationary sd [unit/s]), measurement variance per channel, and the
-        disturbance time constant [s] (``nan`` for white noise)."""
-        n, n_q, n_c = self.n_theta, len(self.q_idx), len(self.out_idx)
+        disturbance's hyper-parameters (:func:`~diffship.fit.disturbance.hyper_values`: ``τ``, or the wave's
+        period and damping; NaN where none)."""
+        n, n_q, n_c, n_h = self.n_theta, len(self.q_idx), len(self.out_idx), dist.n_hyper(self.disturbance)
         if self.estimate_noise:
-            eta_q, eta_r = z[n:n + n_q], z[n + n_q:n + n_q + n_c]
-            zeta = z[n + n_q + n_c] if self.coloured else jnp.zeros(())
+            eta_q, eta_r, zeta = z[n:n + n_q], z[n + n_q:n + n_q + n_c], z[n + n_q + n_c:n + n_q + n_c + n_h]
         else:
-            eta_q, eta_r, zeta = data.eta_q, data.eta_r, jnp.zeros(())
+            eta_q, eta_r, zeta = data.eta_q, data.eta_r, jnp.zeros(n_h)
         q = data.q_scale * jnp.sqrt(Q_FLOOR ** 2 + eta_q ** 2)
         r = data.r_floor ** 2 + (data.r_scale * eta_r) ** 2
-        tau = data.tau0 * jnp.exp(jnp.clip(zeta, -10.0, 10.0)) if self.coloured else jnp.full((), jnp.nan)
-        return q, r, tau
+        return q, r, dist.hyper_values(self.disturbance, zeta, data.hyper0)
 
     def filter(self, z: Float[Array, " n_z"], data: PEData, keep: bool = False) -> FilterPass:
         """The filter over every run (``vmap``) at ``z`` (coloured: states ``(x, w)``)."""
+        f, h, q_var, r, P0, x0 = self.system(z, data)
+        return jax.vmap(lambda t, u, y, m, x: ekf(f, h, self.integrator, self.angle, q_var, r, t, u, y, m, x, P0,
+                                                  keep))(data.ts, data.us, data.ys, data.mask, x0)
+
+    def system(self, z: Float[Array, " n_z"], data: PEData):
+        """``(f, h, q_var, r, P0, x0)``: the filter's vector field ``f(t, x, u)`` and fitted channels ``h(x, u)`` on
+        the augmented state ``(x, w)``, its process-noise intensities, measurement variances, initial covariance and
+        the runs' initial states (:mod:`diffship.fit.ahead` predicts with the same ``f`` and ``h``)."""
         model = self.model_at(z, data)
-        q, r, tau = self.noise(z, data)
+        q, r, hyp = self.noise(z, data)
         oi = jnp.asarray(self.out_idx)
         qi = jnp.asarray(self.q_idx, dtype=int)
-        n_x = data.x0.shape[1]
+        n_x, n_q, kind = data.x0.shape[1], len(self.q_idx), self.disturbance
         if self.coloured:
             def f(t, xa, u):
                 x, w = xa[:n_x], xa[n_x:]
-                return jnp.concatenate([model.vector_field(t, x, u).at[qi].add(w), -w / tau])
+                return jnp.concatenate([model.vector_field(t, x, u).at[qi].add(w[:n_q]),
+                                        dist.extra_rates(kind, w, hyp, n_q)])
 
             def h(xa, u):
                 return model.observe(xa[:n_x], u)[oi]
 
-            # white floor on the model states keeps P regular; the disturbance w is OU
-            q_var = jnp.concatenate([jnp.zeros(n_x).at[qi].set((Q_FLOOR * data.q_scale) ** 2), 2 * q ** 2 / tau])
-            P0 = jax.scipy.linalg.block_diag(data.P0, jnp.diag(q ** 2))
-            x0 = jnp.concatenate([data.x0, jnp.zeros((data.x0.shape[0], len(self.q_idx)))], axis=1)
+            # white floor on the model states keeps P regular; the disturbance states carry the process noise
+            q_var = jnp.concatenate([jnp.zeros(n_x).at[qi].set((Q_FLOOR * data.q_scale) ** 2),
+                                     dist.extra_noise(kind, q, hyp)])
+            P0 = jax.scipy.linalg.block_diag(data.P0, jnp.diag(dist.extra_p0(kind, q, hyp)))
+            x0 = jnp.concatenate([data.x0, jnp.zeros((data.x0.shape[0], dist.n_extra(kind, n_q)))], axis=1)
         else:
             def f(t, x, u):
                 return model.vector_field(t, x, u)
@@ -309,8 +253,7 @@ class PEKernel(Kernel):
                 return model.observe(x, u)[oi]
 
             q_var, P0, x0 = jnp.zeros(n_x).at[qi].set(q ** 2), data.P0, data.x0
-        return jax.vmap(lambda t, u, y, m, x: ekf(f, h, self.integrator, self.angle, q_var, r, t, u, y, m, x, P0,
-                                                  keep))(data.ts, data.us, data.ys, data.mask, x0)
+        return f, h, q_var, r, P0, x0
 
     def residuals(self, z: Float[Array, " n_z"], data: PEData) -> Float[Array, " m"]:
         fp = self.filter(z, data)
@@ -356,13 +299,15 @@ def pe_problem(model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, chann
         out_idx=tuple(model.output_names.index(c) for c in batch.channels),
         angle=tuple(c in model.angle_outputs for c in batch.channels),
         integrator=o.integrator, q_idx=tuple(model.state_names.index(s) for s in pstates),
-        estimate_noise=po.estimate_noise, coloured=po.disturbance == "ou",
+        estimate_noise=po.estimate_noise, disturbance=po.disturbance,
     )
     base = kernel_data(model, batch.ts, batch.us, batch.ys, batch.mask, batch.x0, spread)
     fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(KernelData)}
     f64 = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
     data = PEData(**fields, q_scale=f64(q0), r_scale=f64(r_scale), r_floor=f64(floor), eta_q=f64(np.ones(len(q0))),
-                  eta_r=f64(np.ones(len(r0))), P0=f64(np.diag((po.p0_rel * sx) ** 2)), tau0=f64(po.tau))
+                  eta_r=f64(np.ones(len(r0))), P0=f64(np.diag((po.p0_rel * sx) ** 2)),
+                  hyper0=f64(dist.hyper_starts(
+                      po.disturbance, po.tau, po.wave_period, po.wave_damping, batch)))
     return kernel, data, batch, pstates
 
 
@@ -407,7 +352,8 @@ class PredictionError(OnOutputError):
         (res_fn, jac_fn), compile_s = kernel.compiled_many([("residuals", z_shape, data, {}),
                                                              ("jacobian", z_shape, data, {})])
         names = tuple([*(f"process noise on {s_}" for s_ in pstates),
-                       *(f"measurement noise on {ch}" for ch in batch.channels), "disturbance time constant"][:n_noise])
+                       *(f"measurement noise on {ch}" for ch in batch.channels),
+                       *(dist.LABEL[h] for h in dist.HYPER[po.disturbance])][:n_noise])
         return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_noise,
                        nuisance_names=names, priors=priors, compile_seconds=compile_s,
                        state=dict(kernel=kernel, data=data, batch=batch, pstates=pstates, res_fn=res_fn, jac_fn=jac_fn,
@@ -425,16 +371,25 @@ class PredictionError(OnOutputError):
             zs = zs[:1]
         st_ = problem.state
         t0 = time.perf_counter()
-        outs = st_["kernel"].solve_many(np.stack([np.asarray(z) for z in zs]), st_["data"], progress=say,
-                                        label="prediction error", **st_["lm"])
+        z0s, kernel = np.stack([np.asarray(z) for z in zs]), st_["kernel"]
+        wave = kernel.disturbance == "wave" and kernel.n_noise
+        if wave:
+            # narrow band first: the period and damping held at their starts (the spectrum's peak) while the
+            # dynamics and noise levels settle; released, a wave fitted from poor dynamics broadens into a
+            # white-like disturbance that the steering's response then hides in (measured on an autopilot in waves)
+            free = np.ones(z0s.shape, bool)
+            free[:, -2:] = False
+            z0s = np.stack([np.asarray(o_[0]) for o_ in kernel.solve_many(
+                z0s, st_["data"], free=free, progress=say, label="prediction error, wave held", **st_["lm"])])
+        outs = kernel.solve_many(z0s, st_["data"], progress=say, label="prediction error", **st_["lm"])
         st_["pe_s"] = time.perf_counter() - t0
-        st_["results"] = [o_[1] for o_ in outs]
         res = []
         for z, _, k, r in outs:
             r = np.asarray(r)
             c = 0.5 * float(r @ r)
             bad = not math.isfinite(c) or np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY)
             res.append((np.asarray(z), math.inf if bad else c, int(k)))
+        st_["results"] = [o_[1] for o_ in outs]
         st_["zs"] = [o_[0] for o_ in res]
         return res
 
@@ -447,15 +402,18 @@ class PredictionError(OnOutputError):
         kernel, data, batch, pstates = st_["kernel"], st_["data"], st_["batch"], st_["pstates"]
         i = next(k for k, zz in enumerate(st_["zs"]) if np.array_equal(zz, z))
         z = np.array(z)
-        if kernel.coloured and po.estimate_noise:
-            z[-1] = float(np.clip(z[-1], -10.0, 10.0))
+        hyper = dist.HYPER[po.disturbance] if po.estimate_noise else ()
+        edge = []
+        for j, name in enumerate(hyper):
+            z[len(z) - len(hyper) + j] = v = float(np.clip(z[len(z) - len(hyper) + j], *dist.CLIP[name]))
+            edge += [dist.LABEL[name]] if min(abs(v - b_) for b_ in dist.CLIP[name]) < 1e-6 else []
         spec = problem.spec
         r = np.asarray(st_["res_fn"](jnp.asarray(z), data))
         J_all = np.asarray(st_["jac_fn"](jnp.asarray(z), data)) * per_scale_columns(spec, z, len(z))
         n_eps = st_["n_eps"]
         J_eps, J_prior = J_all[:n_eps], kernel.split(J_all, data)[1]
         r_eps, r_prior = r[:n_eps], kernel.split(r, data)[1]
-        q, rv, tau = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
+        q, rv, hyp = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
         process_sd = {s_: float(v) for s_, v in zip(pstates, q)}
         meas_sd = {ch: float(math.sqrt(v)) for ch, v in zip(batch.channels, rv)}
         eps = r_eps.reshape(data.ys.shape)
@@ -468,18 +426,23 @@ class PredictionError(OnOutputError):
         messages = [f"extended Kalman filter: process noise on {', '.join(pstates)}; noise levels "
                     + ("estimated" if po.estimate_noise else "given"),
                     "estimated noise: measurement sd " + ", ".join(f"{k} {v:.3g}" for k, v in meas_sd.items())
-                    + ("; disturbance (Ornstein–Uhlenbeck, added to the rates of " + ", ".join(pstates)
-                       + f", time constant {float(tau):.3g} s) sd " if kernel.coloured else "; process sd per √s ")
+                    + (f"; disturbance ({dist.describe(po.disturbance, hyp)}, added to the rates of " + ", ".join(pstates)
+                       + ") sd " if kernel.coloured else "; process sd per √s ")
                     + ", ".join(f"{k} {v:.3g}" for k, v in process_sd.items())]
+        if edge:  # nothing silent: a hyper-parameter held by its bound is not estimated
+            messages.append(f"{', '.join(edge)} on its bound ({dist.bounds_text(po.disturbance, data.hyper0)}): the "
+                            f"disturbance is not a process of this kind in that range; compare another --disturbance")
         return Solved(
             z=z, r_data=r_eps, J_data=J_eps, J_extra=J_prior, r_extra=r_prior, result=result, steps=steps,
             seconds=st_["pe_s"], compile_seconds=0.0, cost=0.5 * float(np.sum(r_eps ** 2)),
             channel_scales={ch: float(s_) for ch, s_ in zip(batch.channels, np.asarray(data.scales))},
             noise_std=meas_sd, initial_states=tuple(batch.x0), run_names=batch.names, variance=1.0,
-            dof=int(mask.sum()) * len(batch.channels) - len(z), kind="white",
+            dof=int(mask.sum()) * len(batch.channels) - len(z), kind="auto", mask=np.asarray(mask),
+            n_channels=len(batch.channels),
             prior_cost=0.5 * float(np.sum(r_prior ** 2)), messages=tuple(messages),
             info={"measurement_sd": meas_sd, "process_sd": process_sd, "process_states": pstates,
-                  "disturbance": po.disturbance, "disturbance_tau": float(tau), "estimate_noise": po.estimate_noise,
+                  "disturbance": po.disturbance, "disturbance_tau": float(hyp[0]) if po.disturbance == "ou" else math.nan,
+                  **({"wave_period": float(hyp[0]), "wave_damping": float(hyp[1])} if po.disturbance == "wave" else {}), "estimate_noise": po.estimate_noise,
                   "innovation_rms": white, "integrator": self.oe.integrator.describe()})
 
 

@@ -124,6 +124,6 @@ class KalmanSmoother:
                     chans[f"w_{s}"] = x[:, n_x + j]
             out.append(run.with_channels(**chans))
         info = {"measurement_sd": dict(zip(batch.channels, np.sqrt(r).tolist())),
-                "process_sd": dict(zip(pstates, q.tolist())), "disturbance_tau": float(tau),
+                "process_sd": dict(zip(pstates, q.tolist())), "disturbance_tau": float(tau[0]),
                 "method": self.describe(runs[0].dt)}
         return out, info
