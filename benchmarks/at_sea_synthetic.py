@@ -2,16 +2,18 @@
 
 Independent truths (:mod:`benchmarks.independent.autopilot_waves`, NumPy only): a first-order Nomoto ship (K 0.08 1/s,
 T 20 s, δ0 0.5°) steered by a PD autopilot with course changes, in a wave yaw disturbance of period 8 s (relative
-damping 0.08, sd 0.004 rad/s²) with a random phase per run; three runs × 600 s at 2 Hz per seed, heading and yaw-rate
+damping 0.08, sd 0.004 rad/s²) with a random phase per run; four runs × 600 s at 2 Hz per seed, heading and yaw-rate
 channels. Cases: ``waves`` (the autopilot in waves), ``calm`` (the same autopilot, no waves), ``open`` (waves,
-the rudder a pre-drawn sequence: no feedback). Per seed and case:
+the rudder a pre-drawn sequence: no feedback). Per seed and case (3 training runs, 1 held out):
 
-* output error (the default fit) and prediction error with the Ornstein–Uhlenbeck and the ``wave`` disturbance:
-  K, T1 with standard errors and their z against the truth;
-* the wave's fitted period and intensity against the truth;
-* the closed-loop test (:mod:`diffship.fit.feedback`) on the output-error fit's errors.
+* output error (the default fit) and prediction error with the Ornstein–Uhlenbeck disturbance: K, T1 with
+  standard errors and their z against the truth; the closed-loop test (:mod:`diffship.fit.feedback`) on the
+  output-error fit's errors;
+* the diagnosis (:func:`diffship.diagnose.diagnose`) with its sea-state check (:mod:`diffship.diagnose.sea_state`:
+  prediction error with the ``wave`` disturbance): whether it names the sea state, the wave's period, intensity
+  and share of the held-out one-sample error, its K, T1; and what it attributes deterministically.
 
-``python -m benchmarks at_sea_synthetic [--seeds 5] [--cases waves,calm,open]``; writes
+``python -m benchmarks at_sea_synthetic [--seeds 4] [--cases waves,calm,open]``; writes
 ``results/at_sea_synthetic.md`` and ``.csv``.
 """
 
@@ -32,57 +34,72 @@ CASES = {"waves": dict(), "calm": dict(waves=False), "open": dict(open_loop=True
 def _runs(seed: int, case: str):
     from diffship.data import Run
 
-    g = autopilot_runs(seed, **CASES[case])
-    return [Run(x["name"], x["time"], x["channels"], {"source": "benchmarks.independent"}) for x in g], g[0]["truth"]
+    g = autopilot_runs(seed, n_runs=4, **CASES[case])
+    runs = [Run(x["name"], x["time"], x["channels"], {"source": "benchmarks.independent"}) for x in g]
+    return runs[:3], runs[3:], g[0]["truth"]
 
 
 def one(seed: int, case: str) -> list[dict]:
+    from diffship.diagnose import DiagnoseOptions, diagnose
     from diffship.fit import fit_output_error, fit_prediction_error
     from diffship.fit.feedback import loop_evidence
-    from diffship.fit.prediction_error import PredictionErrorOptions
     from diffship.metrics import evaluate
     from diffship.models import Nomoto1
 
-    runs, tv = _runs(seed, case)
+    train, val, tv = _runs(seed, case)
     ch = ("psi", "r")
     rows = []
-    fits = {"output error": lambda: fit_output_error(Nomoto1(), runs, channels=ch, throw=False)}
-    for kind in ("ou", "wave"):
-        fits[f"prediction error ({kind})"] = lambda kind=kind: fit_prediction_error(
-            Nomoto1(), runs, channels=ch, noise=PredictionErrorOptions(disturbance=kind), throw=False)
-    for label, f in fits.items():
-        t0 = time.perf_counter()
-        res = f()
-        row = dict(seed=seed, case=case, method=label, seconds=time.perf_counter() - t0, status=res.status)
+
+    def row(label, params, stderr, seconds, status, **extra):
+        r = dict(seed=seed, case=case, method=label, seconds=seconds, status=status, **extra)
         for n in ("K", "T1"):
-            se = res.stderr.get(n, np.nan)
-            row.update({n: res.params[n], f"se_{n}": se, f"z_{n}": (res.params[n] - tv[n]) / se})
-        if label == "output error":
-            ev = evaluate(res.model, runs, channels=ch, fitted=res.channels, scales=res.channel_scales)
-            loop = loop_evidence(res.model, runs, ev.simulated, ch)
-            row.update(closed_loop=loop["closed"], loop_r2=max(t["partial_r2"] for t in loop["tests"]))
-        if "wave" in label:
-            row.update(wave_period=res.info.get("wave_period"), wave_damping=res.info.get("wave_damping"),
-                       wave_sd=res.info.get("process_sd", {}).get("r"))
-        rows.append(row)
-        print(f"seed {seed} {case:5s} {label:26s} K {row['K']:.4f} (z {row['z_K']:+.1f})  T1 {row['T1']:.2f} "
-              f"(z {row['z_T1']:+.1f})  {row['seconds']:.0f} s", flush=True)
+            r.update({n: params[n], f"se_{n}": stderr[n], f"z_{n}": (params[n] - tv[n]) / stderr[n]})
+        rows.append(r)
+        print(f"seed {seed} {case:5s} {label:34s} K {r['K']:.4f} (z {r['z_K']:+.1f})  T1 {r['T1']:.2f} "
+              f"(z {r['z_T1']:+.1f})  {seconds:.0f} s {extra}", flush=True)
+
+    t0 = time.perf_counter()
+    oe = fit_output_error(Nomoto1(), train, channels=ch, throw=False)
+    ev = evaluate(oe.model, train, channels=ch, fitted=oe.channels, scales=oe.channel_scales)
+    loop = loop_evidence(oe.model, train, ev.simulated, ch)
+    row("output error", oe.params, oe.stderr, time.perf_counter() - t0, oe.status, usable=bool(oe.usable),
+        closed_loop=loop["closed"], loop_r2=max(t["partial_r2"] for t in loop["tests"]))
+    t0 = time.perf_counter()
+    pe = fit_prediction_error(Nomoto1(), train, channels=ch, throw=False)
+    row("prediction error (ou)", pe.params, pe.stderr, time.perf_counter() - t0, pe.status, usable=bool(pe.usable))
+    t0 = time.perf_counter()
+    d = diagnose(Nomoto1(), train, val, options=DiagnoseOptions(channels=ch, sea_state="always"))
+    s = d.sea_state
+    row("diagnosis: sea state (prediction error, wave)", {n: v[0] for n, v in s.K_T.items()},
+        {n: v[1] for n, v in s.K_T.items()}, time.perf_counter() - t0, s.fit.status if s.fit else "",
+        sea_state=bool(s.found), wave_period=s.period_s, wave_damping=s.damping, wave_sd=s.intensity.get("r"),
+        share_r=s.share.get("r"), attributed="+".join(d.selected) or "none")
     return rows
 
 
 def write(df: pd.DataFrame, out: Path) -> None:
     df.to_csv(out / "at_sea_synthetic.csv", index=False)
     lines = ["# At sea, synthetic: autopilot in narrow-band waves", "",
-             "Command: `python -m benchmarks at_sea_synthetic` (module docstring: the truth, the cases). Truth K 0.08 1/s,"
-             " T1 20 s; wave period 8 s, sd 0.004 rad/s². z = (estimate − truth)/standard error.", "",
-             "| case | method | K (median) | max \\|z_K\\| | T1 (median) | max \\|z_T1\\| | loop closed | wave period "
-             "(median) | wave sd (median) | s per fit |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "Command: `python -m benchmarks at_sea_synthetic --seeds 4` (module docstring: the truth, the cases; 3 "
+             "training runs and 1 held out per seed). Truth K 0.08 1/s, T1 20 s; wave period 8 s, relative damping "
+             "0.08, sd 0.004 rad/s². z = (estimate − truth)/standard error. The diagnosis row is "
+             "`diagnose(Nomoto1(), train, val, options=DiagnoseOptions(sea_state=\"always\"))`: its sea-state check "
+             "(prediction error with the wave disturbance, judged by held-out one-sample prediction).", "",
+             "| case | method | K (median) | max \\|z_K\\| | T1 (median) | max \\|z_T1\\| | usable | loop closed | "
+             "sea state named | wave period (median) | wave sd (median) | share of the one-sample error | "
+             "deterministic attribution | s (median) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def col(g, name, fmt):
+        return fmt(g[name]) if name in g and g[name].notna().any() else ""
     for (case, method), g in df.groupby(["case", "method"], sort=False):
-        closed = f"{int(g['closed_loop'].sum())}/{len(g)}" if "closed_loop" in g and g["closed_loop"].notna().any() else ""
-        wp = f"{g['wave_period'].median():.2f} s" if "wave_period" in g and g["wave_period"].notna().any() else ""
-        ws = f"{g['wave_sd'].median():.4f}" if "wave" in method and "wave_sd" in g else ""
-        lines.append(f"| {case} | {method} | {g['K'].median():.4f} | {g['z_K'].abs().max():.1f} | {g['T1'].median():.2f} | "
-                     f"{g['z_T1'].abs().max():.1f} | {closed} | {wp} | {ws} | {g['seconds'].median():.0f} |")
+        lines.append(
+            f"| {case} | {method} | {g['K'].median():.4f} | {g['z_K'].abs().max():.1f} | {g['T1'].median():.2f} | "
+            f"{g['z_T1'].abs().max():.1f} | {col(g, 'usable', lambda x: f'{int(x.sum())}/{x.notna().sum()}')} | "
+            f"{col(g, 'closed_loop', lambda x: f'{int(x.sum())}/{x.notna().sum()}')} | "
+            f"{col(g, 'sea_state', lambda x: f'{int(x.sum())}/{x.notna().sum()}')} | "
+            f"{col(g, 'wave_period', lambda x: f'{x.median():.2f} s')} | {col(g, 'wave_sd', lambda x: f'{x.median():.4f}')} | "
+            f"{col(g, 'share_r', lambda x: f'{100 * x.median():.0f} %')} | "
+            f"{col(g, 'attributed', lambda x: ', '.join(sorted(set(x.dropna()))))} | {g['seconds'].median():.0f} |")
     (out / "at_sea_synthetic.md").write_text("\n".join(lines) + "\n")
 
 

@@ -53,7 +53,8 @@ def check_rudder_sign(runs, declared: str) -> None:
             "the heading turns against the rudder: " + "; ".join(bad) + f". The files were read with "
             f"--rudder-sign {declared}; if positive delta turns these ships the other way, pass --rudder-sign {other}; "
             "if the heading is counter-clockwise (ROS ENU/FLU: psi, r, v, y0 negated), convert it to clockwise from "
-            "north (NED) before loading (or --skip-sign-check if the record really does this)")
+            "north (NED) before loading (or --skip-sign-check if the record really does this, e.g. an autopilot "
+            "steering against waves: its first order need not turn the ship)")
 
 
 def check_yaw_direction(runs: Sequence[Run], rudder_sign: str = "starboard") -> None:

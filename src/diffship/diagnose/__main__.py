@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--effects", default="all", help="all, or a comma-separated list of effect names")
     p.add_argument("--refit-all", action="store_true",
                    help="refit every candidate, not only the screen's best (also when the first one closed the gap alone)")
+    p.add_argument("--sea-state", choices=("auto", "always", "never"), default="auto",
+                   help="check for a stochastic narrow-band disturbance (waves of random phase) by prediction from "
+                        "the Kalman filter: when the loop is closed or the residuals are periodic (auto), always, never")
     p.add_argument("--correct-data", action="store_true",
                    help="take the data checks' findings (a heading bias against the track and u, v; the time the "
                         "motion follows the logged rudder) out of the logs before the base fit; they are reported "
@@ -167,7 +170,8 @@ def _diagnose(args, say):
     if args.prior_file:
         priors = load_priors(args.prior_file).merged(priors)
     options = DiagnoseOptions(effects=effects, refit_all=args.refit_all, channels=chans,
-                              greedy_steps=args.greedy_steps, correct_data=args.correct_data)
+                              greedy_steps=args.greedy_steps, correct_data=args.correct_data,
+                              sea_state=args.sea_state)
     checked = None
     if args.correct_data:  # as diagnose(correct_data=True), before this command's own base fit
         checked = data_checks(train, val, min_fall=options.min_gain)

@@ -48,6 +48,7 @@ from .verdict import RankedEffect, in_base, in_base_line, rank, verdict_lines
 from .consistency import DataFinding, corrected, correction_note, data_checks, in_data_line
 from .floors import physical_position_floor
 from .periodic import training_period
+from .sea_state import SeaState, sea_state
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
 
@@ -89,7 +90,8 @@ class Diagnosis:
     attribute one); ``in_data`` the data-consistency checks (:mod:`.consistency`: the heading
     against the track and over-ground u, v; the yaw rate against the heading; the time the motion
     follows the logged rudder), each with its estimate, interval and whether it is a finding
-    (then a verdict line "In the data").
+    (then a verdict line "In the data"); ``sea_state`` the check for a stochastic narrow-band disturbance
+    (:mod:`.sea_state`; a verdict line "Sea state"), ``None`` when it did not run.
     """
 
     model_name: str
@@ -125,6 +127,7 @@ class Diagnosis:
     in_base: dict = dataclasses.field(default_factory=dict)
     waiting: tuple[tuple[str, float], ...] = ()
     in_data: dict[str, DataFinding] = dataclasses.field(default_factory=dict)
+    sea_state: SeaState | None = None
 
     @property
     def gap_gate(self) -> float:
@@ -170,6 +173,7 @@ class Diagnosis:
             "time_variation": self.time_variation.to_dict() if self.time_variation else None,
             "in_base": self.in_base,
             "in_data": {k: f.to_dict() for k, f in self.in_data.items()},
+            "sea_state": self.sea_state.to_dict() if self.sea_state is not None else None,
             "timings_s": self.timings,
         }
 
@@ -361,10 +365,18 @@ def diagnose(
     # closed loop? an input that reacts to the base fit's errors (an autopilot) biases every output-error refit
     ev0 = evaluate(base, train, fit.initial_states if len(fit.initial_states) == len(train) else None, channels=chans,
                    integrator=fit.integrator)
-    if ev0.ok and (loop := loop_evidence(base, train, ev0.simulated, chans)) is not None and loop["closed"]:
+    loop = loop_evidence(base, train, ev0.simulated, chans) if ev0.ok else None
+    if loop is not None and loop["closed"]:
         notes.append(loop["text"])
         say(notes[-1])
     timings["period"] = time.perf_counter() - t0
+    # a sea state (waves of random phase: filtered, not simulated) is judged by prediction (:mod:`.sea_state`)
+    sea = None
+    if o.sea_state == "always" or (o.sea_state == "auto" and (period is not None or (loop or {}).get("closed"))):
+        t0 = time.perf_counter()
+        sea = sea_state(fit, train, val, chans, say)
+        say(sea.line())
+        timings["sea_state"] = time.perf_counter() - t0
 
     # -- which: screen -----------------------------------------------------------------------
     t0, c0 = time.perf_counter(), time.process_time()
@@ -466,6 +478,8 @@ def diagnose(
         lines = (*lines, line)
     if (line := in_data_line(in_data)) is not None:
         lines = (*lines, line)
+    if sea is not None:
+        lines = (*lines, sea.line(gap_unexplained=not sel.selected and before.E >= gate.value))
     return Diagnosis(
         model_name=model.name, channels=chans, noise_floor=floor, noise_estimate=noise_info, where=where, gap=gap, screen=tuple(scr),
         ranking=ranking, selected=sel.selected, path=sel.path,
@@ -479,5 +493,5 @@ def diagnose(
         start={"rule": start_rule.describe(), "bound_noise_floors": start_rule.bound,
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
-        notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting, in_data=in_data,
+        notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting, in_data=in_data, sea_state=sea,
     )

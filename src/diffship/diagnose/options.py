@@ -77,6 +77,10 @@ class DiagnoseOptions:
         tie_share: a passing candidate whose validation error is within this share of the
             winner's gain is a rival: refitted jointly with the winner to decide, else a tie.
 
+    Sea state (:mod:`.sea_state`):
+        sea_state: ``"auto"`` (default): check for a stochastic narrow-band disturbance when the loop is closed or
+            the training residuals have a periodic line; ``"always"``; ``"never"``.
+
     Data (:mod:`.consistency`):
         correct_data: take the data checks' findings (a heading bias, a rudder timing) out of
             the logs before the base fit; they are reported either way. A finding also needs the
@@ -106,6 +110,7 @@ class DiagnoseOptions:
     confusable_margin: float = 0.05
     tie_share: float = 0.1
     correct_data: bool = False
+    sea_state: str = "auto"
 
     def __post_init__(self):
         if self.effects != "all":
@@ -123,6 +128,8 @@ class DiagnoseOptions:
                             f"got {self.decided_share!r}")
         if not self.start_bound > 0:
             raise DataError(f"start_bound: a positive number of noise floors (or inf), got {self.start_bound!r}")
+        if self.sea_state not in ("auto", "always", "never"):
+            raise DataError(f"sea_state: 'auto', 'always' or 'never', got {self.sea_state!r}")
         if self.channels is not None:
             object.__setattr__(self, "channels", tuple(self.channels))
         if self.stall is not None:
