@@ -101,6 +101,10 @@ def main(argv=None) -> int:
         lines.append(f"| prediction error ({kind}) | {pm(pe, 'K')} | {pm(pe, 'T1')} | {pm(pe, 'delta0', deg)} | {what} | "
                      f"{evf.rmse['r'] * deg:.3f} °/s, {evf.fit_percent['r']:.1f} % | {cell(None)} | {cell(30.0)} |")
         lines += [f"|  | {pe.status}; " + "; ".join(m for m in pe.messages if "bound" in m) + " | | | | | | |"]
+    from diffship.diagnose.sea_state import sea_state
+
+    sea = sea_state(oe, [train], [val], ch)
+    lines += ["", f"The diagnosis's sea-state check (`diffship.diagnose.sea_state`, {sea.seconds:.0f} s): {sea.line()}"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "at_sea_hakusan.md").write_text("\n".join(lines) + "\n")

@@ -130,8 +130,9 @@ def loop_evidence(model, runs: Sequence, simulated: Mapping[str, Mapping[str, np
         return None
     closed = [t for t in tests if t.closed]
     if closed:
-        text = ("closed loop: " + "; ".join(t.line() for t in closed) + ". The input was computed from the measured "
-                "motion (an autopilot or a helmsman): ")
+        text = ("closed loop: " + "; ".join(t.line() for t in closed) + ". The input follows the motion (computed "
+                "from it by an autopilot, a helmsman or a zigzag's switching rule, or driven by it, as a propeller's "
+                "speed under load): ")
         text += ("prediction error stays consistent under feedback only with the right disturbance model (compare "
                  "--disturbance wave and ou)" if method == "prediction_error" else
                  "where the errors carry a disturbance (waves, gusts) and not only sensor noise, output error with this "
