@@ -42,6 +42,18 @@ def test_refined_period_is_within_a_twentieth_of_a_bin():
         assert T == pytest.approx(6.2, abs=0.06)
 
 
+def test_a_line_the_steering_shares_counts_only_when_the_steering_is_not_asked_and_it_repeats_enough():
+    """Under an autopilot the rudder answers a sea state at its period: ``steer=None`` keeps such a line; ``cycles``
+    keeps a manoeuvre's own few-per-run period out."""
+    runs, res, _ = _residual_runs(6.2, 0.8, 5, duration=120.0)
+    steer = {r.name: res[r.name]["r"] for r in runs}  # the steering shares the residual's line
+    assert periodic_residual(runs, res, steer, ["r"]) is None
+    assert periodic_residual(runs, res, None, ["r"], cycles=10.0)["period_s"] == pytest.approx(6.2, abs=0.4)
+    runs, res, _ = _residual_runs(30.0, 0.8, 6, duration=120.0)  # four cycles per run
+    assert periodic_residual(runs, res, None, ["r"]) is not None
+    assert periodic_residual(runs, res, None, ["r"], cycles=10.0) is None
+
+
 def test_white_residuals_give_no_period():
     hits = 0
     for seed in range(10):

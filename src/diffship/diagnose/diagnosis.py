@@ -47,7 +47,7 @@ from .variation import TimeVariation, time_variation
 from .verdict import RankedEffect, in_base, in_base_line, rank, verdict_lines
 from .consistency import DataFinding, corrected, correction_note, data_checks, in_data_line
 from .floors import physical_position_floor
-from .periodic import training_period
+from .periodic import periodic_residual, training_period
 from .sea_state import SeaState, sea_state
 from .where import GapBudget, GapGate, WhereAnalysis, gap_budget, noise_estimates, structural_gate, where_analysis
 from .which import Search, refit_order
@@ -260,6 +260,19 @@ def prefetch_workspace(model: AbstractModel, spec: ParamSpec, train, val, chans,
     return prefetch(reqs) if reqs else None
 
 
+def _sea_line(base, train, ev, chans, loop) -> bool:
+    """Closed loop and a periodic line in the base fit's training residuals that the steering may share (an autopilot
+    answering a sea state at its period), ten cycles or more in every run (a sea state repeats; a zigzag's own
+    period, which its rudder sets, comes a few times a run): the sea-state check's trigger beside an unsteered
+    periodic residual."""
+    if not (loop or {}).get("closed") or not ev.ok:
+        return False
+    res = {r.name: {c: (lambda d: np.arctan2(np.sin(d), np.cos(d)) if c in base.angle_outputs else d)(
+        np.asarray(ev.simulated[r.name][c]) - np.asarray(r[c], float)) for c in chans if r.has(c)} for r in train}
+    return periodic_residual(train, res, None, [c for c in chans if all(r.has(c) for r in train)], cycles=10.0) \
+        is not None
+
+
 def diagnose(
     model: AbstractModel,
     train: Sequence[Run],
@@ -372,7 +385,7 @@ def diagnose(
     timings["period"] = time.perf_counter() - t0
     # a sea state (waves of random phase: filtered, not simulated) is judged by prediction (:mod:`.sea_state`)
     sea = None
-    if o.sea_state == "always" or (o.sea_state == "auto" and (period is not None or (loop or {}).get("closed"))):
+    if o.sea_state == "always" or (o.sea_state == "auto" and (period is not None or _sea_line(base, train, ev0, chans, loop))):
         t0 = time.perf_counter()
         sea = sea_state(fit, train, val, chans, say)
         say(sea.line())

@@ -78,8 +78,9 @@ class DiagnoseOptions:
             winner's gain is a rival: refitted jointly with the winner to decide, else a tie.
 
     Sea state (:mod:`.sea_state`):
-        sea_state: ``"auto"`` (default): check for a stochastic narrow-band disturbance when the loop is closed or
-            the training residuals have a periodic line; ``"always"``; ``"never"``.
+        sea_state: ``"auto"`` (default): check for a stochastic narrow-band disturbance when the training residuals
+            have a periodic line the steering does not drive, or, with the loop closed, one it shares (an autopilot
+            answering the waves); ``"always"``; ``"never"``.
 
     Data (:mod:`.consistency`):
         correct_data: take the data checks' findings (a heading bias, a rudder timing) out of

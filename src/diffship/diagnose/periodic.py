@@ -46,11 +46,13 @@ def _periodogram(x: np.ndarray) -> np.ndarray:
     return p / s if s > 0 else p
 
 
-def periodic_residual(runs: Sequence, residuals: dict, steer: dict, channels: Sequence[str],
-                      p_max: float = 1e-3, min_period: float = 2.0) -> dict | None:
+def periodic_residual(runs: Sequence, residuals: dict, steer: dict | None, channels: Sequence[str],
+                      p_max: float = 1e-3, min_period: float = 2.0, cycles: float = 3.0) -> dict | None:
     """The most significant periodic residual not driven by the steering input, or None.
 
-    ``residuals``: run name → channel → residual array; ``steer``: run name → steering input.
+    ``residuals``: run name → channel → residual array; ``steer``: run name → steering input (``None``: a line
+    in the steering too is kept — under an autopilot the rudder answers a sea state at its period); ``cycles``: the
+    fewest periods in the shortest run.
     Returns ``{"period_s", "p_value", "channels"}``."""
     if not runs:
         return None
@@ -59,10 +61,10 @@ def periodic_residual(runs: Sequence, residuals: dict, steer: dict, channels: Se
         return None
     dt = float(np.median(np.diff(np.asarray(runs[0].time))))
     f = np.fft.rfftfreq(n, dt)[1:]
-    band = (f > 0) & (1.0 / np.maximum(f, 1e-300) >= min_period) & (1.0 / np.maximum(f, 1e-300) <= n * dt / 3.0)
+    band = (f > 0) & (1.0 / np.maximum(f, 1e-300) >= min_period) & (1.0 / np.maximum(f, 1e-300) <= n * dt / cycles)
     if not np.any(band):
         return None
-    P_in = np.mean([_periodogram(np.asarray(steer[r.name])[:n]) for r in runs], axis=0)
+    P_in = np.mean([_periodogram(np.asarray(steer[r.name])[:n]) for r in runs], axis=0) if steer else None
     best = None
     hits = []
     for c in channels:
@@ -72,7 +74,7 @@ def periodic_residual(runs: Sequence, residuals: dict, steer: dict, channels: Se
         g = float(Pb[k] / max(P.sum(), 1e-300))
         m = P.size
         p = float(min(1.0, m * (1.0 - g) ** (m - 1)))
-        driven = P_in[max(k - 1, 0):k + 2].max() > 10.0 / P_in.size  # a clear line of the input spectrum
+        driven = P_in is not None and P_in[max(k - 1, 0):k + 2].max() > 10.0 / P_in.size  # a line of the input
         if p < p_max and not driven:
             hits.append((c, float(1.0 / f[k]), p))
     if not hits:

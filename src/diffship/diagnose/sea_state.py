@@ -20,8 +20,9 @@ is narrow-band (its damping not on its bound: a broad disturbance at the bound i
 then says "a sea state the model cannot predict, only filter", with its period, damping and intensity — beside,
 not instead of, the deterministic verdict.
 
-It runs when the loop is closed (:mod:`diffship.fit.feedback`) or the base fit's training residuals have a
-periodic line (:mod:`.periodic`), or always with ``DiagnoseOptions(sea_state="always")``.
+It runs when the base fit's training residuals have a periodic line the steering does not drive (:mod:`.periodic`)
+or, with the loop closed (:mod:`diffship.fit.feedback`), one the steering shares that repeats at least ten times a
+run (a zigzag's own period, set by its rudder, does not), or always with ``DiagnoseOptions(sea_state="always")``.
 """
 
 from __future__ import annotations
