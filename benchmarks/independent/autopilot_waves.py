@@ -33,7 +33,7 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["WaveShip", "autopilot_runs", "NOISE"]
+__all__ = ["WaveShip", "autopilot_runs", "NOISE", "WaveUSV", "usv_autopilot_runs", "USV_NOISE"]
 
 DEG = np.pi / 180.0
 
@@ -130,4 +130,85 @@ def autopilot_runs(seed: int = 0, n_runs: int = 3, duration: float = 600.0, dt: 
         rec = _run(ship, rng, duration, dt, substeps, waves, seq)
         kind = ("waves" if waves else "calm") + ("_open" if open_loop else "_autopilot")
         out.append({"name": f"{kind}_{i}_s{seed}", **rec, "truth": ship.params()})
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class WaveUSV:
+    """The 3-DOF water-jet USV of :class:`.vessels.USV` under a PD heading autopilot on its yaw moment, in a wave
+    of narrow-band sway and yaw accelerations (independent resonators of one period and damping)."""
+
+    wave_period: float = 6.0
+    wave_damping: float = 0.08
+    wave_sd_v: float = 0.03   # m/s², stationary sd of the sway acceleration
+    wave_sd_r: float = 0.01   # rad/s², of the yaw acceleration
+    Kp: float = 2800.0        # N m per rad of heading error
+    Kd: float = 10000.0       # N m per rad/s of yaw rate
+    max_moment: float = 1500.0  # N m
+    moment_rate: float = 1000.0  # N m/s, the jets' slew
+    thrust: float = 1330.0    # N (2 m/s steady)
+
+
+#: Sensor noise of the USV runs (GNSS position and velocity, compass, rate gyro).
+USV_NOISE = {"x0": 0.5, "y0": 0.5, "psi": 0.2 * DEG, "u": 0.05, "v": 0.05, "r": 0.1 * DEG}
+
+
+def usv_autopilot_runs(seed: int = 0, n_runs: int = 4, duration: float = 300.0, dt: float = 0.2, substeps: int = 4,
+                       waves: bool = True, cfg: WaveUSV | None = None) -> list[dict]:
+    """``n_runs`` autopilot runs of the USV (course changes of ±20–30° every 60–120 s) logged every ``dt`` s, with
+    ``USV_NOISE`` on every sample; channels x0, y0, psi, u, v, r and the inputs tau_x, tau_y, tau_z."""
+    from .vessels import USV
+
+    cfg, usv = cfg or WaveUSV(), USV()
+    rng = np.random.default_rng(9300 + seed)
+    w = 2.0 * np.pi / cfg.wave_period
+    sds = np.array([cfg.wave_sd_v, cfg.wave_sd_r]) if waves else np.zeros(2)
+    gain = np.sqrt(4.0 * cfg.wave_damping * w ** 3) * sds
+    no_force = lambda t, psi, nu: np.zeros(3)  # noqa: E731
+    still = lambda t: (np.zeros(2), np.zeros(2))  # noqa: E731
+    out = []
+    for i in range(n_runs):
+        n = int(round(duration / dt)) + 1
+        t = np.arange(n) * dt
+        x = np.array([0.0, 0.0, rng.uniform(-np.pi, np.pi), 2.0, 0.0, 0.0])
+        d = np.concatenate([sds * rng.standard_normal(2), w * sds * rng.standard_normal(2)])  # (d_v, d_r, ḋ_v, ḋ_r)
+        ref, nxt, tz = x[2], rng.uniform(30.0, 60.0), 0.0
+        noise = {c: s * rng.standard_normal(n) for c, s in USV_NOISE.items()}
+        X, TZ = np.zeros((n, 6)), np.zeros(n)
+        h = dt / substeps
+        for k in range(n):
+            X[k], TZ[k] = x, tz
+            if k == n - 1:
+                break
+            if t[k] >= nxt:
+                ref += rng.choice([-1.0, 1.0]) * rng.uniform(20.0, 30.0) * DEG
+                nxt += rng.uniform(60.0, 120.0)
+            err = np.angle(np.exp(1j * (x[2] + noise["psi"][k] - ref)))
+            order = float(np.clip(-cfg.Kp * err - cfg.Kd * (x[5] + noise["r"][k]), -cfg.max_moment, cfg.max_moment))
+            tz1 = tz + float(np.clip(order - tz, -cfg.moment_rate * dt, cfg.moment_rate * dt))
+
+            def f(s, xx, dd):
+                tau = np.array([cfg.thrust, 0.0, tz + (tz1 - tz) * s / dt])
+                rate = usv.rhs(t[k] + s, xx, tau, no_force, still)
+                rate[4:6] += dd[:2]
+                return rate, np.concatenate([dd[2:], -2.0 * cfg.wave_damping * w * dd[2:] - w * w * dd[:2]])
+            s = 0.0
+            for _ in range(substeps):  # RK4 on the ship and the resonators, Euler–Maruyama on the white forcing
+                k1 = f(s, x, d)
+                k2 = f(s + h / 2, x + h / 2 * k1[0], d + h / 2 * k1[1])
+                k3 = f(s + h / 2, x + h / 2 * k2[0], d + h / 2 * k2[1])
+                k4 = f(s + h, x + h * k3[0], d + h * k3[1])
+                x = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+                d = d + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+                d[2:] += gain * np.sqrt(h) * rng.standard_normal(2)
+                s += h
+            tz = tz1
+        names = ("x0", "y0", "psi", "u", "v", "r")
+        chans = {c: X[:, j] + noise[c] for j, c in enumerate(names)}
+        chans.update(tau_x=np.full(n, cfg.thrust), tau_y=np.zeros(n), tau_z=TZ)
+        out.append({"name": f"usv_{'waves' if waves else 'calm'}_autopilot_{i}_s{seed}", "time": t, "channels": chans,
+                    "clean": {c: X[:, j] for j, c in enumerate(names)},
+                    "truth": {**{k: float(getattr(usv, k)) for k in ("m", "Iz", "Xudot", "Yvdot", "Nrdot", "Xu", "Yv",
+                                                                     "Nv", "Nr", "Xuu", "Yvv", "Nrr")},
+                              "wave_period": cfg.wave_period, "wave_sd_v": cfg.wave_sd_v, "wave_sd_r": cfg.wave_sd_r}})
     return out

@@ -21,7 +21,7 @@ OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "waiting", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "base_starts", "final_params",
-             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "in_data", "timings_s"]
+             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "in_data", "sea_state", "timings_s"]
 
 
 def _runs(truth, seed):
