@@ -23,7 +23,7 @@ CH = ("psi", "r")
 
 
 def _runs(waves: bool):
-    g = autopilot_runs(1, n_runs=3, duration=500.0, waves=waves)
+    g = autopilot_runs(1, n_runs=3, duration=300.0, waves=waves)
     runs = [Run(x["name"], x["time"], x["channels"], {"source": "independent"}) for x in g]
     return runs[:2], runs[2:], g[0]["truth"]
 
