@@ -71,7 +71,7 @@ def main(argv=None) -> int:
     oe = fit_output_error(Nomoto1(), [train], channels=ch, throw=False)
     ev = {k: evaluate(oe.model, [x], channels=ch, fitted=oe.channels, scales=oe.channel_scales)
           for k, x in (("training", train), ("held-out", val))}
-    loop = loop_evidence(oe.model, [train], ev["training"].simulated, ch)
+    loop = loop_evidence(oe.model, [train], ev["training"], ch)
     deg = 180.0 / np.pi
     lines = ["# At sea, real: HAKUSAN (a ship crossing the Pacific, 1 Hz)", "",
              f"Command: `python -m benchmarks at_sea_hakusan --data HAKUSAN.txt.gz` (module docstring: source, licence,"

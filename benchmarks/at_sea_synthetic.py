@@ -61,7 +61,7 @@ def one(seed: int, case: str) -> list[dict]:
     t0 = time.perf_counter()
     oe = fit_output_error(Nomoto1(), train, channels=ch, throw=False)
     ev = evaluate(oe.model, train, channels=ch, fitted=oe.channels, scales=oe.channel_scales)
-    loop = loop_evidence(oe.model, train, ev.simulated, ch)
+    loop = loop_evidence(oe.model, train, ev, ch)
     row("output error", oe.params, oe.stderr, time.perf_counter() - t0, oe.status, usable=bool(oe.usable),
         closed_loop=loop["closed"], loop_r2=max(t["partial_r2"] for t in loop["tests"]))
     t0 = time.perf_counter()
@@ -100,7 +100,7 @@ def usv_one(seed: int) -> dict:
              throw=False)
     t_oe = time.perf_counter() - t0
     ev = evaluate(oe.model, train, channels=ch, fitted=oe.channels, scales=oe.channel_scales)
-    loop = loop_evidence(oe.model, train, ev.simulated, ch)
+    loop = loop_evidence(oe.model, train, ev, ch)
     s = sea_state(oe, train, val, ch)
 
     def err(vals):

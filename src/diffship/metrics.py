@@ -63,6 +63,12 @@ class Evaluation:
     ok: bool
     horizon: str = "whole-run simulation from the initial state"
 
+    def errors(self, runs: Sequence[Run], channels: Sequence[str], angles: Sequence[str] = ()) -> dict:
+        """``{run: {channel: simulated − measured}}`` (angles wrapped to (−π, π]) on the ``channels`` every run logs."""
+        chans = [c for c in channels if all(r.has(c) and c in self.simulated[r.name] for r in runs)]
+        return {r.name: {c: _err(c, np.asarray(r[c], dtype=float), np.asarray(self.simulated[r.name][c]), angles)
+                         for c in chans} for r in runs}
+
 
 #: Channels that are not part of the initial-state estimate unless a fit fitted them (positions).
 NOT_ESTIMATED_BY_DEFAULT = ("x0", "y0")
@@ -122,32 +128,38 @@ def evaluate(
     model is judged as it was fitted.
     """
 
-    pooled_e: dict[str, list] = {}
-    pooled_y: dict[str, list] = {}
-    per_run, simulated = {}, {}
-    all_ok = True
-    chans_all = set()
+    simulated, ok = {}, {}
     starts = list(x0) if x0 is not None else _starts(model, runs, flt, integrator, fitted, scales)
     for i, run in enumerate(runs):
-        xi = np.asarray(starts[i])
-        sol = simulate_run(model, run, xi, integrator)
-        ok = bool(sol.ok)
-        all_ok &= ok
+        sol = simulate_run(model, run, np.asarray(starts[i]), integrator)
+        ok[run.name] = bool(sol.ok)
         ys = np.asarray(sol.ys)
-        chans = [c for c in (channels or model.output_names) if c in model.output_names and run.has(c)]
-        chans_all.update(chans)
         simulated[run.name] = {c: ys[:, model.output_names.index(c)] for c in model.output_names}
+    wanted = channels or model.output_names
+    return compare(runs, simulated, [c for c in model.output_names if c in wanted], model.angle_outputs, ok)
+
+
+def compare(runs: Sequence[Run], simulated: Mapping[str, Mapping[str, np.ndarray]], channels: Sequence[str],
+            angles: Sequence[str], ok: Mapping[str, bool], skip: int = 0,
+            horizon: str = "whole-run simulation from the initial state") -> Evaluation:
+    """Metrics of ``simulated`` (``{run: {channel: array}}``) against the runs' measurements on ``channels`` (those
+    each run logs and ``simulated`` holds), from sample ``skip`` on; ``ok``: whether each run's model output is
+    valid. :func:`evaluate` and the k-step-ahead predictions (:mod:`diffship.fit.ahead`) are scored by it."""
+    pooled_e: dict[str, list] = {}
+    pooled_y: dict[str, list] = {}
+    per_run = {}
+    for run in runs:
+        chans = [c for c in channels if c in simulated[run.name] and run.has(c)]
         rr, ff = {}, {}
         for c in chans:
-            y = np.asarray(run[c])
-            yh = simulated[run.name][c]
-            e = _err(c, y, yh, model.angle_outputs)
-            yv = np.unwrap(y) if c in model.angle_outputs else y
+            y = np.asarray(run[c], dtype=float)[skip:]
+            e = _err(c, y, np.asarray(simulated[run.name][c])[skip:], angles)
+            yv = np.unwrap(y) if c in angles else y
             rr[c], ff[c] = rmse(e), nrmse_fit(yv, e)
             pooled_e.setdefault(c, []).append(e)
             pooled_y.setdefault(c, []).append(yv - np.mean(yv))
-        per_run[run.name] = {"rmse": rr, "fit_percent": ff, "ok": ok}
-    order = tuple(c for c in model.output_names if c in chans_all)
+        per_run[run.name] = {"rmse": rr, "fit_percent": ff, "ok": bool(ok[run.name])}
+    order = tuple(c for c in channels if c in pooled_e)
     r_all = {c: rmse(np.concatenate(pooled_e[c])) for c in order}
     f_all = {c: nrmse_fit(np.concatenate(pooled_y[c]), np.concatenate(pooled_e[c])) for c in order}
-    return Evaluation(order, r_all, f_all, per_run, simulated, all_ok)
+    return Evaluation(order, r_all, f_all, per_run, dict(simulated), all(ok[r.name] for r in runs), horizon=horizon)

@@ -38,7 +38,7 @@ def sea():
 def test_output_error_on_autopilot_data_says_the_loop_is_closed(sea):
     train, _, _, oe, _ = sea
     ev = evaluate(oe.model, train, channels=CH, fitted=oe.channels, scales=oe.channel_scales)
-    loop = loop_evidence(oe.model, train, ev.simulated, CH)
+    loop = loop_evidence(oe.model, train, ev, CH)
     assert loop["closed"] and "biased" in loop["text"]
     assert any(t["input"] == "delta" and t["closed"] for t in loop["tests"])
 

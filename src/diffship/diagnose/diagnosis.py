@@ -267,10 +267,8 @@ def _sea_line(base, train, ev, chans, loop) -> bool:
     periodic residual."""
     if not (loop or {}).get("closed") or not ev.ok:
         return False
-    res = {r.name: {c: (lambda d: np.arctan2(np.sin(d), np.cos(d)) if c in base.angle_outputs else d)(
-        np.asarray(ev.simulated[r.name][c]) - np.asarray(r[c], float)) for c in chans if r.has(c)} for r in train}
-    return periodic_residual(train, res, None, [c for c in chans if all(r.has(c) for r in train)], cycles=10.0) \
-        is not None
+    res = ev.errors(train, chans, base.angle_outputs)
+    return periodic_residual(train, res, None, list(res[train[0].name]), cycles=10.0) is not None
 
 
 def diagnose(
@@ -368,17 +366,17 @@ def diagnose(
         gate = GapGate(float(o.gap_gate), float("nan"), float("nan"), 0.0, "fixed (DiagnoseOptions.gap_gate)")
     scales = {c: max(fit.noise_std.get(c, floor[c]), floor[c]) for c in chans}
 
-    # the wave's period starts at the periodic residual of the base fit's training residuals (:mod:`.periodic`)
+    # the base fit's training simulation, once: the wave's start period from its periodic residual (:mod:`.periodic`)
+    # and the closed-loop test (an input that reacts to its errors, an autopilot, biases every output-error refit)
     t0 = time.perf_counter()
-    period = training_period(base, train, fit.initial_states, chans, fit.integrator, scales) \
+    ev0 = evaluate(base, train, fit.initial_states if len(fit.initial_states) == len(train) else None, channels=chans,
+                   integrator=fit.integrator)
+    period = training_period(base, train, fit.initial_states, chans, fit.integrator, scales, ev=ev0) \
         if "wave" in o.effect_names else None
     if period is not None:
         say(f"periodic training residual at {period['period_s']:.4g} s in {', '.join(period['channels'])}: "
             "the wave candidate starts there")
-    # closed loop? an input that reacts to the base fit's errors (an autopilot) biases every output-error refit
-    ev0 = evaluate(base, train, fit.initial_states if len(fit.initial_states) == len(train) else None, channels=chans,
-                   integrator=fit.integrator)
-    loop = loop_evidence(base, train, ev0.simulated, chans) if ev0.ok else None
+    loop = loop_evidence(base, train, ev0, chans) if ev0.ok else None
     if loop is not None and loop["closed"]:
         notes.append(loop["text"])
         say(notes[-1])

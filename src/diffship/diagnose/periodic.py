@@ -114,24 +114,20 @@ def refine_period(runs: Sequence, residuals: dict, channels: Sequence[str], peri
 
 
 def training_period(model, runs: Sequence, initial_states: Sequence, channels: Sequence[str],
-                    integrator=None, scales: dict | None = None, p_max: float = 1e-3) -> dict | None:
+                    integrator=None, scales: dict | None = None, p_max: float = 1e-3, ev=None) -> dict | None:
     """The periodic residual of ``model`` (a base fit) on its training ``runs`` from the fit's
-    ``initial_states``, with its period refined (:func:`refine_period`), or None.
+    ``initial_states`` (``ev``: that simulation's :class:`~diffship.metrics.Evaluation`, when the caller has it),
+    with its period refined (:func:`refine_period`), or None.
 
     Returns :func:`periodic_residual`'s dict plus ``"period_bin_s"`` (the Fourier-bin period)."""
-    kw = {} if integrator is None else {"integrator": integrator}
-    x0 = list(initial_states) if len(initial_states) == len(runs) else None
-    ev = evaluate(model, runs, x0, channels=channels, **kw)
+    if ev is None:
+        kw = {} if integrator is None else {"integrator": integrator}
+        x0 = list(initial_states) if len(initial_states) == len(runs) else None
+        ev = evaluate(model, runs, x0, channels=channels, **kw)
     if not ev.ok:
         return None
-    chans = [c for c in channels if c in ev.rmse]
-    res = {}
-    for run in runs:
-        e = {}
-        for c in chans:
-            d = ev.simulated[run.name][c] - np.asarray(run[c])
-            e[c] = np.arctan2(np.sin(d), np.cos(d)) if c in model.angle_outputs else d
-        res[run.name] = e
+    res = ev.errors(runs, [c for c in channels if c in ev.rmse], model.angle_outputs)
+    chans = list(res[runs[0].name]) if runs else []
     i = steering_inputs(model)[-1]  # the steering input (rudder, nozzle, or yaw moment), as :mod:`.where`
     steer = {r.name: np.asarray(r[model.input_names[i]], dtype=float) for r in runs}
     found = periodic_residual(runs, res, steer, chans, p_max=p_max)

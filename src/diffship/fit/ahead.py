@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
-from ..metrics import Evaluation, nrmse_fit, rmse
+from ..metrics import Evaluation, compare
 from .output_error import OutputErrorOptions
 from .prediction_error import PredictionErrorOptions, pe_problem
 from .result import FitResult
@@ -81,29 +81,15 @@ def ahead(result: FitResult, runs: Sequence[Run], seconds: float | None = 30.0,
 
     pred = np.asarray(jax.jit(jax.vmap(one))(data.ts, data.us, fp.xf))  # (R, N, n_c): ŷ[k+H | k] at row k
     what = "one-sample" if seconds is None else f"{H * dt:g}-s"
-    horizon = f"{what}-ahead prediction from the Kalman filter's state, {'with' if disturbance else 'without'} the disturbance"
-    pooled_e, pooled_y, per_run, simulated = {}, {}, {}, {}
-    angles = model.angle_outputs
-    for i, run in enumerate(runs):
-        n = run.n
-        sim, rr, ff = {}, {}, {}
-        for j, c in enumerate(batch.channels):
-            y = np.asarray(run[c], float)
-            yh = np.full(n, math.nan)
-            yh[H:] = pred[i, : n - H, j]
-            sim[c] = yh
-            e = yh[H:] - y[H:]
-            e = np.arctan2(np.sin(e), np.cos(e)) if c in angles else e
-            yv = np.unwrap(y[H:]) if c in angles else y[H:]
-            rr[c], ff[c] = rmse(e), nrmse_fit(yv, e)
-            pooled_e.setdefault(c, []).append(e)
-            pooled_y.setdefault(c, []).append(yv - np.mean(yv))
-        simulated[run.name] = sim
-        per_run[run.name] = {"rmse": rr, "fit_percent": ff, "ok": bool(np.all(np.isfinite(pred[i, : n - H])))}
-    order = tuple(batch.channels)
-    return Evaluation(order, {c: rmse(np.concatenate(pooled_e[c])) for c in order},
-                      {c: nrmse_fit(np.concatenate(pooled_y[c]), np.concatenate(pooled_e[c])) for c in order},
-                      per_run, simulated, all(p["ok"] for p in per_run.values()), horizon=horizon)
+    simulated, ok = {}, {}
+    for i, run in enumerate(runs):  # ŷ[k] predicted from k − H; the first H samples have no prediction
+        yh = np.full((run.n, len(batch.channels)), math.nan)
+        yh[H:] = pred[i, : run.n - H]
+        simulated[run.name] = {c: yh[:, j] for j, c in enumerate(batch.channels)}
+        ok[run.name] = bool(np.all(np.isfinite(pred[i, : run.n - H])))
+    return compare(runs, simulated, batch.channels, model.angle_outputs, ok, skip=H,
+                   horizon=f"{what}-ahead prediction from the Kalman filter's state, "
+                           f"{'with' if disturbance else 'without'} the disturbance")
 
 
 def ahead_table(result: FitResult, train: Sequence[Run], val: Sequence[Run] = (),

@@ -288,7 +288,7 @@ def _fit(args, say) -> int:
         text, per_method["prediction_error"]["ahead"], _ = ahead_table(pe, train, held)
         tail += "\n\n" + text
     for m, r in results.items():  # does an input react to the model's errors (an autopilot)? said for every fit
-        if (loop := ev_train.get(m) and loop_evidence(r.model, train, ev_train[m].simulated, r.channels, m)) is not None:
+        if m in ev_train and (loop := loop_evidence(r.model, train, ev_train[m], r.channels, m)) is not None:
             tail += f"\n\n{m.replace('_', ' ')}: {loop['text']}"
             per_method[m]["feedback"] = loop
     if notes:

@@ -20,7 +20,7 @@ states and estimated with the noise levels (the *hyper-parameters*, :data:`HYPER
   A sinusoid of fixed phase cannot carry a wave from one run to another (its phase is random per run); the
   resonator can, because the filter re-estimates its phase from the measurements as it goes.
 * ``"walk"`` — a random walk (a current or drift force that wanders without returning), :math:`\dot w = q\,\xi(t)`,
-  :math:`q` in [unit/s per √s]; it starts at zero with the variance of ``walk_start`` times :math:`q^2`·1 s.
+  :math:`q` in [unit/s per √s]; it starts at zero with the variance it gathers in one second, :math:`q^2`·1 s.
 
 Extra filter states are laid out as ``(w_1 … w_nq)`` then, for the wave, ``(ẇ_1 … ẇ_nq)``: ``w_i`` is always the
 force added to state ``i``'s rate (:mod:`diffship.fit.smoother` reports it as ``w_<state>``).

@@ -110,19 +110,15 @@ def feedback_test(inputs: Mapping[str, Sequence[np.ndarray]], residuals: Mapping
     return out
 
 
-def loop_evidence(model, runs: Sequence, simulated: Mapping[str, Mapping[str, np.ndarray]],
-                  channels: Sequence[str], method: str = "output_error") -> dict | None:
+def loop_evidence(model, runs: Sequence, ev, channels: Sequence[str], method: str = "output_error") -> dict | None:
     """The tests of every logged, moving input of ``model`` against the whole-run simulation errors of ``channels``
-    (``simulated``: ``{run: {channel: array}}``, :class:`~diffship.metrics.Evaluation`), as the fit and diagnosis
-    reports give them: ``{"closed", "tests", "text"}``; ``None`` without a usable pair."""
-    runs = [r for r in runs if r.name in simulated and r.n >= 20]
+    (``ev``: the model's :class:`~diffship.metrics.Evaluation` on ``runs``), as the fit and diagnosis reports give
+    them: ``{"closed", "tests", "text"}``; ``None`` without a usable pair."""
+    runs = [r for r in runs if r.name in ev.simulated and r.n >= 20]
     if not runs:
         return None
-    res = {}
-    for c in channels:
-        if all(c in simulated[r.name] and r.has(c) for r in runs):
-            d = [np.asarray(simulated[r.name][c]) - np.asarray(r[c], float) for r in runs]
-            res[c] = [np.arctan2(np.sin(x), np.cos(x)) if c in model.angle_outputs else x for x in d]
+    err = ev.errors(runs, channels, model.angle_outputs)
+    res = {c: [err[r.name][c] for r in runs] for c in err[runs[0].name]}
     ins = {u: [np.asarray(r[u], float) for r in runs] for u in model.input_names if all(r.has(u) for r in runs)}
     dt = float(np.median(np.concatenate([np.diff(np.asarray(r.time, float)) for r in runs])))
     tests = feedback_test(ins, res, dt)
