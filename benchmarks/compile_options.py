@@ -68,7 +68,7 @@ def workspace_case():
     base = Fossen3().with_params(usv_truth().param_values())
     spec = Fossen3().spec().with_values(usv_truth().param_values())
     chans = diagnosis_channels(base, runs)
-    names = ["current", "input_delay", "actuator_lag", "rate_limit", "rudder_offset", "heading_bias", "damping_vv",
+    names = ["current", "input_delay", "actuator_lag", "rate_limit", "constant_force", "heading_bias", "damping_vv",
              "damping_rr", "damping_vr", "damping_rv", "speed_dependence"]
     effs, _ = library(base, runs, names)
     ws = Workspace(base, spec, effs, runs, chans, {c: 1.0 for c in chans}, max_iter=60, stall=(10, 1e-3))

@@ -75,7 +75,9 @@ def _discover(truth, rr, say):
             "seconds": d.seconds, "possible": list(d.possible),
             "values": {t: float(d.selected.result.params[t]) for t in sel},
             "oe_path": list(d.oe_screen.path) if d.oe_screen else [],
-            "ranking": [(" + ".join(c.terms) or "(base)", c.criteria[d.criterion], c.held_out) for c in d.candidates]}
+            "ranking": [(" + ".join(c.terms) or "(base)", c.criteria[d.criterion], c.held_out) for c in d.candidates],
+            "equivalent": [" + ".join(c.terms) or "(base)" for c in d.equivalent],
+            "separation": d.separation.text() if d.separation is not None else ""}
 
 
 def _peers(truth, rr, avail, say):
@@ -156,7 +158,9 @@ def _write(out: Path, results: list[dict], avail: dict, duration: float, argv: l
         if d:
             L.append(f"* {res['truth'].name}: path {', '.join(d['oe_path']) or '–'}; possible "
                      f"{', '.join(d['possible']) or '–'}; ranking " + "; ".join(
-                         f"{s} ({b:.0f}, {h:.3f})" for s, b, h in d["ranking"]))
+                         f"{s} ({b:.0f}, {h:.3f})" for s, b, h in d["ranking"])
+                     + (f"; equivalent (BIC within 2 of the selected): {'; '.join(d['equivalent'])}, told apart by "
+                        f"{d['separation'] or '–'}" if d.get("equivalent") else ""))
     L += ["", "## Peers on the same runs", ""]
     L += [f"* {v}" for v in avail.values() if v]
     L += ["| truth | method | true terms: found as | terms beyond fossen3's regressors | held-out ψ RMSE / floor "

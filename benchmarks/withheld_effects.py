@@ -139,7 +139,7 @@ def fossen3_scenarios():
     for s in (1,):
         S += [
             ("fossen3", "in", ("current",), lambda: augment(ub, "current", Vcx=0.15, Vcy=-0.1), {"Vcx": 0.15, "Vcy": -0.1}, s, {}),
-            ("fossen3", "in", ("rudder_offset",), lambda: augment(ub, "rudder_offset", Y0=60.0, N0=-300.0), {"Y0": 60.0, "N0": -300.0}, s, {}),
+            ("fossen3", "in", ("constant_force",), lambda: augment(ub, "constant_force", Y0=60.0, N0=-300.0), {"Y0": 60.0, "N0": -300.0}, s, {}),
             ("fossen3", "in", ("damping_vv",), lambda: augment(ub, "damping_vv", Nvv=-6000.0), {"Nvv": -6000.0}, s, {}),
             ("fossen3", "in", ("actuator_lag",), lambda: None, {"T_act": 1.5}, s, {"lag_fossen": True}),
             ("fossen3", "none", (), lambda: ub, {}, s, {}),

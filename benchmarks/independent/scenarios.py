@@ -11,7 +11,9 @@ the ship gets 4 training and 2 validation zigzags (70 s) of different amplitudes
 is white Gaussian with this generator's own sensor levels (:data:`NOISE`).
 
 The ship's null truth has no rudder offset, and ``rudder_offset`` is one of the ship's in-family
-effects (an injected rudder-angle offset, :class:`~.effects.RudderOffset`); before 2026-11-25 the
+effects (an injected rudder-angle offset, :class:`~.effects.RudderOffset`; the USV's constant sway force and
+yaw moment, :class:`~.effects.ConstantForce`, is ``constant_force``, named ``rudder_offset`` before 2026-11-29,
+with the same data); before 2026-11-25 the
 truth ship carried a built-in offset in every scenario, so its nulls were not null under
 diffship's effect definitions (see :mod:`.vessels`).
 """
@@ -40,7 +42,7 @@ def _usv_effect(label: str, k: float) -> fx.Effect | None:
     return {
         "actuator_lag": lambda: fx.Lag(T=2.0 * k, channels=(1, 2)),
         "input_delay": lambda: fx.Delay(tau=1.6 * k, channels=(1, 2)),
-        "rudder_offset": lambda: fx.ConstantForce(Y0=40.0 * k, N0=-170.0 * k),
+        "constant_force": lambda: fx.ConstantForce(Y0=40.0 * k, N0=-170.0 * k),
         "heading_bias": lambda: fx.SensorBias(b=8.0 * DEG * k, channel="psi"),
         "current": lambda: fx.Current(V=0.4 * k, beta=2.2),
         "damping_vv": lambda: fx.Damping(Nvv=-250.0 * k),
@@ -80,12 +82,12 @@ def _ship_effect(label: str, k: float) -> fx.Effect | None:
 
 #: Library family of each truth label (out-of-family truths: the family a right answer names).
 FAMILY = {"actuator_lag": "actuator", "input_delay": "actuator", "rate_limit": "actuator",
-          "varying_lag": "actuator", "rudder_offset": "bias", "heading_bias": "sensor",
+          "varying_lag": "actuator", "rudder_offset": "bias", "constant_force": "bias", "heading_bias": "sensor",
           "current": "environment", "rotating_current": "environment", "ramped_current": "environment",
           "wave": "environment", "damping_vv": "damping", "damping_vr": "damping", "damping_rr": "damping",
           "cubic_damping": "damping", "none": "none"}
 
-IN_FAMILY = {"usv": ("actuator_lag", "input_delay", "rudder_offset", "heading_bias", "current", "damping_vv",
+IN_FAMILY = {"usv": ("actuator_lag", "input_delay", "constant_force", "heading_bias", "current", "damping_vv",
                      "damping_vr", "damping_rr"),
              "ship": ("actuator_lag", "input_delay", "rate_limit", "rudder_offset", "damping_rr")}
 OUT_OF_FAMILY = {"usv": ("rotating_current", "ramped_current", "varying_lag", "wave", "cubic_damping"),

@@ -89,7 +89,7 @@ def test_an_injected_wave_is_attributed_with_its_period():
     from diffship.models import Fossen3
 
     train, val = _independent_wave(1, drift=0.0)
-    d = diagnose(Fossen3(), train, val, options=DiagnoseOptions(effects=("wave", "current", "rudder_offset")))
+    d = diagnose(Fossen3(), train, val, options=DiagnoseOptions(effects=("wave", "current", "constant_force")))
     assert d.selected[:1] == ("wave",)
     row = next(r for r in d.ranking if r.effect == "wave")
     T, se = d.final_model.param_values()["T_w"], row.stderr["T_w"]

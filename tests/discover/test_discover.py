@@ -93,6 +93,14 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
     doc = json.loads(out.read_text())
     assert "N_v_ar" in doc["selected"]["terms"] and doc["selected"]["confirmed"]
     assert all(v["inclusion_probability"] >= 0.5 for v in doc["selected"]["terms"].values())
+    # equivalent explanations: every structure within the BIC margin of the selected is listed, with the probe
+    # that separates them
+    bic = {tuple(sorted(c["terms"])): c["bic"] for c in doc["candidates"]}
+    chosen = [c for c in doc["candidates"] if c["selected"]][0]
+    near = {k for k, v in bic.items() if k != tuple(sorted(chosen["terms"])) and abs(v - chosen["bic"]) < 2.0}
+    listed = {tuple(sorted(e["terms"])) for e in doc["selected"]["equivalent"]}
+    assert listed <= near and len(listed) == min(len(near), 3)
+    assert (doc["selected"]["separating_manoeuvre"] is None) == (not near)
     # --bootstrap: percentile intervals of the discovered model, the selected terms among them
     boot = doc["selected"]["bootstrap"]
     assert boot["n_converged"] >= 6

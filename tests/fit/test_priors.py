@@ -50,6 +50,22 @@ def test_reference_priors_only_on_the_reference_vessel():
     assert len(default_priors(Nomoto1(), Nomoto1().spec())[0]) == 0  # no reference set
 
 
+def test_a_model_with_an_effect_keeps_its_base_reference_priors():
+    """A fit with a candidate effect is regularised as the base fit is: the base's coefficients keep their
+    reference priors, the effect's parameters get none (they have no reference value)."""
+    from diffship.models.effects import augment
+
+    m = Fossen3()
+    base_pri, _ = default_priors(m, m.spec())
+    aug = augment(m, "current")
+    pri, why = default_priors(aug, aug.spec())
+    assert "on by default" in why
+    assert pri.by_name == base_pri.by_name
+    assert not {"Vcx", "Vcy"} & set(pri.by_name)
+    other = aug.spec().fix({"m": 2 * m.m})  # another vessel with a current: still no prior
+    assert len(default_priors(aug, other)[0]) == 0
+
+
 @pytest.mark.slow  # 20–30 s on 2 cores; tests/test_cli.py checks the undetermined Nomoto2 direction in the default run
 def test_unidentifiable_direction_is_named_and_a_prior_pins_it(usv_clean):
     # m, Xu̇ and Yv̇ enter the 3-DOF equations only as m − Xu̇ and m − Yv̇: the direction

@@ -44,7 +44,10 @@ def _sim(model, run):
 def test_every_fossen3_effect_is_exact_at_null_and_acts_at_probe(usv):
     base, run = usv
     effs, skipped = library(base, [run], starts={"wave": {"T_w": 6.0}})
-    assert [e.name for e in effs] == list(EFFECT_NAMES)  # wind is measured and the wave has a period: all apply
+    # wind is measured and the wave has a period: all apply but the rudder angle offset of a rudder-steered model
+    # (on a 3-DOF ship a constant sway force and yaw moment is constant_force)
+    assert [e.name for e in effs] == [n for n in EFFECT_NAMES if n != "rudder_offset"]
+    assert "constant_force" in skipped["rudder_offset"]
     ref = _sim(base, run)
     # all twelve composed in one model (one compilation): identical at null ...
     everything = Augmented(base, effs)
@@ -83,6 +86,22 @@ def test_nomoto_effects_exact_at_null(cls):
     assert float(jnp.max(jnp.abs(off.ys - ref.ys))) > 1e-3
 
 
+def test_a_constant_force_is_named_for_what_it_is():
+    """On a 3-DOF ship a constant sway force and yaw moment is ``constant_force``; ``rudder_offset`` is the rudder
+    angle offset of a rudder-steered model, which MMG carries as its own delta0."""
+    from diffship.models import MMG
+    from diffship.models.effects import applicability
+
+    for ship in (usv_truth(), MMG()):
+        assert applicability(ship, "constant_force") == ""
+        why = applicability(ship, "rudder_offset")
+        assert "3-DOF" in why and "delta0" in why and "constant_force" in why
+    assert "not a 3-DOF" in applicability(Nomoto1(), "constant_force")
+    assert applicability(Nomoto1(), "rudder_offset") == ""
+    m = augment(MMG(), "constant_force", Y0=3.0, N0=-7.0)
+    assert m.param_values()["Y0"] == 3.0 and "delta0" in m.param_names
+
+
 def test_current_shifts_ground_velocity_by_the_current():
     """In steady straight motion the measured (over-ground) velocity is ν_r + Rᵀ v_c."""
     base = usv_truth()
@@ -113,7 +132,7 @@ def test_changing_current_moves_the_ground_velocity_with_it():
 
 def test_parameters_and_bad_names():
     base = usv_truth()
-    m = augment(base, "rudder_offset", "actuator_lag", Y0=5.0, T_act=0.5)
+    m = augment(base, "constant_force", "actuator_lag", Y0=5.0, T_act=0.5)
     assert m.param_names[-3:] == ("T_act", "Y0", "N0") or set(m.param_names[-3:]) == {"T_act", "Y0", "N0"}
     assert m.param_values()["Y0"] == 5.0 and m.param_values()["T_act"] == 0.5
     assert m.with_params({"Y0": 7.0}).param_values()["Y0"] == 7.0

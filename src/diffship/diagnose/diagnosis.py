@@ -191,8 +191,8 @@ def diagnosis_channels(model: AbstractModel, runs: Sequence[Run]) -> tuple[str, 
 def own_twin(model: AbstractModel, effect: str) -> str | None:
     """The model's own parameter that *is* the library's candidate ``effect``
     (:meth:`~diffship.models.AbstractModel.effect_twins`: a Nomoto model's ``delta0`` is the
-    ``rudder_offset`` candidate, δ + δ_off), or ``None``. On 3-DOF ships the ``rudder_offset``
-    candidate is a sway force and yaw moment, another effect than their ``delta0``."""
+    ``rudder_offset`` candidate, δ + δ_off), or ``None``. On 3-DOF ships the candidate is ``constant_force``, a
+    sway force and yaw moment fixed to the hull: another effect than their ``delta0``."""
     par = model.effect_twins().get(effect)
     return None if par is None or is_ship3(model) else par
 
@@ -327,7 +327,7 @@ def diagnose(
     t0 = time.perf_counter()
     # a Nomoto model's own rudder offset delta0 would absorb the rudder_offset candidate (the same
     # rudder angle offset): the base fit holds it at 0 and the candidate is the offset
-    # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is a sway force and yaw moment
+    # (:mod:`..models.effects.actuator`); on 3-DOF models the candidate is constant_force, a sway force and yaw moment
     for name in o.effect_names:
         par = own_twin(model, name)
         if fit is None and par is not None and par in spec.free_names and not applicability(model, name, train):

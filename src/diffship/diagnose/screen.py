@@ -373,7 +373,7 @@ class Workspace:
             z_start, st = pair
             phi0 = base_phi.copy()
             for n in pn:
-                phi0[self.phi_names.index(n)] = st.get(n, self.owner[n].PROBE[n])
+                phi0[self.phi_names.index(n)] = st[n] if n in st else self.owner[n].PROBE[n]
             kd = self._kd(None, S, phi0)
             r_start = np.asarray(self.kernel.call("residuals", z_start, kd))
             if not np.all(np.isfinite(r_start)) or np.any(np.abs(r_start) >= PENALTY):

@@ -54,19 +54,17 @@ basin than its singles (:meth:`Search.joint_starts`). A greedy step starts the b
 previous step left them, so its nested start is that step's solution; a trial whose refit fails is
 said, never dropped silently.
 
-**Path.** The accepted candidate with the lowest validation error is selected; then up to
-``greedy_steps − 1`` further effects, each refitted jointly with those already in and judged
-against the previous step — while the validation error is still at or above the gap gate (under
-it no structural gap is left: a further effect would need a gain beyond the noise band below the
-noise floor itself, so the path stops there without the trial refits). When no single effect passes, up to ``max_pairs`` pairs of the best
-single candidates are refitted jointly (two effects can each fail alone yet pass together).
-With two or more effects in, a **swap** pass replaces one by an accepted alternative when that
-lowers the validation error by more than 2 % (a delay chosen first where lag + damping is the
-truth). At most :data:`~.screen.P_MAX` effect parameters are refitted at once. When the path stops
-at its cap (``greedy_steps``) with the validation error still at or above the gate, the effects that
-also passed the rule at its last step are kept as **waiting** (:attr:`Selection.waiting`): the
-verdict names them rather than calling the rest of the gap unexplained by the library (on the
-KVLCC2 logs with a 0.5-s rudder clock offset, input_delay passed at step 2 behind damping_rv).
+**Path.** The accepted candidate with the lowest validation error is selected; then up to ``greedy_steps − 1`` further
+effects, each refitted jointly with those already in and judged against the previous step — while the validation error
+is still at or above the gap gate (under it no structural gap is left: the path stops there without the trial refits).
+When no single effect passes, up to ``max_pairs`` pairs of the best single candidates are refitted jointly (two
+effects can each fail alone yet pass together). With two or more effects in, a **swap** pass replaces one by an
+accepted alternative when that lowers the validation error by more than 2 % (a delay chosen first where lag + damping
+is the truth). At most :data:`~.screen.P_MAX` effect parameters are refitted at once. When the path stops at its cap
+(``greedy_steps``) with the validation error still at or above the gate, the effects that also passed the rule at its
+last step are kept as **waiting** (:attr:`Selection.waiting`): the verdict names them rather than calling the rest of
+the gap unexplained by the library (on the KVLCC2 logs with a 0.5-s rudder clock offset, input_delay passed at step 2
+behind damping_rv).
 """
 
 from __future__ import annotations
@@ -82,6 +80,7 @@ from ..models import AbstractModel
 from ..models.effects import POSSIBLE_ONLY, Augmented, Effect
 from .decided import remaining
 from .options import DiagnoseOptions
+from .rivals import collinear_note, collinear_rivals, heading_turn
 from .screen import P_MAX, RefitResult, ScreenResult, Workspace, parallel
 from .shrink import PathStep, Score, Validation, structural_shrink
 
@@ -371,21 +370,21 @@ class Search:
                     by_E: list[str]) -> tuple[str, str, tuple[str, ...], str]:
         r"""The first effect, its confidence, unresolved rivals and how it was decided.
 
-        With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the
-        rule and comes within ``tie_share``·Δ_w of it is a **rival**. Each rival is refitted
-        jointly with the winner (an encompassing test): when the winner's term stays significant
-        (relevant, 95 % interval excluding the null) and the rival's does not, the rival is
-        ruled out (confidence *medium*); otherwise — both stay, both vanish, or only the rival
-        stays, which contradicts the validation ranking (nearly collinear effects such as a delay
-        and a lag trade off in a joint fit) — the tie is unresolved: the validation winner stays
-        first with confidence *tie*, and the verdict names the manoeuvre that separates them.
-        Without rivals the confidence is *high* when the runner-up misses ≥ 25 % of Δ_w, else
-        *medium*.
-        """
+        With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the rule and comes
+        within ``tie_share``·Δ_w of it — or that the runs' headings cannot separate from it (:mod:`.rivals`) — is a
+        **rival**. Each rival is refitted jointly with the winner (an encompassing test): when the winner's term stays
+        significant (relevant, 95 % interval excluding the null) and the rival's does not, the rival is ruled out
+        (*medium*); otherwise (both stay, both vanish, or only the rival stays: nearly collinear effects such as a
+        delay and a lag trade off) the tie is unresolved: the validation winner stays first with confidence *tie*, and
+        the verdict names the manoeuvre that separates them. Without rivals the confidence is *high* when the
+        runner-up misses ≥ 25 % of Δ_w, else *medium*."""
         o, E0 = self.options, self.base.E
         name = accepted[0]
         span = max(E0 - singles[name].score.E, 1e-12)
         close = [n for n in accepted[1:] if singles[n].score.E - singles[name].score.E < o.tie_share * span]
+        turn = heading_turn(self.ws.train["batch"])  # a pair only a larger turn separates is a rival (:mod:`.rivals`)
+        close += (collinear := collinear_rivals(name, [n for n in by_E if n != name and n not in close
+                                                       and singles[n].judgement.ok], turn, self.say))
         if not close:
             second = next((n for n in by_E if n != name), None)
             margin = (singles[second].score.E - singles[name].score.E) / span if second else 1.0
@@ -406,8 +405,9 @@ class Search:
                 notes.append(f"{alt}'s term vanishes once {name} is in")
             else:  # both stay, both vanish, or the joint fit contradicts the validation ranking
                 unresolved.append(alt)
-        if unresolved:
-            return name, "tie", tuple(unresolved), "joint refit cannot separate them"
+        if unresolved:  # a pair the headings cannot separate says so
+            return name, "tie", tuple(unresolved), "joint refit cannot separate them" + (
+                f"; {collinear_note(turn)}" if set(unresolved) & set(collinear) else "")
         return name, "medium", (), "decided by joint refit: " + "; ".join(notes)
 
     def _pair(self, singles: dict[str, Candidate], by_E: list[str]) -> Selection | None:
@@ -478,7 +478,9 @@ class Search:
             return None, []
         n, rf, sc = best
         step = PathStep.between(n, cur.final, sc, self.base.E, rf, self.validation.channels)
-        nxt = Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values)
+        # the first effect's confidence, rivals and note stay with the path (taking the rival in does not decide a tie)
+        nxt = Selection(cur.selected + (n,), cur.path + (step,), sc, dict(rf.values), rf.base_values,
+                        cur.confidence, cur.rivals, cur.note)
         return nxt, [(m, g) for m, g, _ in sorted(passed, key=lambda x: x[2]) if m != n]
 
     def _swap(self, cur: Selection, alts: list[str]) -> Selection | None:

@@ -26,7 +26,10 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    base's below 1); else the base model alone. Terms that appear in a better-ranked structure or win
    some resamples but fail these tests are reported as **possible**, with their inclusion probability;
 6. **warnings**: pairs of free parameters whose estimates correlate beyond 0.95 in the selected fit
-   (terms that trade off).
+   (terms that trade off);
+7. **equivalent explanations**: the structures whose criterion is within :data:`MARGIN` of the selected one's
+   (the training runs do not decide between them), reported beside it with the probe manoeuvre whose predicted
+   responses differ most (:mod:`.separate`): the experiment that would tell them apart.
 
 The discovered model is :func:`diffship.models.terms.with_terms` of the base: an ordinary model that a
 fit file saves and :func:`diffship.load_fit` rebuilds.
@@ -53,8 +56,9 @@ from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
 from .oescreen import OEScreen, oe_screen
 from .screen import Screen, screen
+from .separate import Separation, separating_manoeuvre
 
-__all__ = ["Candidate", "Discovery", "discover", "term_spec", "TRADEOFF", "MARGIN", "MIN_INCLUSION"]
+__all__ = ["Candidate", "Discovery", "discover", "term_spec", "TRADEOFF", "MARGIN", "MIN_INCLUSION", "MAX_EQUIVALENT"]
 
 #: |correlation| between two estimates above which they are said to trade off.
 TRADEOFF = 0.95
@@ -62,6 +66,8 @@ TRADEOFF = 0.95
 MARGIN = 2.0
 #: The least inclusion probability of a selected term.
 MIN_INCLUSION = 0.5
+#: The most equivalent explanations reported beside the selected structure.
+MAX_EQUIVALENT = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,6 +109,8 @@ class Discovery:
     reasons: dict[str, str] = dataclasses.field(default_factory=dict)
     n_boot: int = 0
     oe_screen: OEScreen | None = None
+    equivalent: tuple[Candidate, ...] = ()
+    separation: Separation | None = None
 
     @property
     def selected(self) -> Candidate:
@@ -314,7 +322,20 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             for j in range(i + 1, len(free)):
                 if abs(corr[i, j]) > TRADEOFF and (free[i] in best.terms or free[j] in best.terms):
                     trade.append((free[i], free[j], float(corr[i, j])))
+    # equivalent explanations: structures within the margin of the selected one's criterion (the data do not decide
+    # between them), and the probe manoeuvre whose predictions differ most (:mod:`.separate`)
+    equivalent = tuple(c for c in ranked if c is not best and math.isfinite(c.criteria[criterion])
+                       and abs(c.criteria[criterion] - best.criteria[criterion]) < MARGIN)[:MAX_EQUIVALENT]
+    separation = None
+    if equivalent:
+        say("equivalent explanations: " + "; ".join(" + ".join(c.terms) or "(base)" for c in equivalent)
+            + f" within {criterion.upper()} {MARGIN:g} of the selected; simulating the probe manoeuvres...")
+        try:
+            separation = separating_manoeuvre([best.result] + [c.result for c in equivalent],
+                                              list(train) + list(validate), res0.noise_std)
+        except DiffshipError as exc:
+            say(f"  the probe manoeuvres failed: {exc}")
     return Discovery(base=cands[0], candidates=tuple(ranked), screen=sc, criterion=criterion, n_eff=n_eff,
                      confirmed=confirmed, possible=possible, tradeoffs=tuple(trade),
                      seconds=time.perf_counter() - t0, inclusion=inclusion, chosen=chosen, reasons=reasons,
-                     n_boot=n_boot_rank, oe_screen=oe)
+                     n_boot=n_boot_rank, oe_screen=oe, equivalent=equivalent, separation=separation)

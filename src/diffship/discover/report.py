@@ -5,7 +5,8 @@ JSON (``"schema": "diffship.discover/1"``): ``selected`` has the layout of one m
 (``validation.per_run.<run>.rmse.<channel>``, SI, rad, as ``methods.output_error.validation.per_run``) —
 plus ``terms`` (value, standard error, inclusion probability of the output-error ranking bootstrap, the
 screen's inclusion, readable form), ``confirmed``, ``possible`` (terms not selected: inclusion probability
-and readable form), ``not_selected`` (why better-ranked structures were passed over) and ``tradeoffs``;
+and readable form), ``not_selected`` (why better-ranked structures were passed over), ``tradeoffs``, ``equivalent`` (structures
+within the criterion's margin: terms, criterion difference, held-out RMSE) and ``separating_manoeuvre``;
 ``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
 win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
 the output-error screen's forward path (score statistics, linearised values).
@@ -19,7 +20,7 @@ from pathlib import Path
 from ..data import CHANNEL_UNITS
 from ..models.terms import term_label
 from ..report import plot_fit
-from .discovery import Candidate, Discovery
+from .discovery import MARGIN, Candidate, Discovery
 
 __all__ = ["discovery_json", "discovery_text", "plot_discovery"]
 
@@ -49,7 +50,11 @@ def discovery_json(d: Discovery, model_name: str) -> dict:
                             "screen_inclusion": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
                         for t in d.possible},
            "not_selected": dict(d.reasons),
-           "tradeoffs": [{"a": a, "b": b, "correlation": c} for a, b, c in d.tradeoffs]}
+           "tradeoffs": [{"a": a, "b": b, "correlation": c} for a, b, c in d.tradeoffs],
+           "equivalent": [{"terms": list(c.terms), "delta_" + d.criterion: c.criteria[d.criterion]
+                           - d.selected.criteria[d.criterion], "held_out_relative_rmse": c.held_out}
+                          for c in d.equivalent],
+           "separating_manoeuvre": None if d.separation is None else d.separation.to_dict()}
     table = [{"rank": i + 1, "terms": list(c.terms), "n_params": c.n_params, "aic": c.criteria["aic"],
               "bic": c.criteria["bic"], "held_out_relative_rmse": c.held_out, "bootstrap_wins": c.wins,
               "selected": i == d.chosen, "status": c.result.status}
@@ -95,6 +100,14 @@ def discovery_text(d: Discovery, model_name: str) -> str:
     for a, b, c in d.tradeoffs:
         lines.append(f"warning: {a} and {b} trade off (estimates correlated {c:+.2f}); runs that separate them "
                      "would be needed to tell them apart")
+    if d.equivalent:
+        crit = d.criterion.upper()
+        lines.append(f"equivalent explanations ({crit} within {MARGIN:g} of the selected; these runs do not decide "
+                     "between them): " + "; ".join(
+                         f"{' + '.join(c.terms) or '(base)'} ({crit} {c.criteria[d.criterion] - sel.criteria[d.criterion]:+.1f}"
+                         f", held-out RMSE/base {c.held_out:.3f})" for c in d.equivalent))
+        lines.append("  the manoeuvre that tells them apart: " + (d.separation.text() if d.separation is not None
+                                                                  else "none found (every probe blew up)"))
     lines.append("")
     lines.append(f"  rank  {d.criterion.upper():>10s}  held-out RMSE/base  bootstrap wins  terms")
     for i, c in enumerate(d.candidates):

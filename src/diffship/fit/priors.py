@@ -44,7 +44,7 @@ from ..errors import ModelError
 from ..models import AbstractModel
 from ..params import ParamSpec
 
-__all__ = ["Prior", "Priors", "parse_priors", "load_priors", "reference_priors", "default_priors",
+__all__ = ["Prior", "Priors", "parse_priors", "load_priors", "reference_priors", "reference_class", "default_priors",
            "prior_arrays", "prior_table", "format_priors"]
 
 
@@ -138,14 +138,25 @@ def load_priors(path: str | Path) -> Priors:
     return Priors(out, f"file {path.name}")
 
 
+def reference_class(model: AbstractModel) -> type:
+    """The model class whose reference set applies to ``model``: its own, or for a base model with effects or
+    terms (:class:`~diffship.models.effects.Augmented`) its base's. The added parameters (a current, a library
+    term) have no reference value and get no prior; the base's coefficients keep theirs, so that a fit with an
+    effect is regularised as the base fit is and the two are compared under the same priors."""
+    m = model
+    while not getattr(type(m), "REFERENCE", "") and isinstance(getattr(m, "base", None), AbstractModel):
+        m = m.base
+    return type(m)
+
+
 def reference_priors(model: AbstractModel, spec: ParamSpec, rel_sd: float = 0.5) -> Priors:
     """Priors on every free parameter from the model class's reference values (its defaults).
 
     Mean = the class default; standard deviation ``rel_sd·max(|default|, scale)``. Parameters
     whose reference value is exactly zero get no prior (not in the reference set).
     """
-    ref = type(model).PARAMS
-    src = getattr(type(model), "REFERENCE", None)
+    cls = reference_class(model)
+    ref, src = cls.PARAMS, getattr(cls, "REFERENCE", None)
     if not src:
         return Priors({}, "none")
     out = {}
@@ -164,10 +175,11 @@ def default_priors(model: AbstractModel, spec: ParamSpec, rel_sd: float = 0.5) -
     (mass, inertia, dimensions, …): otherwise the vessel is another one and its reference
     coefficients would be a wrong prior.
     """
-    src = getattr(type(model), "REFERENCE", None)
+    cls = reference_class(model)
+    src = getattr(cls, "REFERENCE", None)
     if not src:
         return Priors({}, "none"), f"no reference set for model {model.name}: no priors"
-    ref = {p.name: p.value for p in type(model).PARAMS}
+    ref = {p.name: p.value for p in cls.PARAMS}
     vals = spec.values()
     other = [n for n in spec.fixed_names if n in ref
              and not math.isclose(vals[n], ref[n], rel_tol=1e-9, abs_tol=1e-12)]

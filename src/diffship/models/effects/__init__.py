@@ -18,7 +18,7 @@ from ._base import steering_inputs as steering_inputs
 from .actuator import ActuatorLag as ActuatorLag
 from .actuator import InputDelay as InputDelay
 from .actuator import RateLimit as RateLimit
-from .actuator import RudderOffset as RudderOffset
+from .actuator import ConstantForce as ConstantForce
 from .actuator import NomotoRudderOffset as NomotoRudderOffset
 from .augmented import Augmented as Augmented
 from .current import Current as Current
@@ -46,7 +46,7 @@ from .wave import NomotoWave as NomotoWave
 __all__ = [
     "Effect", "DataFacts", "Augmented", "EFFECTS", "EFFECT_NAMES", "FAMILY", "POSSIBLE_ONLY", "applicability", "make_effect",
     "library", "augment", "is_ship3", "parts", "steering_inputs",
-    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "RudderOffset", "NomotoRudderOffset",
+    "Current", "HeadingBias", "InputDelay", "ActuatorLag", "RateLimit", "ConstantForce", "NomotoRudderOffset",
     "DampingVV", "DampingRR", "DampingVR", "DampingRV", "SpeedDependence", "NorrbinRR", "Wind",
     "CurrentTrend", "LagTrend", "Wave", "NomotoWave",
 ]

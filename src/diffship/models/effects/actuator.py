@@ -1,4 +1,4 @@
-r"""Actuator effects: input delay, actuator lag, rudder rate limit, rudder offset / asymmetry.
+r"""Actuator effects: input delay, actuator lag, rudder rate limit, rudder offset, constant force.
 
 The first three act on the steering inputs (:func:`~._base.steering_inputs`) before the base
 model sees them, in the order delay → rate limit → lag:
@@ -20,13 +20,19 @@ but not differentiable there: the screen uses probe secants for them (``smooth_n
 False``). Time constants are clamped below at a fraction of the sample interval so RK4 stays
 stable during fits.
 
-**Rudder offset** (propeller walk, rudder/jet offset, thrust asymmetry) is a constant sway
-force and yaw moment on a 3-DOF model (``force`` hook). On a Nomoto model it is the rudder
-angle offset :math:`\delta_{off}` added to the rudder (:class:`NomotoRudderOffset`,
-:math:`\dot r = (K(\delta + \delta_{off}) - r)/T_1` for the first-order model): the model's own
-``delta0`` describes the same thing, so the diagnosis holds ``delta0`` at 0 in the base fit
-when ``rudder_offset`` is a candidate (:func:`~diffship.diagnose.diagnose`), and the effect is
-not applicable where a given base fit already estimated ``delta0``.
+**Rudder offset** (``rudder_offset``) is the rudder angle offset :math:`\delta_{off}` added to the
+rudder of a Nomoto model (:class:`NomotoRudderOffset`, :math:`\dot r = (K(\delta + \delta_{off}) - r)/T_1`
+for the first-order model): the model's own ``delta0`` describes the same thing, so the diagnosis holds
+``delta0`` at 0 in the base fit when ``rudder_offset`` is a candidate (:func:`~diffship.diagnose.diagnose`),
+and the effect is not applicable where a given base fit already estimated ``delta0``.
+
+**Constant force** (``constant_force``: propeller walk, a jet's or thruster's misalignment, thrust
+asymmetry) is a constant sway force and yaw moment fixed to the hull on a 3-DOF model (``force`` hook,
+:class:`ConstantForce`). It is named for what it is: on a model that carries a rudder offset of its own
+(MMG's ``delta0``) a rudder offset is that coefficient, and a pair :math:`(Y_0, N_0)` is another effect — a
+force at any lever arm, not only the rudder's. Because it turns with the ship, it is told apart from a
+current (whose drift stays fixed in NED) by a turn through a large heading change, not by a zigzag about
+one course.
 """
 
 from __future__ import annotations
@@ -192,16 +198,19 @@ def _clip(x, limit):
     return jnp.where(x > limit, limit, jnp.where(x < -limit, -limit, x))
 
 
-class RudderOffset(Effect):
-    r"""Constant sway force and yaw moment (rudder/jet offset, propeller walk, thrust asymmetry)."""
+class ConstantForce(Effect):
+    r"""Constant sway force and yaw moment fixed to the hull, :math:`(Y_0, N_0)` (propeller walk, a jet's or
+    thruster's misalignment, thrust asymmetry; null: 0)."""
 
-    name: ClassVar[str] = "rudder_offset"
+    name: ClassVar[str] = "constant_force"
     family: ClassVar[str] = "bias"
     PROBE: ClassVar[dict[str, float]] = {"Y0": 50.0, "N0": 200.0}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Y0": 5.0, "N0": 20.0}
-    signature: ClassVar[str] = "non-zero mean yaw-rate residual on straight segments; port/starboard asymmetry"
+    signature: ClassVar[str] = ("non-zero mean sway and yaw-rate residual on straight segments, fixed to the hull; "
+                                "port/starboard asymmetry")
     confusable_with: ClassVar[tuple[str, ...]] = ("current", "wind")
-    separating: ClassVar[str] = "symmetric port and starboard manoeuvres at the same speed"
+    separating: ClassVar[str] = ("a turn through 180° or more (a force fixed to the hull turns with the ship, a "
+                                 "current's drift stays fixed in NED) and symmetric port and starboard manoeuvres")
     Y0: jnp.ndarray = param(0.0, scale=50.0, unit="N", description="constant sway force")
     N0: jnp.ndarray = param(0.0, scale=200.0, unit="N m", description="constant yaw moment")
 
@@ -209,9 +218,7 @@ class RudderOffset(Effect):
     def applicability(cls, base, runs=None) -> str:
         if is_ship3(base):
             return ""
-        if "delta0" in base.param_names:
-            return f"{base.name} already has a rudder offset parameter (delta0)"
-        return f"{base.name} is not a 3-DOF ship model"
+        return f"{base.name} is not a 3-DOF ship model (a rudder-steered model's offset is rudder_offset)"
 
     def force_parts(self, base, t, xb, ub, uext):
         return jnp.zeros_like(self.Y0), self.Y0, self.N0
@@ -235,7 +242,8 @@ class NomotoRudderOffset(Effect):
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:
-        return rudder_only_applicability(base, "the offset is a sway force and yaw moment there")
+        return rudder_only_applicability(base, "its rudder offset is its own delta0 where it has one; a constant sway force "
+                                                "and yaw moment is constant_force")
 
     @classmethod
     def for_data(cls, base, facts: DataFacts) -> Effect:

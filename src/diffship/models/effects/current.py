@@ -26,7 +26,7 @@ class Current(Effect):
     PROBE: ClassVar[dict[str, float]] = {"Vcx": 0.2, "Vcy": 0.2}
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Vcx": 0.03, "Vcy": 0.03}
     signature: ClassVar[str] = "over-ground velocity residual sinusoidal in heading; position drift fixed in NED"
-    confusable_with: ClassVar[tuple[str, ...]] = ("heading_bias", "rudder_offset", "wind")
+    confusable_with: ClassVar[tuple[str, ...]] = ("heading_bias", "constant_force", "wind")
     separating: ClassVar[str] = "a turning circle of 360° or more (current drift stays fixed in NED)"
     Vcx: jnp.ndarray = param(0.0, scale=0.2, unit="m/s", description="current towards north (x)")
     Vcy: jnp.ndarray = param(0.0, scale=0.2, unit="m/s", description="current towards east (y)")

@@ -12,10 +12,12 @@ input_delay        tau_d [s]                        steering inputs delayed by t
 actuator_lag       T_act [s]                        first-order lag of the steering inputs
 rate_limit         T_slew [s]                       steering slew rate limited to A_i/T_slew
                                                     (A_i = largest |input| in the training data)
-rudder_offset      Y0 [N], N0 [N m]                 constant sway force and yaw moment (prop walk,
-                                                    rudder/jet offset); 3-DOF models
-                   delta_off [rad] (Nomoto)         rudder angle offset δ + δ_off (the base's own
-                                                    delta0 held at 0 in the diagnosis' base fit)
+rudder_offset      delta_off [rad] (Nomoto)         rudder angle offset δ + δ_off (the base's own
+                                                    delta0 held at 0 in the diagnosis' base fit); on
+                                                    MMG the base's own delta0
+constant_force     Y0 [N], N0 [N m]                 constant sway force and yaw moment fixed to the
+                                                    hull (prop walk, jet/thruster misalignment);
+                                                    3-DOF models
 heading_bias       b_psi [rad]                      compass reads ψ + b; shows only in positions
 damping_vv         Nvv                              N_|v|v |v|v   (3-DOF; Y_|v|v is in fossen3)
 damping_rr         Yrr  (Norrbin c_rr for Nomoto)   Y_|r|r |r|r   (N_|r|r is in fossen3)
@@ -50,7 +52,7 @@ import jax.numpy as jnp
 from ...errors import ModelError
 from .._base import AbstractModel
 from ._base import DataFacts, Effect
-from .actuator import ActuatorLag, InputDelay, LagTrend, NomotoRudderOffset, RateLimit, RudderOffset
+from .actuator import ActuatorLag, ConstantForce, InputDelay, LagTrend, NomotoRudderOffset, RateLimit
 from .augmented import Augmented
 from .current import Current, CurrentTrend
 from .damping import DampingRR, DampingRV, DampingVR, DampingVV, NorrbinRR, SpeedDependence
@@ -66,7 +68,8 @@ EFFECTS: dict[str, tuple[type[Effect], ...]] = {
     "input_delay": (InputDelay,),
     "actuator_lag": (ActuatorLag,),
     "rate_limit": (RateLimit,),
-    "rudder_offset": (RudderOffset, NomotoRudderOffset),
+    "rudder_offset": (NomotoRudderOffset,),
+    "constant_force": (ConstantForce,),
     "heading_bias": (HeadingBias,),
     "damping_vv": (DampingVV,),
     "damping_rr": (DampingRR, NorrbinRR),

@@ -31,7 +31,7 @@ class Wind(Effect):
     MIN_RELEVANT: ClassVar[dict[str, float]] = {"Cwx": 0.2, "Cwy": 0.3, "Cwn": 0.5}
     extra_inputs: ClassVar[tuple[str, ...]] = ("wind_speed", "wind_dir")
     signature: ClassVar[str] = "sway/yaw residual periodic in the relative wind angle, ∝ wind speed²"
-    confusable_with: ClassVar[tuple[str, ...]] = ("current", "rudder_offset")
+    confusable_with: ClassVar[tuple[str, ...]] = ("current", "constant_force")
     separating: ClassVar[str] = "runs on opposite headings or in different wind speeds"
     Cwx: jnp.ndarray = param(0.0, scale=3.0, unit="N s²/m²", description="longitudinal wind coefficient")
     Cwy: jnp.ndarray = param(0.0, scale=5.0, unit="N s²/m²", description="lateral wind coefficient")
