@@ -46,3 +46,15 @@ def test_a_cubic_yaw_term_is_told_apart_by_the_harder_manoeuvre(runs):
     # the same model twice: no difference anywhere
     same = separating_manoeuvre([_fit(base), _fit(base)], runs, NOISE)
     assert max(same.per_probe.values()) < 1e-9
+
+
+def test_the_noise_defaults_to_the_logged_runs_sensor_noise(runs):
+    noisy = usv_runs(2, duration=60.0, dt=0.2, noise="realistic", seed=3)
+    base = usv_truth()
+    cubic = with_terms(base, ["N_r_r_r"], {"N_r_r_r": -2000.0})
+    own = separating_manoeuvre([_fit(base), _fit(cubic)], noisy)
+    # the same differences over a noise level estimated from the runs: realistic sensors are near NOISE's levels
+    given = separating_manoeuvre([_fit(base), _fit(cubic)], noisy, NOISE)
+    assert own.manoeuvre == given.manoeuvre
+    assert own.heading_deg == given.heading_deg
+    assert 0.5 < own.difference / given.difference < 2.0

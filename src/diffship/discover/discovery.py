@@ -332,7 +332,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             + f" within {criterion.upper()} {MARGIN:g} of the selected; simulating the probe manoeuvres...")
         try:
             separation = separating_manoeuvre([best.result] + [c.result for c in equivalent],
-                                              list(train) + list(validate), res0.noise_std)
+                                              list(train) + list(validate))
         except DiffshipError as exc:
             say(f"  the probe manoeuvres failed: {exc}")
     return Discovery(base=cands[0], candidates=tuple(ranked), screen=sc, criterion=criterion, n_eff=n_eff,

@@ -12,8 +12,9 @@ The difference of two predictions :math:`\hat y^A, \hat y^B` on a probe is
 
 .. math:: d = \Big(\frac{1}{n_c}\sum_c \frac{\mathrm{mean}_t\,(\hat y^A_c - \hat y^B_c)^2}{\sigma_c^2}\Big)^{1/2},
 
-with :math:`\sigma_c` each channel's noise level (the base fit's): :math:`d = 1` is a difference the size of
-the sensor noise, which one run of that manoeuvre can barely resolve; the report gives the heading part in
+with :math:`\sigma_c` each channel's sensor noise, estimated from the logged runs
+(:func:`diffship.initial.channel_noise`; not a fit's residual level, which carries the model error): :math:`d = 1`
+is a difference the size of the sensor noise, which one run of that manoeuvre can barely resolve; the report gives the heading part in
 degrees. Angles are wrapped before squaring. A probe on which either structure's simulation blows up is
 skipped (that too would separate them, but not as a measurement a user should be sent to make).
 """
@@ -28,6 +29,8 @@ import numpy as np
 
 from ..data import Run
 from ..fit import FitResult
+from ..fit.problem import make_batch
+from ..initial import channel_noise
 from ..metrics import evaluate
 
 __all__ = ["GAINS", "Separation", "probe_runs", "separating_manoeuvre"]
@@ -82,13 +85,17 @@ def _start(model, run: Run) -> np.ndarray:
     return np.asarray([float(np.asarray(run[s])[0]) if run.has(s) else 0.0 for s in model.state_names])
 
 
-def separating_manoeuvre(fits: Sequence[FitResult], runs: Sequence[Run], noise: Mapping[str, float],
+def separating_manoeuvre(fits: Sequence[FitResult], runs: Sequence[Run], noise: Mapping[str, float] | None = None,
                          gains: Sequence[float] = GAINS) -> Separation | None:
     """The probe (module docstring) on which the predictions of ``fits`` differ most (the largest pairwise
-    :math:`d`), or ``None`` when no probe simulates with every fit."""
+    :math:`d`), or ``None`` when no probe simulates with every fit. ``noise``: each channel's sensor noise (default:
+    estimated from ``runs``)."""
     if len(fits) < 2 or not runs:
         return None
     model0 = fits[0].model
+    if noise is None:
+        b = make_batch(model0, runs, [c for c in fits[0].channels if all(r.has(c) for r in runs)])
+        noise = dict(zip(b.channels, map(float, channel_noise(b.ys, b.mask))))
     probes = probe_runs(runs, model0.input_names, gains)
     chans = [c for c in fits[0].channels if c in noise and noise[c] > 0]
     sims = []
