@@ -371,7 +371,7 @@ class Search:
         r"""The first effect, its confidence, unresolved rivals and how it was decided.
 
         With :math:`\Delta_w = E_0 - E_w` the winner's validation gain, a candidate that passes the rule and comes
-        within ``tie_share``·Δ_w of it — or that the runs' headings cannot separate from it (:mod:`.rivals`) — is a
+        within ``tie_share``·Δ_w of it — or one the headings cannot separate from it (:mod:`.rivals`) — is a
         **rival**. Each rival is refitted jointly with the winner (an encompassing test): when the winner's term stays
         significant (relevant, 95 % interval excluding the null) and the rival's does not, the rival is ruled out
         (*medium*); otherwise (both stay, both vanish, or only the rival stays: nearly collinear effects such as a

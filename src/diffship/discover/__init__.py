@@ -14,4 +14,5 @@ from .oescreen import OEScreen as OEScreen, oe_screen as oe_screen
 from .screen import Screen as Screen, screen as screen
 from .separate import Separation as Separation, separating_manoeuvre as separating_manoeuvre
 
-__all__ = ["discover", "Discovery", "Candidate", "Screen", "screen", "OEScreen", "oe_screen", "Separation", "separating_manoeuvre"]
+__all__ = ["discover", "Discovery", "Candidate", "Screen", "screen", "OEScreen", "oe_screen", "Separation",
+           "separating_manoeuvre"]

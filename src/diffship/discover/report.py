@@ -5,8 +5,9 @@ JSON (``"schema": "diffship.discover/1"``): ``selected`` has the layout of one m
 (``validation.per_run.<run>.rmse.<channel>``, SI, rad, as ``methods.output_error.validation.per_run``) —
 plus ``terms`` (value, standard error, inclusion probability of the output-error ranking bootstrap, the
 screen's inclusion, readable form), ``confirmed``, ``possible`` (terms not selected: inclusion probability
-and readable form), ``not_selected`` (why better-ranked structures were passed over), ``tradeoffs``, ``equivalent`` (structures
-within the criterion's margin: terms, criterion difference, held-out RMSE) and ``separating_manoeuvre``;
+and readable form), ``not_selected`` (why better-ranked structures were passed over), ``tradeoffs``,
+``equivalent`` (structures within the criterion's margin: terms, criterion difference, held-out RMSE) and
+``separating_manoeuvre``;
 ``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
 win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
 the output-error screen's forward path (score statistics, linearised values).
@@ -102,10 +103,10 @@ def discovery_text(d: Discovery, model_name: str) -> str:
                      "would be needed to tell them apart")
     if d.equivalent:
         crit = d.criterion.upper()
+        delta = lambda c: c.criteria[d.criterion] - sel.criteria[d.criterion]  # noqa: E731
         lines.append(f"equivalent explanations ({crit} within {MARGIN:g} of the selected; these runs do not decide "
-                     "between them): " + "; ".join(
-                         f"{' + '.join(c.terms) or '(base)'} ({crit} {c.criteria[d.criterion] - sel.criteria[d.criterion]:+.1f}"
-                         f", held-out RMSE/base {c.held_out:.3f})" for c in d.equivalent))
+                     "between them): " + "; ".join(f"{' + '.join(c.terms) or '(base)'} ({crit} {delta(c):+.1f}, "
+                                                   f"held-out RMSE/base {c.held_out:.3f})" for c in d.equivalent))
         lines.append("  the manoeuvre that tells them apart: " + (d.separation.text() if d.separation is not None
                                                                   else "none found (every probe blew up)"))
     lines.append("")

@@ -13,9 +13,11 @@ The difference of two predictions :math:`\hat y^A, \hat y^B` on a probe is
 .. math:: d = \Big(\frac{1}{n_c}\sum_c \frac{\mathrm{mean}_t\,(\hat y^A_c - \hat y^B_c)^2}{\sigma_c^2}\Big)^{1/2},
 
 with :math:`\sigma_c` each channel's sensor noise, estimated from the logged runs
-(:func:`diffship.initial.channel_noise`; not a fit's residual level, which carries the model error): :math:`d = 1`
-is a difference the size of the sensor noise, which one run of that manoeuvre can barely resolve; the report gives the heading part in
-degrees. Angles are wrapped before squaring. A probe on which either structure's simulation blows up is
+(:func:`diffship.initial.channel_noise`; not a fit's residual level, which carries the model error):
+:math:`d = 1` is a difference the size of the sensor noise, which one run of that manoeuvre can barely resolve;
+the report gives the heading part in degrees. Angles are wrapped before squaring. Every structure starts each
+probe from the same state, the run's filtered first sample (:func:`diffship.simulate.initial_state`), so that
+the difference is the structures' alone. A probe on which either structure's simulation blows up is
 skipped (that too would separate them, but not as a measurement a user should be sent to make).
 """
 
@@ -32,6 +34,7 @@ from ..fit import FitResult
 from ..fit.problem import make_batch
 from ..initial import channel_noise
 from ..metrics import evaluate
+from ..simulate import initial_state
 
 __all__ = ["GAINS", "Separation", "probe_runs", "separating_manoeuvre"]
 
@@ -64,7 +67,8 @@ class Separation:
                 "heading_rms_deg": self.heading_deg, "per_probe": dict(self.per_probe)}
 
 
-def probe_runs(runs: Sequence[Run], input_names: Sequence[str], gains: Sequence[float] = GAINS) -> list[tuple[str, Run]]:
+def probe_runs(runs: Sequence[Run], input_names: Sequence[str],
+               gains: Sequence[float] = GAINS) -> list[tuple[str, Run]]:
     """``(label, run)`` of every probe: each run with its ``input_names`` channels scaled by each gain (a new Run;
     the measured outputs are kept only for the start state)."""
     out = []
@@ -80,11 +84,6 @@ def probe_runs(runs: Sequence[Run], input_names: Sequence[str], gains: Sequence[
     return out
 
 
-def _start(model, run: Run) -> np.ndarray:
-    """The run's first measured state (0 for a state it does not log)."""
-    return np.asarray([float(np.asarray(run[s])[0]) if run.has(s) else 0.0 for s in model.state_names])
-
-
 def separating_manoeuvre(fits: Sequence[FitResult], runs: Sequence[Run], noise: Mapping[str, float] | None = None,
                          gains: Sequence[float] = GAINS) -> Separation | None:
     """The probe (module docstring) on which the predictions of ``fits`` differ most (the largest pairwise
@@ -98,34 +97,24 @@ def separating_manoeuvre(fits: Sequence[FitResult], runs: Sequence[Run], noise: 
         noise = dict(zip(b.channels, map(float, channel_noise(b.ys, b.mask))))
     probes = probe_runs(runs, model0.input_names, gains)
     chans = [c for c in fits[0].channels if c in noise and noise[c] > 0]
-    sims = []
-    for f in fits:
-        x0 = [_start(f.model, r) for _, r in probes]
-        ev = evaluate(f.model, [r for _, r in probes], x0, channels=chans, integrator=f.integrator)
-        sims.append(ev)
+    x0 = [initial_state(model0, r) for _, r in probes]  # one start per probe, the same for every structure
+    sims = [evaluate(f.model, [r for _, r in probes], x0, channels=chans, integrator=f.integrator) for f in fits]
     angles = set(model0.angle_outputs)
     per, head = {}, {}
     for label, r in probes:
-        best, best_head = -1.0, math.nan
-        for i in range(len(fits)):
-            for j in range(i + 1, len(fits)):
-                a, b = sims[i].simulated.get(r.name), sims[j].simulated.get(r.name)
-                if a is None or b is None or not (sims[i].per_run[r.name]["ok"] and sims[j].per_run[r.name]["ok"]):
-                    continue
-                terms = []
+        ok = [ev.simulated[r.name] for ev in sims if ev.per_run[r.name]["ok"]]
+        if len(ok) < len(sims):
+            continue
+        for i in range(len(ok)):
+            for j in range(i + 1, len(ok)):
+                ms = {}  # mean square difference of each channel
                 for c in chans:
-                    dc = np.asarray(a[c], dtype=float) - np.asarray(b[c], dtype=float)
-                    if c in angles:
-                        dc = np.angle(np.exp(1j * dc))
-                    terms.append(float(np.mean(dc * dc)) / noise[c] ** 2)
-                d = math.sqrt(float(np.mean(terms))) if terms else math.nan
-                if math.isfinite(d) and d > best:
-                    dpsi = (np.angle(np.exp(1j * (np.asarray(a["psi"]) - np.asarray(b["psi"]))))
-                            if "psi" in a and "psi" in b else None)
-                    best, best_head = d, (math.degrees(math.sqrt(float(np.mean(dpsi ** 2)))) if dpsi is not None
-                                          else math.nan)
-        if best >= 0:
-            per[label], head[label] = best, best_head
+                    dc = np.asarray(ok[i][c], dtype=float) - np.asarray(ok[j][c], dtype=float)
+                    ms[c] = float(np.mean(np.angle(np.exp(1j * dc)) ** 2 if c in angles else dc * dc))
+                d = math.sqrt(float(np.mean([ms[c] / noise[c] ** 2 for c in chans])))
+                if math.isfinite(d) and d > per.get(label, -1.0):
+                    per[label] = d
+                    head[label] = math.degrees(math.sqrt(ms["psi"])) if "psi" in ms else math.nan
     if not per:
         return None
     top = max(per, key=per.get)

@@ -242,8 +242,8 @@ class NomotoRudderOffset(Effect):
 
     @classmethod
     def applicability(cls, base, runs=None) -> str:
-        return rudder_only_applicability(base, "its rudder offset is its own delta0 where it has one; a constant sway force "
-                                                "and yaw moment is constant_force")
+        return rudder_only_applicability(base, "its rudder offset is its own delta0 where it has one; a constant "
+                                                "sway force and yaw moment is constant_force")
 
     @classmethod
     def for_data(cls, base, facts: DataFacts) -> Effect:
