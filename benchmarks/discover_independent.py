@@ -77,7 +77,11 @@ def _discover(truth, rr, say):
             "oe_path": list(d.oe_screen.path) if d.oe_screen else [],
             "ranking": [(" + ".join(c.terms) or "(base)", c.criteria[d.criterion], c.held_out) for c in d.candidates],
             "equivalent": [" + ".join(c.terms) or "(base)" for c in d.equivalent],
-            "separation": d.separation.text() if d.separation is not None else ""}
+            "separation": d.separation.text() if d.separation is not None else "",
+            "polish": "" if d.polish is None else (
+                f"polish from {' + '.join(d.polish.start)}: "
+                + (", ".join(f"{k} {w}" for k, w, _, _ in d.polish.path) or "no move")
+                + f" → {' + '.join(d.polish.selected)} ({d.polish.refits} refits, {d.polish.seconds:.0f} s)")}
 
 
 def _peers(truth, rr, avail, say):
@@ -160,7 +164,8 @@ def _write(out: Path, results: list[dict], avail: dict, duration: float, argv: l
                      f"{', '.join(d['possible']) or '–'}; ranking " + "; ".join(
                          f"{s} ({b:.0f}, {h:.3f})" for s, b, h in d["ranking"])
                      + (f"; equivalent (BIC within 2 of the selected): {'; '.join(d['equivalent'])}, told apart by "
-                        f"{d['separation'] or '–'}" if d.get("equivalent") else ""))
+                        f"{d['separation'] or '–'}" if d.get("equivalent") else "")
+                     + (f"; {d['polish']}" if d.get("polish") else ""))
     L += ["", "## Peers on the same runs", ""]
     L += [f"* {v}" for v in avail.values() if v]
     L += ["| truth | method | true terms: found as | terms beyond fossen3's regressors | held-out ψ RMSE / floor "

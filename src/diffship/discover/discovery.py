@@ -19,6 +19,12 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    the screen's own bootstrap frequencies are reported beside it but decide nothing: the
    equation-error regression is biased by noise in its regressors and derivatives, errors in
    variables, so a term can be kept by every resample of it and still be spurious);
+4a. the **polish** (:mod:`.polish`): from the best-ranked structure with terms (when it beats the base's criterion
+   by :data:`MARGIN`), removals, swaps within an
+   equation and additions, every move refitted on the output-error cost from that structure's optimum, while a move
+   lowers the criterion. The screens linearise at the base fit, which the missing terms bias, and there a
+   near-collinear stand-in can look better than the true term. The structure the polish ends at is refitted through
+   the driver and ranked with the others;
 5. the **selection**: the best-ranked structure whose terms all have inclusion probability at least
    0.5, that beats the base's criterion by at least :data:`MARGIN` (Kass & Raftery, JASA 90, 1995:
    a BIC difference below 2 is "not worth more than a bare mention"), and, with held-out runs, that
@@ -55,6 +61,7 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
 from .oescreen import OEScreen, oe_screen
+from .polish import Polish, polish
 from .screen import Screen, screen
 from .separate import Separation, separating_manoeuvre
 
@@ -111,6 +118,7 @@ class Discovery:
     oe_screen: OEScreen | None = None
     equivalent: tuple[Candidate, ...] = ()
     separation: Separation | None = None
+    polish: Polish | None = None
 
     @property
     def selected(self) -> Candidate:
@@ -167,7 +175,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
              spec: ParamSpec | None = None, library: str | Sequence[str] = "symmetric", max_terms: int = 4,
              max_candidates: int = 6, criterion: str = "bic", options: OutputError = OutputError(),
              flt: Filter = Filter(), n_boot: int = 30, n_boot_rank: int = 200, block_s: float = 5.0, seed: int = 0,
-             oe_first: bool = True, x0: str = "estimate", n_starts: int = 1,
+             oe_first: bool = True, x0: str = "estimate", n_starts: int = 1, polish_rounds: int = 6,
              progress: Callable[[str], None] | None = None) -> Discovery:
     """Discover the library terms ``base`` needs on ``train`` (module docstring).
 
@@ -193,6 +201,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             then the equation-error screen's; ``False``: the equation-error screen alone.
         n_starts: starts of the base fit (the driver's multi-start; ``--starts N``); the candidate
             structures start from the base optimum with the screen's term values.
+        polish_rounds: the most rounds of the polish (:mod:`.polish`) from the best-ranked structure with terms,
+            when it beats the base by the margin; 0: none.
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
@@ -249,65 +259,101 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             continue
         if math.isfinite(res.cost):
             fits.append((cand, res))
-    say("ranking: simulating every candidate on the training and held-out runs...")
-    channels = tuple(res0.channels)
-    evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
-                                scales=res.channel_scales),
-            evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
-                     scales=res.channel_scales) if validate else None)
-           for cand, res in fits]
-    # the criteria are computed on what each fit minimised: its simulation from its own fitted initial states
-    # (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter lets a
-    # structure win by how well its coefficients happen to suit that rule: on plain fossen3 data, three terms
-    # within one standard error of zero "improved" the BIC by 23)
-    resid = []
-    for _, res, ev, _ in evs:
-        if len(res.initial_states) == len(train):
-            ev = evaluate(res.model, train, list(res.initial_states), flt=flt, integrator=res.integrator)
-        resid.append(residuals(res.model.output_names, res.model.angle_outputs, ev, train, channels))
-    total = [sum(float(np.sum(np.concatenate(p) ** 2)) / max(res0.noise_std.get(c, 1.0), 1e-12) ** 2
-                 for c, p in rr.items() if p) for rr in resid]
-    n_eff = effective_samples(resid[int(np.argmin(total))])
-    val0 = evs[0][3]
-    cands = []
-    for (cand, res, ev, vev), rr in zip(evs, resid):
-        k = len(res.free)
-        crit = criteria(rr, n_eff, k)
-        if not ev.ok:
-            crit = {**crit, "aic": math.inf, "bic": math.inf}
-        cands.append(Candidate(cand, res, ev, vev, crit, k, _score(vev, val0)))
-    say(f"inclusion probabilities: {n_boot_rank} paired block-bootstrap resamples of the ranking...")
-    ok = [i for i, c in enumerate(cands) if math.isfinite(c.criteria[criterion])]
-    freq = np.zeros(len(cands))
-    if ok:
-        dt = float(np.median(np.diff(train[0].time))) if train and train[0].n > 1 else 0.1
-        freq[ok] = selection_frequency([resid[i] for i in ok], n_eff, [cands[i].n_params for i in ok],
-                                       [len(cands[i].terms) for i in ok], criterion, n_boot=n_boot_rank,
-                                       block=max(1, int(round(block_s / dt))), seed=seed)
-    cands = [dataclasses.replace(c, wins=float(f)) for c, f in zip(cands, freq)]
-    refitted = [t for c in cands for t in c.terms]
-    inclusion = {t: float(sum(c.wins for c in cands if t in c.terms)) for t in dict.fromkeys(refitted)}
-    ranked = sorted(cands, key=lambda c: (c.criteria[criterion], len(c.terms)))
-    base_crit = cands[0].criteria[criterion]
-    reasons: dict[str, str] = {}
-    chosen = next(i for i, c in enumerate(ranked) if not c.terms)
-    for i, c in enumerate(ranked):
-        if not c.terms:
-            break
-        why = []
-        if not c.criteria[criterion] <= base_crit - MARGIN:
-            why.append(f"{criterion.upper()} {c.criteria[criterion] - base_crit:+.1f} from the base's "
-                       f"(needs ≤ −{MARGIN:g})")
-        low = [t for t in c.terms if inclusion.get(t, 0.0) < MIN_INCLUSION]
-        if low:
-            why.append("inclusion probability " + ", ".join(f"{t} {inclusion.get(t, 0.0):.2f}" for t in low)
-                       + f" < {MIN_INCLUSION:g}")
-        if validate and not c.held_out < 1.0:
-            why.append(f"held-out RMSE {c.held_out:.3f} of the base's (needs < 1)")
-        if not why:
-            chosen = i
-            break
-        reasons[" + ".join(c.terms)] = "; ".join(why)
+
+    def rank(fits):
+        """Simulate, criteria, inclusion probabilities and the selection rule over ``fits`` (module docstring)."""
+        say("ranking: simulating every candidate on the training and held-out runs...")
+        channels = tuple(res0.channels)
+        evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
+                                    scales=res.channel_scales),
+                evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
+                         scales=res.channel_scales) if validate else None)
+               for cand, res in fits]
+        # the criteria are computed on what each fit minimised: its simulation from its own fitted initial states
+        # (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter lets a
+        # structure win by how well its coefficients happen to suit that rule: on plain fossen3 data, three terms
+        # within one standard error of zero "improved" the BIC by 23)
+        resid = []
+        for _, res, ev, _ in evs:
+            if len(res.initial_states) == len(train):
+                ev = evaluate(res.model, train, list(res.initial_states), flt=flt, integrator=res.integrator)
+            resid.append(residuals(res.model.output_names, res.model.angle_outputs, ev, train, channels))
+        total = [sum(float(np.sum(np.concatenate(p) ** 2)) / max(res0.noise_std.get(c, 1.0), 1e-12) ** 2
+                     for c, p in rr.items() if p) for rr in resid]
+        n_eff = effective_samples(resid[int(np.argmin(total))])
+        val0 = evs[0][3]
+        cands = []
+        for (cand, res, ev, vev), rr in zip(evs, resid):
+            k = len(res.free)
+            crit = criteria(rr, n_eff, k)
+            if not ev.ok:
+                crit = {**crit, "aic": math.inf, "bic": math.inf}
+            cands.append(Candidate(cand, res, ev, vev, crit, k, _score(vev, val0)))
+        say(f"inclusion probabilities: {n_boot_rank} paired block-bootstrap resamples of the ranking...")
+        ok = [i for i, c in enumerate(cands) if math.isfinite(c.criteria[criterion])]
+        freq = np.zeros(len(cands))
+        if ok:
+            dt = float(np.median(np.diff(train[0].time))) if train and train[0].n > 1 else 0.1
+            freq[ok] = selection_frequency([resid[i] for i in ok], n_eff, [cands[i].n_params for i in ok],
+                                           [len(cands[i].terms) for i in ok], criterion, n_boot=n_boot_rank,
+                                           block=max(1, int(round(block_s / dt))), seed=seed)
+        cands = [dataclasses.replace(c, wins=float(f)) for c, f in zip(cands, freq)]
+        refitted = [t for c in cands for t in c.terms]
+        inclusion = {t: float(sum(c.wins for c in cands if t in c.terms)) for t in dict.fromkeys(refitted)}
+        ranked = sorted(cands, key=lambda c: (c.criteria[criterion], len(c.terms)))
+        base_crit = cands[0].criteria[criterion]
+        reasons: dict[str, str] = {}
+        chosen = next(i for i, c in enumerate(ranked) if not c.terms)
+        for i, c in enumerate(ranked):
+            if not c.terms:
+                break
+            why = []
+            if not c.criteria[criterion] <= base_crit - MARGIN:
+                why.append(f"{criterion.upper()} {c.criteria[criterion] - base_crit:+.1f} from the base's "
+                           f"(needs ≤ −{MARGIN:g})")
+            low = [t for t in c.terms if inclusion.get(t, 0.0) < MIN_INCLUSION]
+            if low:
+                why.append("inclusion probability " + ", ".join(f"{t} {inclusion.get(t, 0.0):.2f}" for t in low)
+                           + f" < {MIN_INCLUSION:g}")
+            if validate and not c.held_out < 1.0:
+                why.append(f"held-out RMSE {c.held_out:.3f} of the base's (needs < 1)")
+            if not why:
+                chosen = i
+                break
+            reasons[" + ".join(c.terms)] = "; ".join(why)
+        return cands, ranked, chosen, reasons, inclusion, n_eff
+
+    cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
+    # the polish: removals, swaps and additions from the best structure with terms, every move refitted on the
+    # output-error cost (:mod:`.polish`); the structure it ends at is refitted by the driver and ranked with the rest
+    polished = None
+    top = next((c for c in ranked if c.terms and math.isfinite(c.criteria[criterion])), None)
+    if top is not None and not top.criteria[criterion] <= cands[0].criteria[criterion] - MARGIN:
+        top = None  # no structure with terms beats the base: nothing to polish (a null case costs no more)
+    if polish_rounds and top is not None:
+        say(f"polish: removals, swaps and additions from {' + '.join(top.terms)}, every move refitted...")
+        try:
+            polished = polish(res0, spec, train, terms, top.terms, max_terms=max_terms, max_rounds=polish_rounds,
+                              start_values={t: top.result.params[t] for t in top.terms},
+                              start_base={n: top.result.params[n] for n in res0.params}, progress=say)
+        except DiffshipError as exc:
+            say(f"  polish failed: {exc}")
+    if polished is not None and frozenset(polished.selected) not in {frozenset(c) for c, _ in fits}:
+        cand = polished.selected
+        say(f"refit by output error: {' + '.join(cand)} (the polished structure)")
+        model = with_terms(base.with_params(fitted), cand)
+        cspec = term_spec(model, spec.with_values({n: fitted[n] for n in spec.free_names}), train, levels)
+        starts = {"the polished structure's optimum": {**{n: polished.base[n] for n in spec.free_names},
+                                                         **polished.values},
+                  "the base fit, terms from the polish": {**{n: fitted[n] for n in spec.free_names},
+                                                          **polished.values}}
+        try:
+            res = fit(model, train, term_options, spec=cspec, starts=starts, progress=say, throw=False)
+            if math.isfinite(res.cost):
+                fits.append((cand, res))
+                cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
+        except DiffshipError as exc:
+            say(f"  refit failed: {exc}")
     best = ranked[chosen]
     confirmed = None if not validate else bool(best.held_out <= 1.0 + 1e-9)
     possible = tuple(t for t in dict.fromkeys(
@@ -338,4 +384,5 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     return Discovery(base=cands[0], candidates=tuple(ranked), screen=sc, criterion=criterion, n_eff=n_eff,
                      confirmed=confirmed, possible=possible, tradeoffs=tuple(trade),
                      seconds=time.perf_counter() - t0, inclusion=inclusion, chosen=chosen, reasons=reasons,
-                     n_boot=n_boot_rank, oe_screen=oe, equivalent=equivalent, separation=separation)
+                     n_boot=n_boot_rank, oe_screen=oe, equivalent=equivalent, separation=separation,
+                     polish=polished)

@@ -10,7 +10,8 @@ and readable form), ``not_selected`` (why better-ranked structures were passed o
 ``separating_manoeuvre``;
 ``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
 win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
-the output-error screen's forward path (score statistics, linearised values).
+the output-error screen's forward path (score statistics, linearised values); ``polish`` the polish of the
+best-ranked structure (its start, the structure it ends at, each move taken with its criterion, refits, seconds).
 """
 
 from __future__ import annotations
@@ -71,7 +72,12 @@ def discovery_json(d: Discovery, model_name: str) -> dict:
                 "path": list(d.oe_screen.path), "statistic": list(d.oe_screen.statistic),
                 "supported": list(d.oe_screen.supported), "linearised_values": d.oe_screen.values,
                 "cost_fraction": list(d.oe_screen.fraction), "inflation": d.oe_screen.inflation,
-                "seconds": d.oe_screen.seconds}}
+                "seconds": d.oe_screen.seconds},
+            "polish": None if d.polish is None else {
+                "start": list(d.polish.start), "selected": list(d.polish.selected),
+                "moves": [{"kind": k, "move": w, "structure": list(st), "criterion": c}
+                          for k, w, st, c in d.polish.path],
+                "refits": d.polish.refits, "seconds": d.polish.seconds}}
 
 
 def discovery_text(d: Discovery, model_name: str) -> str:
@@ -98,6 +104,10 @@ def discovery_text(d: Discovery, model_name: str) -> str:
         lines.append("output-error screen (score statistic T of each forward step, * above the BIC cut): "
                      + ", ".join(f"{t} {T:.1f}{'*' if s else ''}" for t, T, s in
                                  zip(d.oe_screen.path, d.oe_screen.statistic, d.oe_screen.supported)))
+    if d.polish is not None:
+        moves = ", ".join(f"{k} {w}" for k, w, _, _ in d.polish.path) or "no move lowered the criterion"
+        lines.append(f"polish from {' + '.join(d.polish.start)}: {moves} → {' + '.join(d.polish.selected)} "
+                     f"({d.polish.refits} refits, {d.polish.seconds:.0f} s)")
     for a, b, c in d.tradeoffs:
         lines.append(f"warning: {a} and {b} trade off (estimates correlated {c:+.2f}); runs that separate them "
                      "would be needed to tell them apart")
