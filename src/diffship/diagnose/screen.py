@@ -268,12 +268,11 @@ class Workspace:
         return m.with_params({n: float(v) for n, v in values.items()})
 
     # -- screen ----------------------------------------------------------------------------
-    def columns(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """``(r0, J_theta, {effect parameter: ∂e/∂(scaled φ)})`` at the base fit: the normalised
-        residuals, the Jacobian of the base parameters and initial states, and each candidate
-        parameter's fingerprint (a probe secant for non-smooth nulls)."""
-        z0 = self.z0()
-        phi0 = self.phi_null
+    def columns(self, base_values=None, values=None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """``(r0, J_theta, {effect parameter: ∂e/∂(scaled φ)})`` at the base fit (or at ``base_values`` with the
+        effect ``values``): the normalised residuals, the Jacobian of the base parameters and initial states, and
+        each candidate parameter's fingerprint (a probe secant for non-smooth nulls)."""
+        z0, phi0 = self.z0(base_values=base_values), self.phi_vector(values or {})
         r0 = self.residuals(z0, self.selection([]), phi0)
         nk = self.n_theta + P_MAX
         smooth = [n for n in self.phi_names if self.owner[n].smooth_null]
@@ -301,8 +300,9 @@ class Workspace:
         for n in self.phi_names:
             if n in cols:
                 continue
-            probe = self.owner[n].PROBE[n]
-            r1 = self.residuals(z0, self.selection([]), self.phi_vector({n: probe}))
+            probe = phi0.copy()
+            probe[self.phi_names.index(n)] = self.owner[n].PROBE[n]
+            r1 = self.residuals(z0, self.selection([]), probe)
             cols[n] = np.where(np.abs(r1) >= PENALTY, 0.0, r1 - r0)
         return r0, J_theta, cols
 

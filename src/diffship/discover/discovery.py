@@ -244,40 +244,51 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     levels = _levels(train, base)
     fits: list[tuple[tuple[str, ...], FitResult]] = [((), res0)]
     fitted = res0.params
-    for cand in structures:
-        say(f"refit by output error: {' + '.join(cand)}")
+
+    def refit(cand: tuple[str, ...], starts: dict[str, dict[str, float]], why: str = "") -> bool:
+        """Refit one structure by output error through the driver from ``starts`` (with the search's own
+        candidates: the model's and the reference values, spread starts; a structure refitted from the base fit
+        alone inherits its bias); keep it when it ends finite."""
+        say(f"refit by output error: {' + '.join(cand)}{why}")
         model = with_terms(base.with_params(fitted), cand)
         cspec = term_spec(model, spec.with_values({n: fitted[n] for n in spec.free_names}), train, levels)
-        start = {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand}
-        starts = {"the base fit, terms from the screens": {**{n: fitted[n] for n in spec.free_names}, **start}}
         try:
-            # the search's candidates: the base fit with the screens' term values, the model's and the reference
-            # values, spread starts (a structure refitted from the base fit alone inherits its bias)
             res = fit(model, train, term_options, spec=cspec, starts=starts, progress=say, throw=False)
         except DiffshipError as exc:
             say(f"  refit failed: {exc}")
-            continue
+            return False
         if math.isfinite(res.cost):
             fits.append((cand, res))
+        return math.isfinite(res.cost)
+
+    base_start = {n: fitted[n] for n in spec.free_names}
+    for cand in structures:
+        start = {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand}
+        refit(cand, {"the base fit, terms from the screens": {**base_start, **start}})
+
+    simulated: dict[int, tuple] = {}  # id(fit) -> (training, held-out, residuals): each fit simulated once
+
+    def simulate(res: FitResult) -> tuple:
+        if id(res) not in simulated:
+            ev = evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
+                          scales=res.channel_scales)
+            vev = evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
+                           scales=res.channel_scales) if validate else None
+            # the criteria are computed on what each fit minimised: its simulation from its own fitted initial
+            # states (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter
+            # lets a structure win by how well its coefficients happen to suit that rule: on plain fossen3 data,
+            # three terms within one standard error of zero "improved" the BIC by 23)
+            own = (evaluate(res.model, train, list(res.initial_states), flt=flt, integrator=res.integrator)
+                   if len(res.initial_states) == len(train) else ev)
+            simulated[id(res)] = (ev, vev, residuals(res.model.output_names, res.model.angle_outputs, own, train,
+                                                     tuple(res0.channels)))
+        return simulated[id(res)]
 
     def rank(fits):
-        """Simulate, criteria, inclusion probabilities and the selection rule over ``fits`` (module docstring)."""
+        """Criteria, inclusion probabilities and the selection rule over ``fits`` (module docstring)."""
         say("ranking: simulating every candidate on the training and held-out runs...")
-        channels = tuple(res0.channels)
-        evs = [(cand, res, evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
-                                    scales=res.channel_scales),
-                evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
-                         scales=res.channel_scales) if validate else None)
-               for cand, res in fits]
-        # the criteria are computed on what each fit minimised: its simulation from its own fitted initial states
-        # (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter lets a
-        # structure win by how well its coefficients happen to suit that rule: on plain fossen3 data, three terms
-        # within one standard error of zero "improved" the BIC by 23)
-        resid = []
-        for _, res, ev, _ in evs:
-            if len(res.initial_states) == len(train):
-                ev = evaluate(res.model, train, list(res.initial_states), flt=flt, integrator=res.integrator)
-            resid.append(residuals(res.model.output_names, res.model.angle_outputs, ev, train, channels))
+        evs = [(cand, res, *simulate(res)[:2]) for cand, res in fits]
+        resid = [simulate(res)[2] for _, res in fits]
         total = [sum(float(np.sum(np.concatenate(p) ** 2)) / max(res0.noise_std.get(c, 1.0), 1e-12) ** 2
                      for c, p in rr.items() if p) for rr in resid]
         n_eff = effective_samples(resid[int(np.argmin(total))])
@@ -339,21 +350,11 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         except DiffshipError as exc:
             say(f"  polish failed: {exc}")
     if polished is not None and frozenset(polished.selected) not in {frozenset(c) for c, _ in fits}:
-        cand = polished.selected
-        say(f"refit by output error: {' + '.join(cand)} (the polished structure)")
-        model = with_terms(base.with_params(fitted), cand)
-        cspec = term_spec(model, spec.with_values({n: fitted[n] for n in spec.free_names}), train, levels)
         starts = {"the polished structure's optimum": {**{n: polished.base[n] for n in spec.free_names},
                                                          **polished.values},
-                  "the base fit, terms from the polish": {**{n: fitted[n] for n in spec.free_names},
-                                                          **polished.values}}
-        try:
-            res = fit(model, train, term_options, spec=cspec, starts=starts, progress=say, throw=False)
-            if math.isfinite(res.cost):
-                fits.append((cand, res))
-                cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
-        except DiffshipError as exc:
-            say(f"  refit failed: {exc}")
+                  "the base fit, terms from the polish": {**base_start, **polished.values}}
+        if refit(polished.selected, starts, " (the polished structure)"):
+            cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
     best = ranked[chosen]
     confirmed = None if not validate else bool(best.held_out <= 1.0 + 1e-9)
     possible = tuple(t for t in dict.fromkeys(

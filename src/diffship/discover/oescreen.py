@@ -38,7 +38,7 @@ from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
 
-__all__ = ["OEScreen", "oe_screen"]
+__all__ = ["OEScreen", "conditional_gains", "forward_path", "oe_screen"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,34 +67,39 @@ class OEScreen:
         return [tuple(self.path[:k]) for k in range(1, min(max_terms, len(self.path)) + 1)]
 
 
+def conditional_gains(r: np.ndarray, J_theta: np.ndarray, G: np.ndarray, chosen: Sequence[int]) -> np.ndarray:
+    r"""Each column's linearised cost reduction given the base columns and the ``chosen`` ones:
+    :math:`(h_k^\top e)^2/\|h_k\|^2`, with :math:`h_k` column k orthogonal to them and :math:`e` the residual
+    orthogonal to them (0 for the chosen columns and for columns inside their span)."""
+    A = np.concatenate([J_theta, G[:, list(chosen)]], axis=1) if len(chosen) else J_theta
+    u, sv, _ = np.linalg.svd(A, full_matrices=False)
+    Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
+    H = G - Q @ (Q.T @ G)
+    e = r - Q @ (Q.T @ r)
+    nn = np.sum(H * H, axis=0)
+    ok = nn > 1e-12 * np.maximum(np.sum(G * G, axis=0), 1e-300)
+    gain = np.where(ok, (H.T @ e) ** 2 / np.maximum(nn, 1e-300), 0.0)
+    gain[list(chosen)] = 0.0
+    return gain
+
+
 def forward_path(r0: np.ndarray, J_theta: np.ndarray, G: np.ndarray, max_terms: int, s2: float, kappa: float):
     """``(order, T, fraction, delta)``: greedy forward selection of the columns of ``G`` (m × q) on the
-    residual ``r0`` beyond the span of ``J_theta`` (module docstring); ``delta`` the linearised least-squares
+    residual ``r0`` beyond the span of ``J_theta`` (module docstring), each step the largest
+    :func:`conditional_gains` given the columns chosen before; ``delta`` the linearised least-squares
     coefficients of the chosen columns (the step that lowers ``‖r0 + J δ‖``)."""
-    u, sv, _ = np.linalg.svd(J_theta, full_matrices=False)
-    Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
-    Gp = G - Q @ (Q.T @ G)
-    e = r0 - Q @ (Q.T @ r0)
     total = float(r0 @ r0)
-    B = np.zeros((r0.size, 0))
     order: list[int] = []
     T: list[float] = []
     frac: list[float] = []
     for _ in range(min(max_terms, G.shape[1])):
-        H = Gp - B @ (B.T @ Gp)
-        nn = np.sum(H * H, axis=0)
-        gain = np.where(nn > 1e-12 * np.maximum(np.sum(Gp * Gp, axis=0), 1e-300), (H.T @ e) ** 2 / np.maximum(nn, 1e-300),
-                        -1.0)
-        gain[order] = -1.0
+        gain = conditional_gains(r0, J_theta, G, order)
         k = int(np.argmax(gain))
         if gain[k] <= 0:
             break
         order.append(k)
         T.append(float(gain[k]) / (s2 * kappa))
         frac.append(float(gain[k]) / max(total, 1e-300))
-        h = H[:, k] / math.sqrt(nn[k])
-        B = np.concatenate([B, h[:, None]], axis=1)
-        e = e - h * float(h @ e)
     delta = np.zeros(len(order))
     if order:
         A = np.concatenate([J_theta, G[:, order]], axis=1)

@@ -46,13 +46,14 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..data import Run
-from ..diagnose.screen import P_MAX, Workspace, inflation
+from ..diagnose.screen import Workspace, inflation
 from ..errors import DiffshipError
 from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
+from .oescreen import conditional_gains
 
-__all__ = ["Polish", "conditional_gains", "polish"]
+__all__ = ["Polish", "polish"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,22 +74,6 @@ class Polish:
     base: dict[str, float]
     refits: int
     seconds: float
-
-
-def conditional_gains(r: np.ndarray, J_theta: np.ndarray, G: np.ndarray, chosen: Sequence[int]) -> np.ndarray:
-    r"""Each column's linearised cost reduction given the base columns and the ``chosen`` ones:
-    :math:`(h_k^\top e)^2/\|h_k\|^2`, with :math:`h_k` column k orthogonal to them and :math:`e` the residual
-    orthogonal to them (0 for the chosen columns and for columns inside their span)."""
-    A = np.concatenate([J_theta, G[:, list(chosen)]], axis=1) if len(chosen) else J_theta
-    u, sv, _ = np.linalg.svd(A, full_matrices=False)
-    Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
-    H = G - Q @ (Q.T @ G)
-    e = r - Q @ (Q.T @ r)
-    nn = np.sum(H * H, axis=0)
-    ok = nn > 1e-12 * np.maximum(np.sum(G * G, axis=0), 1e-300)
-    gain = np.where(ok, (H.T @ e) ** 2 / np.maximum(nn, 1e-300), 0.0)
-    gain[list(chosen)] = 0.0
-    return gain
 
 
 def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], start: Sequence[str], *,
@@ -114,7 +99,6 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     m = ws.train["batch"].n_residuals
     r0 = ws.residuals(ws.z0(), ws.selection([]), ws.phi_null)
     n_eff = max(m / inflation(r0, ws.train["batch"], len(chans)), 2.0)
-    ws.base_cost = 0.5 * float(r0 @ r0)
 
     def crit(cost: float, k: int) -> float:
         return n_eff * math.log(max(2.0 * cost / m, 1e-300)) + k * math.log(n_eff)
@@ -137,17 +121,10 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
             visited[struct] = (crit(rf.train_cost, len(struct)), rf.train_cost, dict(rf.values), dict(rf.base_values))
 
     def linearised(S: tuple[str, ...]):
-        """Residuals, base/initial-state columns and every term's column at S's optimum (forward mode)."""
+        """Residuals, base/initial-state columns and every term's column at S's optimum."""
         _, _, vals, base_vals = visited[S]
-        z, phi = ws.z0(base_values=base_vals), ws.phi_vector(vals)
-        r = ws.residuals(z, ws.selection([]), phi)
-        cols, J_th = [], None
-        for i in range(0, len(names), P_MAX):
-            J = ws.jacobian(z, ws.selection(names[i:i + P_MAX]), phi)
-            if J_th is None:
-                J_th = np.concatenate([J[:, :ws.n_theta], J[:, ws.n_theta + P_MAX:]], axis=1)
-            cols += [J[:, ws.n_theta + j] for j in range(len(names[i:i + P_MAX]))]
-        return r, J_th, np.stack(cols, axis=1)
+        r, J_th, cols = ws.columns(base_values=base_vals, values=vals)
+        return r, J_th, np.stack([cols[n] for n in names], axis=1)
 
     S = order(start)
     if not S:

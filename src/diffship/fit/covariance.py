@@ -31,7 +31,7 @@ Three estimates of Ω (``kind``):
   Andrews' (1991) AR(1) plug-in rule, recoloured, and summed over runs (runs independent).
   Measured inputs (rudder-angle and thrust noise) and unmodelled disturbances make
   output-error residuals coloured: then this is the honest one.
-* ``"block"`` — a moving-block bootstrap of the same score series (block length ``2 L_i``,
+* ``"block"`` — a moving-block bootstrap of the same (block-summed) score series (block length ``2 L_i``,
   ``n_boot`` resamples), :math:`\hat z^{*}-\hat z = -H^{-1}\sum g^{*}`: the bootstrap
   counterpart of ``"hac"`` at linearised cost (no refits), for comparison.
 * ``"auto"`` — ``"hac"`` where the residuals are not white (:func:`whiteness`), else ``"white"``.
@@ -324,10 +324,11 @@ def _block_draws(scores: list[np.ndarray], p: int, n_boot: int, seed: int) -> tu
     total = np.zeros((n_boot, p))
     bls = []
     for g in scores:
+        g, agg = aggregated(g)  # the same block sums as "hac" (module docstring)
         n = g.shape[0]
         g = g - g.mean(0)
         b = int(np.clip(round(2 * max(_bandwidth(g), 1.0)), 1, n))
-        bls.append(float(b))
+        bls.append(float(b * agg))
         c = np.concatenate([np.zeros((1, p)), np.cumsum(g, 0)])
         block_sums = c[b:] - c[:-b]  # (n - b + 1, p)
         k = int(np.ceil(n / b))
