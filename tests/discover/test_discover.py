@@ -115,7 +115,9 @@ def test_discover_finds_terms_and_predict_reads_the_fit(tmp_path):
 
     loaded = diffship.load_fit(fit)
     assert set(doc["selected"]["terms"]) <= set(loaded.model.param_names)
-    ev = evaluate(loaded.model, load_runs(held), integrator=loaded.integrator)
+    # scored by the one initial-state rule, on the fit's channels at its channel scales (as `fit --validate` scores)
+    ev = evaluate(loaded.model, load_runs(held), integrator=loaded.integrator, fitted=loaded.channels,
+                  scales=loaded.channel_scales)
     for c in ("psi", "r"):
         assert ev.per_run["pullout"]["rmse"][c] == pytest.approx(
             doc["selected"]["validation"]["per_run"]["pullout"]["rmse"][c], rel=1e-6)

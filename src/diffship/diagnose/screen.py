@@ -89,6 +89,7 @@ class RefitResult:
     seconds: float
     ok: bool
     converged: bool = True
+    initial_states: tuple[np.ndarray, ...] = ()
 
 
 class Workspace:
@@ -108,12 +109,13 @@ class Workspace:
             step cap of 1: :class:`~diffship.fit.kernel.KernelData`), so the workspace compiles
             one program holding the model's Jacobian, not two; a screen alone compiles the
             cheaper Jacobian program.
+        phi_scales: ``{effect parameter: scale}`` overriding the effects' declared scales (data-based ones).
     """
 
     def __init__(self, base: AbstractModel, spec: ParamSpec, effects: Sequence[Effect], runs, channels,
                  scales: dict[str, float], x0_train: Sequence[np.ndarray] | None = None,
                  integrator: AbstractIntegrator = Diffrax(), warmup: float = 0.25, max_iter: int = 60,
-                 stall: tuple[int, float] | None = None, refits: bool = True):
+                 stall: tuple[int, float] | None = None, refits: bool = True, phi_scales: dict[str, float] | None = None):
         self.base = base
         self.spec = spec
         self.integrator = integrator
@@ -123,13 +125,10 @@ class Workspace:
         self.phi_names = tuple(n for e in self.effects for n in e.param_names)
         self.owner = {n: e for e in self.effects for n in e.param_names}
         self.phi_null = np.array([self.owner[n].null()[n] for n in self.phi_names])
-        lo, hi, sc = [], [], []
-        for e in self.effects:
-            for p in e.PARAMS:
-                lo.append(p.lower if math.isfinite(p.lower) else -1e12)
-                hi.append(p.upper if math.isfinite(p.upper) else 1e12)
-                sc.append(p.scale)
-        self.lo, self.hi, self.phi_scale = np.asarray(lo), np.asarray(hi), np.asarray(sc)
+        ps = [p for e in self.effects for p in e.PARAMS]
+        self.lo = np.asarray([p.lower if math.isfinite(p.lower) else -1e12 for p in ps])
+        self.hi = np.asarray([p.upper if math.isfinite(p.upper) else 1e12 for p in ps])
+        self.phi_scale = np.asarray([(phi_scales or {}).get(p.name, p.scale) for p in ps])
         self.channels = tuple(channels)
         self.scales = np.asarray([scales[c] for c in self.channels])
         self.n_theta = len(spec.free_names)
@@ -424,9 +423,8 @@ class Workspace:
             progress(f"  refit {'+'.join(names) or 'no effect'}: {it} iterations"
                      f"{'' if converged else (' (stopped: the cost stalled)' if crawl else ' (NOT converged)')}, cost {cost:.6g}, "
                      + ", ".join(f"{n}={v:.4g}±{stderr[n]:.2g}" for n, v in values.items()))
-        return RefitResult(tuple(names), {**fixed_out, **values}, stderr, base_values, cost, it,
-                           time.perf_counter() - t0, ok, converged)
-
+        return RefitResult(tuple(names), {**fixed_out, **values}, stderr, base_values, cost, it, time.perf_counter() - t0,
+                           ok, converged, tuple(np.asarray(self.kernel.initial_states(jnp.asarray(z), self._kd(None, S, phi0)))))
 
     def _finish(self, got: tuple, S: np.ndarray, lm: dict, rounds: int, max_iter: int) -> tuple:
         """A promising whole-run candidate continued without the stall rule (the same compiled solve, its gate off)

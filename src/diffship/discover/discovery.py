@@ -9,28 +9,33 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    smoothed derivatives with block-bootstrap frequencies (:mod:`.screen`); they propose candidate
    structures: the output-error path's prefixes first, then the equation-error path's prefixes and its
    terms nested by frequency;
-3. the **refit** of every candidate by output error through the driver, started from the base fit
-   with the terms at their screen values (and at zero), each term's scale its equation's force level
-   over the RMS of its regressor on the training data;
-4. the **ranking** by BIC (or AIC) on the output residuals of each fit (simulated from its own fitted
-   initial states: what it minimised) with effective sample sizes (:mod:`.rank`),
+3. the **refit** of the base and every candidate by output error on one **workspace**: the base with every library
+   term, compiled once, a structure switched on by data (:func:`.oescreen.term_workspace`); each from the base fit
+   with the terms at their screen values and at zero, side by side (one thread per core). A refit whose cost stalls
+   stops; one that halves the base's cost is finished;
+4. the **ranking** by BIC (or AIC) on the output residuals of each refit (simulated from its own fitted
+   initial states: what it minimised) with effective sample sizes (:mod:`.rank`); every structure is simulated with
+   the all-terms model (the others at zero), so one compiled simulation serves them all,
    and each term's **inclusion probability**: the fraction of a paired block bootstrap of the training
    samples in which a structure containing it wins the ranking (:func:`.rank.selection_frequency`;
    the screen's own bootstrap frequencies are reported beside it but decide nothing: the
    equation-error regression is biased by noise in its regressors and derivatives, errors in
    variables, so a term can be kept by every resample of it and still be spurious);
 4a. the **polish** (:mod:`.polish`): from the best-ranked structure with terms (when it beats the base's criterion
-   by :data:`MARGIN`), removals, swaps within an
-   equation and additions, every move refitted on the output-error cost from that structure's optimum, while a move
-   lowers the criterion. The screens linearise at the base fit, which the missing terms bias, and there a
-   near-collinear stand-in can look better than the true term. The structure the polish ends at is refitted through
-   the driver and ranked with the others;
+   by :data:`MARGIN`), removals, swaps within an equation and additions, every move refitted on the same workspace
+   from that structure's optimum, while a move lowers the criterion. The screens linearise at the base fit, which
+   the missing terms bias, and there a near-collinear stand-in can look better than the true term. The structure
+   the polish ends at is ranked with the others;
 5. the **selection**: the best-ranked structure whose terms all have inclusion probability at least
    0.5, that beats the base's criterion by at least :data:`MARGIN` (Kass & Raftery, JASA 90, 1995:
    a BIC difference below 2 is "not worth more than a bare mention"), and, with held-out runs, that
    predicts them better than the base model (mean over runs and channels of the RMSE relative to the
    base's below 1); else the base model alone. Terms that appear in a better-ranked structure or win
    some resamples but fail these tests are reported as **possible**, with their inclusion probability;
+5a. the selected structure's **final fit** through the driver (:func:`diffship.fit.fit`), from its workspace
+   optimum: the user's priors, the search's starts and the covariance; it is what is reported, saved and
+   bootstrapped. The ranking stands on the workspace refits: one estimator, the same problem for every structure
+   (without parameter priors);
 6. **warnings**: pairs of free parameters whose estimates correlate beyond 0.95 in the selected fit
    (terms that trade off);
 7. **equivalent explanations**: the structures whose criterion is within :data:`MARGIN` of the selected one's
@@ -51,21 +56,23 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..data import Run
+from ..diagnose.screen import parallel
 from ..errors import DiffshipError
 from ..fit import FitResult, OutputError, fit
 from ..fit.driver import fit_priors
+from ..fit.status import RESULTS
 from ..metrics import Evaluation, evaluate
 from ..models import AbstractModel
 from ..models.terms import library_terms, term_class, with_terms
 from ..params import ParamSpec
 from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
-from .oescreen import OEScreen, oe_screen
+from .oescreen import OEScreen, oe_screen, term_workspace
 from .polish import Polish, polish
 from .screen import Screen, screen
 from .separate import Separation, separating_manoeuvre
 
-__all__ = ["Candidate", "Discovery", "discover", "term_spec", "TRADEOFF", "MARGIN", "MIN_INCLUSION", "MAX_EQUIVALENT"]
+__all__ = ["Candidate", "Discovery", "discover", "term_spec", "term_scales", "TRADEOFF", "MARGIN", "MIN_INCLUSION", "MAX_EQUIVALENT"]
 
 #: |correlation| between two estimates above which they are said to trade off.
 TRADEOFF = 0.95
@@ -79,7 +86,12 @@ MAX_EQUIVALENT = 3
 
 @dataclasses.dataclass(frozen=True)
 class Candidate:
-    """One refitted structure: its terms, output-error fit, criteria and metrics."""
+    """One refitted structure: its terms, output-error fit, criteria and metrics.
+
+    ``result`` is the workspace refit the ranking compared, except for the base (the driver's base fit) and the selected
+    structure (its final fit through the driver). ``train`` is the training runs simulated from the fit's own initial
+    states, for the base and the selected by the metrics' start rule; ``validation`` the held-out runs by that rule.
+    """
 
     terms: tuple[str, ...]
     result: FitResult
@@ -134,22 +146,26 @@ class Discovery:
         return self.selected.result.model
 
 
-def term_spec(model: AbstractModel, base_spec: ParamSpec, runs: Sequence[Run], level: dict[str, float]) -> ParamSpec:
-    """The spec of ``model`` (base with terms): ``base_spec`` followed by the terms, free, each scaled by
-    its equation's force level over the RMS of its regressor on ``runs``."""
+def term_scales(runs: Sequence[Run], terms: Sequence[str], level: dict[str, float]) -> dict[str, float]:
+    """``{term: scale}``: a tenth of its equation's force level over the RMS of its regressor on ``runs`` (a term at
+    one scale unit explains a tenth of the force), so that every coefficient is of order one to the solver."""
     u = np.concatenate([np.asarray(r["u"]) for r in runs])
     v = np.concatenate([np.asarray(r["v"]) if r.has("v") else np.zeros(r.n) for r in runs])
     r_ = np.concatenate([np.asarray(r["r"]) for r in runs])
+    out = {}
+    for t in terms:
+        cls = term_class(t)
+        out[t] = 0.1 * level[cls.equation] / (float(np.sqrt(np.mean(np.asarray(cls.regressor(u, v, r_)) ** 2))) or 1.0)
+    return out
+
+
+def term_spec(model: AbstractModel, base_spec: ParamSpec, runs: Sequence[Run], level: dict[str, float]) -> ParamSpec:
+    """The spec of ``model`` (base with terms): ``base_spec`` followed by the terms, free, each scaled by
+    :func:`term_scales`."""
     spec = model.spec(base_spec)
-    params = []
-    for p in spec.params:
-        if p.name in base_spec:
-            params.append(p)
-            continue
-        cls = term_class(p.name)
-        rms = float(np.sqrt(np.mean(np.asarray(cls.regressor(u, v, r_)) ** 2))) or 1.0
-        params.append(dataclasses.replace(p, scale=0.1 * level[cls.equation] / rms))
-    return ParamSpec(tuple(params))
+    scales = term_scales(runs, [p.name for p in spec.params if p.name not in base_spec], level)
+    return ParamSpec(tuple(p if p.name in base_spec else dataclasses.replace(p, scale=scales[p.name])
+                           for p in spec.params))
 
 
 def _levels(runs: Sequence[Run], model: AbstractModel) -> dict[str, float]:
@@ -192,7 +208,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             probabilities); block_s: the bootstrap block length [s] (residuals are coloured).
         x0: ``"estimate"`` (default): every fit estimates each run's initial state of the fitted channels'
             states within their noise (:attr:`~diffship.fit.OutputError.x0_prior`), unless ``options``
-            names states already; ``"data"``: the filtered first samples. Initial-state errors of slow
+            names states already; ``"data"``: the base and final fits take the filtered first samples (the workspace refits
+            estimate them within their noise, as always). Initial-state errors of slow
             modes (the USV's sway decays in ~27 s) last for much of a run, and candidate terms absorb
             part of them: measured on the benchmark truth, the true structure refitted from the data's
             initial states had Xudot −276 ± 25 kg (truth −400) and a fast-run heading error 1.9× the
@@ -225,10 +242,13 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     say(f"screen: {len(terms)} library terms by equation error, forward selection, {n_boot} bootstrap resamples...")
     sc = screen(base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
     oe = None
+    say(f"workspace: the base with all {len(terms)} library terms, one compiled program for the output-error screen, "
+        "every candidate's refit and the polish...")
+    ws = term_workspace(res0, spec, train, terms, phi_scales=term_scales(train, terms, _levels(train, base)))
     if oe_first:
-        say(f"screen: {len(terms)} library terms on the output-error Jacobian at the base fit (one all-terms model)...")
+        say(f"screen: {len(terms)} library terms on the output-error Jacobian at the base fit...")
         try:
-            oe = oe_screen(res0, spec, train, terms, max_terms=max_terms)
+            oe = oe_screen(res0, spec, train, terms, max_terms=max_terms, workspace=ws)
             say("  forward path: " + ", ".join(f"{t} (T = {T:.1f})" for t, T in zip(oe.path, oe.statistic)))
         except DiffshipError as exc:
             say(f"  output-error screen failed: {exc}")
@@ -241,52 +261,77 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             seen.add(frozenset(c))
             structures.append(c)
     structures = structures[: max(max_candidates - 1, 0)]
-    levels = _levels(train, base)
-    fits: list[tuple[tuple[str, ...], FitResult]] = [((), res0)]
-    fitted = res0.params
+    chans = tuple(res0.channels)
 
-    def refit(cand: tuple[str, ...], starts: dict[str, dict[str, float]], why: str = "") -> bool:
-        """Refit one structure by output error through the driver from ``starts`` (with the search's own
-        candidates: the model's and the reference values, spread starts; a structure refitted from the base fit
-        alone inherits its bias); keep it when it ends finite."""
-        say(f"refit by output error: {' + '.join(cand)}{why}")
-        model = with_terms(base.with_params(fitted), cand)
-        cspec = term_spec(model, spec.with_values({n: fitted[n] for n in spec.free_names}), train, levels)
-        try:
-            res = fit(model, train, term_options, spec=cspec, starts=starts, progress=say, throw=False)
-        except DiffshipError as exc:
-            say(f"  refit failed: {exc}")
-            return False
-        if math.isfinite(res.cost):
-            fits.append((cand, res))
-        return math.isfinite(res.cost)
+    def as_result(cand: tuple[str, ...], rf) -> FitResult:
+        """A workspace refit (:class:`~diffship.diagnose.screen.RefitResult`) as the fit of ``base`` with ``cand``."""
+        vals = {t: float(rf.values[t]) for t in cand}
+        return FitResult("output_error", with_terms(base.with_params(rf.base_values), cand, vals),
+                         {**rf.base_values, **vals}, {t: float(rf.stderr[t]) for t in cand},
+                         tuple(spec.free_names) + tuple(cand), bool(rf.converged), "", rf.iterations, rf.train_cost,
+                         rf.seconds, 0.0, channels=chans, channel_scales=dict(res0.channel_scales),
+                         noise_std=dict(res0.noise_std), initial_states=tuple(rf.initial_states),
+                         run_names=res0.run_names, integrator=res0.integrator, info={"refit": "workspace"},
+                         result=RESULTS.successful if rf.converged else RESULTS.nonlinear_max_steps_reached)
 
-    base_start = {n: fitted[n] for n in spec.free_names}
-    for cand in structures:
-        start = {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand}
-        refit(cand, {"the base fit, terms from the screens": {**base_start, **start}})
+    def refit_all(jobs) -> None:
+        """Refit ``(structure, term starts)`` jobs on the workspace, side by side (:func:`parallel`), each from the
+        base fit with the terms at their start values and at zero; kept in the order given when they end finite."""
+        def one(job):
+            cand, start = job
+            return ws.refit(list(cand), [start, {t: 0.0 for t in cand}] if cand else [{}], progress=say)
+        for (cand, _), rf in zip(jobs, parallel(one, jobs)):
+            if isinstance(rf, Exception):
+                say(f"  refit {' + '.join(cand) or '(base)'} failed: {rf}")
+            elif rf.ok and math.isfinite(rf.train_cost):
+                fits.append((cand, as_result(cand, rf)))
+                refits[frozenset(cand)] = rf
+
+    say(f"refit by output error on the workspace: the base and {len(structures)} structure(s), side by side...")
+    fits: list[tuple[tuple[str, ...], FitResult]] = []
+    refits: dict[frozenset, object] = {}  # structure -> its workspace refit
+    refit_all([((), {})] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand})
+                            for cand in structures])
+    if not fits or fits[0][0]:
+        raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
+    # every structure is simulated with the all-terms model (the others at zero): one compiled simulation serves all
+    full = with_terms(base, terms)
 
     simulated: dict[int, tuple] = {}  # id(fit) -> (training, held-out, residuals): each fit simulated once
 
+    def scored(res: FitResult) -> AbstractModel:
+        return full.with_params({**{n: res.params[n] for n in base.param_names},
+                                 **{t: res.params.get(t, 0.0) for t in terms}})
+
     def simulate(res: FitResult) -> tuple:
+        """The training runs simulated from the fit's own initial states (what it minimised: the criteria are
+        computed on it; from the metrics' start rule, a structure could win by how well its coefficients happen to
+        suit that rule: on plain fossen3 data, three terms within one standard error of zero "improved" the BIC by
+        23), the held-out runs by the metrics' start rule, and the training residuals."""
         if id(res) not in simulated:
-            ev = evaluate(res.model, train, flt=flt, integrator=res.integrator, fitted=res.channels,
-                          scales=res.channel_scales)
-            vev = evaluate(res.model, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
+            m = scored(res)
+            own = (evaluate(m, train, [np.asarray(x)[:len(base.state_names)] for x in res.initial_states], flt=flt,
+                            integrator=res.integrator) if len(res.initial_states) == len(train) else
+                   evaluate(m, train, flt=flt, integrator=res.integrator, fitted=res.channels,
+                            scales=res.channel_scales))
+            vev = evaluate(m, validate, flt=flt, integrator=res.integrator, fitted=res.channels,
                            scales=res.channel_scales) if validate else None
-            # the criteria are computed on what each fit minimised: its simulation from its own fitted initial
-            # states (with x0="estimate" these differ from the metrics' 3-s start rule, and ranking on the latter
-            # lets a structure win by how well its coefficients happen to suit that rule: on plain fossen3 data,
-            # three terms within one standard error of zero "improved" the BIC by 23)
-            own = (evaluate(res.model, train, list(res.initial_states), flt=flt, integrator=res.integrator)
-                   if len(res.initial_states) == len(train) else ev)
-            simulated[id(res)] = (ev, vev, residuals(res.model.output_names, res.model.angle_outputs, own, train,
-                                                     tuple(res0.channels)))
+            simulated[id(res)] = (own, vev, residuals(m.output_names, m.angle_outputs, own, train, chans))
         return simulated[id(res)]
+
+    def judged(res: FitResult, runs: Sequence[Run]) -> Evaluation:
+        """``runs`` by the metrics' start rule with the fit's own model (what the report shows for the base and the
+        selected fit, and what its fit file reproduces)."""
+        return evaluate(res.model, runs, flt=flt, integrator=res.integrator, fitted=res.channels,
+                        scales=res.channel_scales)
 
     def rank(fits):
         """Criteria, inclusion probabilities and the selection rule over ``fits`` (module docstring)."""
         say("ranking: simulating every candidate on the training and held-out runs...")
+        todo = list({id(res): res for _, res in fits if id(res) not in simulated}.values())
+        for res, got in zip(todo, parallel(simulate, todo)):  # side by side; each fills its own entry
+            if isinstance(got, Exception):
+                raise got
         evs = [(cand, res, *simulate(res)[:2]) for cand, res in fits]
         resid = [simulate(res)[2] for _, res in fits]
         total = [sum(float(np.sum(np.concatenate(p) ** 2)) / max(res0.noise_std.get(c, 1.0), 1e-12) ** 2
@@ -334,9 +379,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             reasons[" + ".join(c.terms)] = "; ".join(why)
         return cands, ranked, chosen, reasons, inclusion, n_eff
 
+
     cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
     # the polish: removals, swaps and additions from the best structure with terms, every move refitted on the
-    # output-error cost (:mod:`.polish`); the structure it ends at is refitted by the driver and ranked with the rest
+    # output-error cost (:mod:`.polish`) on the same workspace; the structure it ends at is ranked with the rest
     polished = None
     top = next((c for c in ranked if c.terms and math.isfinite(c.criteria[criterion])), None)
     if top is not None and not top.criteria[criterion] <= cands[0].criteria[criterion] - MARGIN:
@@ -346,16 +392,37 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         try:
             polished = polish(res0, spec, train, terms, top.terms, max_terms=max_terms, max_rounds=polish_rounds,
                               start_values={t: top.result.params[t] for t in top.terms},
-                              start_base={n: top.result.params[n] for n in res0.params}, progress=say)
+                              start_base={n: top.result.params[n] for n in res0.params}, workspace=ws,
+                              start_refit=refits.get(frozenset(top.terms)), progress=say)
         except DiffshipError as exc:
             say(f"  polish failed: {exc}")
     if polished is not None and frozenset(polished.selected) not in {frozenset(c) for c, _ in fits}:
-        starts = {"the polished structure's optimum": {**{n: polished.base[n] for n in spec.free_names},
-                                                         **polished.values},
-                  "the base fit, terms from the polish": {**base_start, **polished.values}}
-        if refit(polished.selected, starts, " (the polished structure)"):
-            cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
-    best = ranked[chosen]
+        fits.append((polished.selected, as_result(polished.selected, polished.result)))
+        cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
+    # the selected structure through the driver, from its workspace optimum: what is reported, saved and bootstrapped
+    # (the user's priors, the search's starts, the covariance); the ranking stands on the workspace refits, the same
+    # problem for every structure
+    base_c = next(c for c in cands if not c.terms)
+    base_c = dataclasses.replace(base_c, result=res0, train=judged(res0, train),
+                                 validation=judged(res0, validate) if validate else None)
+    best = ranked[chosen] if ranked[chosen].terms else base_c
+    if best.terms:
+        start = {**{n: best.result.params[n] for n in spec.free_names}, **{t: best.result.params[t] for t in best.terms}}
+        say(f"refit by output error through the driver: {' + '.join(best.terms)} (the selected structure)")
+        model = with_terms(base.with_params({n: best.result.params[n] for n in base.param_names}), best.terms)
+        cspec = term_spec(model, spec.with_values({n: best.result.params[n] for n in spec.free_names}), train,
+                          _levels(train, base))
+        try:
+            res = fit(model, train, term_options, spec=cspec, starts={"the workspace optimum": start}, progress=say,
+                      throw=False)
+        except DiffshipError as exc:
+            raise DiffshipError(f"discover: the selected structure {' + '.join(best.terms)} failed in the driver: "
+                                f"{exc}") from exc
+        vev = judged(res, validate) if validate else None
+        best = dataclasses.replace(best, result=res, train=judged(res, train), validation=vev,
+                                   held_out=_score(vev, base_c.validation))
+    ranked = [best if i == chosen else (base_c if not c.terms else c) for i, c in enumerate(ranked)]
+    cands = [base_c if not c.terms else c for c in cands]
     confirmed = None if not validate else bool(best.held_out <= 1.0 + 1e-9)
     possible = tuple(t for t in dict.fromkeys(
         [t for c in ranked[:chosen] for t in c.terms] + [t for t, p in inclusion.items() if p > 0])

@@ -38,7 +38,7 @@ from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
 
-__all__ = ["OEScreen", "conditional_gains", "forward_path", "oe_screen"]
+__all__ = ["term_workspace", "OEScreen", "conditional_gains", "forward_path", "oe_screen"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,20 +108,35 @@ def forward_path(r0: np.ndarray, J_theta: np.ndarray, G: np.ndarray, max_terms: 
     return order, T, frac, delta
 
 
+def term_workspace(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], refits: bool = True,
+                   max_iter: int = 60, stall: tuple[int, float] | None = (10, 1e-3),
+                   phi_scales: dict[str, float] | None = None) -> Workspace:
+    """The all-terms model of the base fit ``res0`` on ``runs`` (:class:`~diffship.diagnose.screen.Workspace`): a
+    structure is switched on by data, so the screen, every candidate's refit and the polish run one compiled
+    program. Refits start from the base fit's initial states and stop when the cost stalls (``stall``: a fall of
+    less than ρ·cost over W steps); one that removes half the base fit's cost is finished without the rule.
+    ``phi_scales``: the terms' scales (:func:`~.discovery.term_scales`; default: their declared placeholder)."""
+    chans = tuple(res0.channels)
+    scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
+    x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None
+    ws = Workspace(res0.model, spec.with_values({n: res0.params[n] for n in spec.names}),
+                   [term_class(t)() for t in terms], runs, chans, scales, x0_train=x0, integrator=res0.integrator,
+                   warmup=0.0, refits=refits, max_iter=max_iter, stall=stall, phi_scales=phi_scales)
+    r0 = ws.residuals(ws.z0(), ws.selection([]), ws.phi_null)
+    ws.base_cost = 0.5 * float(r0 @ r0)  # a refit that halves it is finished (:meth:`Workspace.refit`)
+    return ws
+
+
 def oe_screen(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], *,
-              max_terms: int = 4) -> OEScreen:
+              max_terms: int = 4, workspace: Workspace | None = None) -> OEScreen:
     """Screen the library ``terms`` at the base fit ``res0`` (its model, channels, noise scales and
-    integrator; ``spec``: the base's free/fixed parameters) on the training ``runs``."""
+    integrator; ``spec``: the base's free/fixed parameters) on the training ``runs``. ``workspace``: the all-terms
+    :func:`term_workspace` of the same fit, when the refits that follow use it (one compiled program for both)."""
     import time
 
     t0 = time.perf_counter()
-    base = res0.model
     chans = tuple(res0.channels)
-    base_spec = spec.with_values({n: res0.params[n] for n in spec.names})
-    scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
-    x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None
-    ws = Workspace(base, base_spec, [term_class(t)() for t in terms], runs, chans, scales, x0_train=x0,
-                   integrator=res0.integrator, warmup=0.0, refits=False)
+    ws = workspace or term_workspace(res0, spec, runs, terms, refits=False)
     r0, J_theta, cols = ws.columns()
     names = list(ws.phi_names)  # one coefficient per term, in the workspace's order
     G = np.stack([cols[n] for n in names], axis=1)

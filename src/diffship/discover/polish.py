@@ -16,9 +16,11 @@ structure's own optimum:
    2002, §3.5, the replacement algorithm);
 3. **addition** of the ``k_add`` terms with the largest linearised gain, while fewer than ``max_terms`` are in.
 
-Every move is refitted by output error. The refits run on one compiled all-terms model
-(:class:`~diffship.diagnose.screen.Workspace`): switching a term on is data, not a new program. Each refit starts
-from the structure's optimum. The best move is taken when it lowers the criterion:
+Every move is refitted by output error on one compiled all-terms model (the workspace of
+:func:`~.oescreen.term_workspace`, :class:`~diffship.diagnose.screen.Workspace`): switching a term on is data, not a
+new program. The moves of a round are refitted side by side (one thread per core), each from the structure's
+optimum, with the stall rule (a wrong structure crawls; its stalled cost bounds its criterion from above). The
+``n_finish`` best are finished without the rule, and the best finished move is taken when it lowers the criterion:
 
 - a removal, by any amount;
 - a swap or an addition, by at least ``margin``.
@@ -27,9 +29,9 @@ The rounds stop when no move is taken, or after ``max_rounds``.
 
 The criterion is the BIC of the normalised training residuals, :math:`n\ln(2C/m) + k\ln n`. Here :math:`C` is the
 refit's cost, :math:`m` the residual count, :math:`n = m/\kappa` the effective sample count, and κ the variance
-inflation of autocorrelated residuals at the base fit (:func:`~diffship.diagnose.screen.inflation`). The polish
-proposes; the structure it ends at is refitted by the driver and ranked with the others (:mod:`.rank`), which
-decides.
+inflation of autocorrelated residuals (:func:`~diffship.diagnose.screen.inflation`) at the start structure's optimum:
+the lowest-cost structure yet, closest to white, as the ranking takes its correlation times from its lowest-residual
+candidate (:mod:`.rank`). The polish proposes; the structure it ends at is ranked with the others, which decides.
 
 Measured on the sway truth of ``benchmarks/independent/discovery_truths.py``: from the screens' best,
 ``Y_u_r_av + Y_v_r_r + N_r_av_ar``, the polish took three moves: swap ``Y_u_r_av`` → ``Y_v_v_r``, remove
@@ -46,12 +48,12 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..data import Run
-from ..diagnose.screen import Workspace, inflation
+from ..diagnose.screen import RefitResult, Workspace, inflation, parallel
 from ..errors import DiffshipError
 from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
-from .oescreen import conditional_gains
+from .oescreen import conditional_gains, term_workspace
 
 __all__ = ["Polish", "polish"]
 
@@ -65,6 +67,7 @@ class Polish:
         path: ``(kind, move, structure after, criterion)`` per move taken (kind ``remove``, ``swap`` or ``add``).
         values: ``{term: value}`` and ``base``: ``{base parameter: value}`` at the selected structure's optimum.
         refits: workspace refits run; seconds: wall time (compilation included).
+        result: the workspace refit of the selected structure.
     """
 
     start: tuple[str, ...]
@@ -74,68 +77,89 @@ class Polish:
     base: dict[str, float]
     refits: int
     seconds: float
+    result: RefitResult | None = None
 
 
 def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], start: Sequence[str], *,
            start_values: dict[str, float] | None = None, start_base: dict[str, float] | None = None,
-           max_terms: int = 4, k_swap: int = 2, k_add: int = 2, max_rounds: int = 6, margin: float = 2.0,
-           max_iter: int = 60, progress: Callable[[str], None] | None = None) -> Polish:
+           max_terms: int = 4, k_swap: int = 3, k_add: int = 3, max_rounds: int = 6, margin: float = 2.0,
+           max_iter: int = 60, stall: tuple[int, float] = (10, 1e-3), n_finish: int = 3, workspace: Workspace | None = None,
+           start_refit: RefitResult | None = None,
+           progress: Callable[[str], None] | None = None) -> Polish:
     """Polish the structure ``start`` (module docstring).
 
     ``res0`` is the base fit (its model, channels, noise scales, initial states and integrator); ``spec`` gives the
     base's free and fixed parameters; ``terms`` is the library. ``start_values`` and ``start_base`` are the start
-    structure's term and base values (default: the base fit, with the terms at zero).
+    structure's term and base values (default: the base fit, with the terms at zero). ``workspace``: the all-terms
+    :func:`~.oescreen.term_workspace` of ``res0`` (built when not given); ``start_refit``: the start structure's
+    refit on it, when already run.
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     chans = tuple(res0.channels)
-    scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
-    x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None
-    ws = Workspace(res0.model, spec.with_values({n: res0.params[n] for n in spec.names}),
-                   [term_class(t)() for t in terms], runs, chans, scales, x0_train=x0, integrator=res0.integrator,
-                   warmup=0.0, refits=True, max_iter=max_iter)
+    ws = workspace or term_workspace(res0, spec, runs, terms, max_iter=max_iter, stall=stall)
     names = list(ws.phi_names)
     eq = {t: term_class(t).equation for t in names}
     m = ws.train["batch"].n_residuals
-    r0 = ws.residuals(ws.z0(), ws.selection([]), ws.phi_null)
-    n_eff = max(m / inflation(r0, ws.train["batch"], len(chans)), 2.0)
-
-    def crit(cost: float, k: int) -> float:
-        return n_eff * math.log(max(2.0 * cost / m, 1e-300)) + k * math.log(n_eff)
 
     def order(s) -> tuple[str, ...]:
         return tuple(t for t in names if t in s)
 
-    visited: dict[tuple[str, ...], tuple[float, float, dict[str, float], dict[str, float]]] = {}
+    # struct -> (cost, values, base values, converged): a move is first refitted with the stall rule (a wrong structure
+    # crawls; its cost is then an upper bound); the one about to be taken is finished
+    fitted: dict[tuple[str, ...], tuple[float, dict[str, float], dict[str, float], bool, RefitResult]] = {}
     count = [0]
 
-    def refit(struct: tuple[str, ...], vals: dict[str, float], base_vals: dict[str, float] | None) -> None:
-        struct = order(struct)
-        count[0] += 1
+    def refit(job) -> tuple | None:
+        struct, vals, base_vals, full = job
         try:
-            rf = ws.refit(list(struct), [{t: vals.get(t, 0.0) for t in struct}], finish=True, base_start=base_vals)
+            rf = ws.refit(list(struct), [{t: vals.get(t, 0.0) for t in struct}], finish=full, base_start=base_vals)
         except DiffshipError as exc:
             say(f"  polish refit {' + '.join(struct)}: failed ({exc})")
-            return
-        if rf.ok and math.isfinite(rf.train_cost) and (struct not in visited or rf.train_cost < visited[struct][1]):
-            visited[struct] = (crit(rf.train_cost, len(struct)), rf.train_cost, dict(rf.values), dict(rf.base_values))
+            return None
+        if not (rf.ok and math.isfinite(rf.train_cost)):
+            return None
+        return rf.train_cost, dict(rf.values), dict(rf.base_values), full, rf
+
+    def run(jobs) -> None:
+        """Refit ``(structure, term values, base values, finish)`` jobs side by side (:func:`parallel`)."""
+        jobs = [(order(j[0]),) + tuple(j[1:]) for j in jobs]
+        count[0] += len(jobs)
+        for (struct, *_), got in zip(jobs, parallel(refit, jobs)):
+            if isinstance(got, Exception):
+                say(f"  polish refit {' + '.join(struct)}: failed ({got})")
+            elif got is not None and (struct not in fitted or got[0] <= fitted[struct][0] or not fitted[struct][3]):
+                fitted[struct] = got
 
     def linearised(S: tuple[str, ...]):
         """Residuals, base/initial-state columns and every term's column at S's optimum."""
-        _, _, vals, base_vals = visited[S]
+        _, vals, base_vals, _, _ = fitted[S]
         r, J_th, cols = ws.columns(base_values=base_vals, values=vals)
         return r, J_th, np.stack([cols[n] for n in names], axis=1)
 
     S = order(start)
     if not S:
         raise DiffshipError("polish: give a structure with at least one term")
-    refit(S, dict(start_values or {}), dict(start_base) if start_base else None)
-    if S not in visited:
+    if start_refit is not None and set(start_refit.effects) == set(S):  # the start as the caller refitted it
+        fitted[S] = (start_refit.train_cost, dict(start_refit.values), dict(start_refit.base_values), True, start_refit)
+    else:
+        run([(S, dict(start_values or {}), dict(start_base) if start_base else None, True)])
+    if S not in fitted:
         raise DiffshipError(f"polish: the start structure {' + '.join(S)} could not be refitted")
+    # the effective sample count from the start structure's residuals: the lowest-cost structure yet, closest to white,
+    # as the ranking takes its correlation times from its lowest-residual candidate (:mod:`.rank`), so that the two
+    # criteria agree (from the base fit's residuals, drifting with the missing terms, a removal looked better here and
+    # worse in the ranking)
+    r_start = ws.residuals(ws.z0(base_values=fitted[S][2]), ws.selection(list(S)), ws.phi_vector(fitted[S][1]))
+    n_eff = max(m / inflation(r_start, ws.train["batch"], len(chans)), 2.0)
+
+    def crit(T: tuple[str, ...]) -> float:
+        return n_eff * math.log(max(2.0 * fitted[T][0] / m, 1e-300)) + len(T) * math.log(n_eff)
+
     path: list[tuple[str, str, tuple[str, ...], float]] = []
     for _ in range(int(max_rounds)):
         r, J_th, G = linearised(S)
-        vals, base_vals = visited[S][2], visited[S][3]
+        _, vals, base_vals, _, _ = fitted[S]
         moves: list[tuple[str, str, tuple[str, ...]]] = []
         for t in S:
             rest = tuple(x for x in S if x != t)
@@ -150,19 +174,23 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         if len(S) < max_terms:
             gain = conditional_gains(r, J_th, G, [names.index(x) for x in S])
             moves += [("add", names[k], S + (names[k],)) for k in np.argsort(-gain)[:k_add] if gain[k] > 0]
-        for _, _, T in moves:
-            if order(T) not in visited:
-                refit(T, vals, base_vals)
-        scored = sorted((visited[order(T)][0], kind, what, order(T)) for kind, what, T in moves if order(T) in visited)
-        if not scored:
+        moves = [(kind, what, order(T)) for kind, what, T in moves]
+        run([(T, vals, base_vals, False) for T in dict.fromkeys(T for _, _, T in moves) if T not in fitted])
+        here = crit(S)
+        # the best moves by their stalled refits (an upper bound of each one's criterion) are finished side by side,
+        # and the best finished move is taken when it lowers the criterion (a removal by any amount, else by margin)
+        best = sorted((crit(T), T) for _, _, T in moves if T in fitted)[:n_finish]
+        run([(T, fitted[T][1], fitted[T][2], True) for _, T in best if not fitted[T][3]])
+        done = [(crit(T), kind, what, T) for kind, what, T in moves if T in fitted and fitted[T][3]]
+        taken = next(((kind, what, T, c) for c, kind, what, T in sorted(done)
+                      if c <= (here if kind == "remove" else here - margin)), None)
+        if taken is None:
+            near = min(done, default=None)
+            say("  polish: no move lowers the criterion" + ("" if near is None else
+                f" (best: {near[1]} {near[2]}, {near[0] - here:+.1f})"))
             break
-        c, kind, what, T = scored[0]
-        here = visited[S][0]
-        if not (c <= here if kind == "remove" else c <= here - margin):
-            say(f"  polish: no move lowers the criterion (best: {kind} {what}, {c - here:+.1f})")
-            break
-        S = T
+        kind, what, S, c = taken
         path.append((kind, what, S, c))
         say(f"  polish: {kind} {what} → {' + '.join(S)} (criterion {c - here:+.1f})")
-    return Polish(start=order(start), selected=S, path=tuple(path), values=dict(visited[S][2]),
-                  base=dict(visited[S][3]), refits=count[0], seconds=time.perf_counter() - t0)
+    return Polish(start=order(start), selected=S, path=tuple(path), values=dict(fitted[S][1]),
+                  base=dict(fitted[S][2]), refits=count[0], seconds=time.perf_counter() - t0, result=fitted[S][4])
