@@ -339,7 +339,8 @@ class Workspace:
     # -- refit -----------------------------------------------------------------------------
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               progress: Callable[[str], None] | None = None, rounds: int = 3,
-              finish: bool | None = None, base_start: dict[str, float] | None = None) -> RefitResult:
+              finish: bool | None = None, base_start: dict[str, float] | None = None,
+              step_cap: int | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect values held).
 
         Every start (each φ start, from the base fit's values — or ``base_start`` — and, for a non-smooth effect,
@@ -347,9 +348,9 @@ class Workspace:
         quarter of every run (:meth:`_warmup`); the lowest warm-up point of each base start then goes on to the
         whole runs (a solve whose cost falls by less than ρ·cost over W steps stops: the workspace's ``stall``). When
         the lowest removes half the base training cost (or ``finish``), every candidate within twice its cost is
-        finished (:meth:`_finish`) and the lowest whole-run cost wins. Standard errors come from
-        :func:`diffship.fit.covariance.covariance` on the active unknowns (infinite for an effect parameter the
-        data do not inform). Every refit runs the workspace's one compiled solve (:meth:`programs`).
+        finished (:meth:`_finish`) and the lowest whole-run cost wins (``step_cap``: fewer whole-run steps, a bound).
+        Standard errors come from :func:`diffship.fit.covariance.covariance` on the active unknowns (infinite for an
+        effect parameter the data do not inform). Every refit runs the workspace's one compiled solve (:meth:`programs`).
         """
         max_iter = self.max_iter
         lm = self._solve_static(max_iter, self.stall)
@@ -382,7 +383,8 @@ class Workspace:
 
         def whole(w):  # then the whole runs
             z1, warm_steps, _, phi0, kd = w
-            z, res, steps, r, J = self.kernel.call("solve", z1, kd, **lm)
+            z, res, steps, r, J = self.kernel.call("solve", z1, kd if step_cap is None else kd.with_step_cap(step_cap),
+                                                   **lm)
             r, crawl = np.asarray(r), stalled(res, steps, 4 * max_iter)
             return np.asarray(z), r, 0.5 * float(r @ r), int(steps) + warm_steps, phi0, warm_steps, crawl, \
                 np.asarray(J), int(steps) < 4 * max_iter and not crawl

@@ -11,8 +11,9 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    terms nested by frequency;
 3. the **refit** of the base and every candidate by output error on one **workspace**: the base with every library
    term, compiled once, a structure switched on by data (:func:`.oescreen.term_workspace`); each from the base fit
-   with the terms at their screen values and at zero, side by side (one thread per core). A refit whose cost stalls
-   stops; one that halves the base's cost is finished;
+   with the terms at their screen values, side by side (one thread per core). Each stops when its cost stalls (a
+   wrong structure crawls; its stalled cost bounds its criterion from above); the ``n_finish`` best by that bound
+   are finished;
 4. the **ranking** by BIC (or AIC) on the output residuals of each refit (simulated from its own fitted
    initial states: what it minimised) with effective sample sizes (:mod:`.rank`); every structure is simulated with
    the all-terms model (the others at zero), so one compiled simulation serves them all,
@@ -56,7 +57,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..data import Run
-from ..diagnose.screen import parallel
+from ..diagnose.screen import inflation, parallel
 from ..errors import DiffshipError
 from ..fit import FitResult, OutputError, fit
 from ..fit.driver import fit_priors
@@ -82,6 +83,10 @@ MARGIN = 2.0
 MIN_INCLUSION = 0.5
 #: The most equivalent explanations reported beside the selected structure.
 MAX_EQUIVALENT = 3
+#: The step cap of the candidate structures' first, stalled pass (its cost bounds the criterion from above; the best
+#: are then finished): a single term crawled to the workspace's cap of 240 steps, 20 s on one core while the other
+#: waited.
+FIRST_PASS_STEPS = 120
 
 
 @dataclasses.dataclass(frozen=True)
@@ -192,7 +197,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
              max_candidates: int = 6, criterion: str = "bic", options: OutputError = OutputError(),
              flt: Filter = Filter(), n_boot: int = 30, n_boot_rank: int = 200, block_s: float = 5.0, seed: int = 0,
              oe_first: bool = True, x0: str = "estimate", n_starts: int = 1, polish_rounds: int = 6,
-             progress: Callable[[str], None] | None = None) -> Discovery:
+             n_finish: int = 2, progress: Callable[[str], None] | None = None) -> Discovery:
     """Discover the library terms ``base`` needs on ``train`` (module docstring).
 
     Args:
@@ -220,6 +225,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             structures start from the base optimum with the screen's term values.
         polish_rounds: the most rounds of the polish (:mod:`.polish`) from the best-ranked structure with terms,
             when it beats the base by the margin; 0: none.
+        n_finish: the stalled refits finished, by their criterion bound: of the candidate structures, and of each
+            polish round's moves (two: one wave on two cores).
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
@@ -274,26 +281,52 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
                          run_names=res0.run_names, integrator=res0.integrator, info={"refit": "workspace"},
                          result=RESULTS.successful if rf.converged else RESULTS.nonlinear_max_steps_reached)
 
-    def refit_all(jobs) -> None:
-        """Refit ``(structure, term starts)`` jobs on the workspace, side by side (:func:`parallel`), each from the
-        base fit with the terms at their start values and at zero; kept in the order given when they end finite."""
+    def refit_all(jobs) -> list:
+        """Refit ``(structure, term starts, base start, finish)`` jobs on the workspace, side by side
+        (:func:`parallel`), each from the base fit (or the base start) with the terms at their start values (and at
+        zero, where those blow up); the refits in the order given (``None`` where one failed or ended non-finite)."""
         def one(job):
-            cand, start = job
-            return ws.refit(list(cand), [start, {t: 0.0 for t in cand}] if cand else [{}], progress=say)
-        for (cand, _), rf in zip(jobs, parallel(one, jobs)):
+            cand, start, base_start, finish = job
+            starts = [start, {t: 0.0 for t in cand}] if cand and not finish else [start] if cand else [{}]
+            return ws.refit(list(cand), starts, progress=say, finish=finish, base_start=base_start,
+                            step_cap=FIRST_PASS_STEPS if finish is False else None)
+        out = []
+        for (cand, *_), rf in zip(jobs, parallel(one, jobs)):
             if isinstance(rf, Exception):
                 say(f"  refit {' + '.join(cand) or '(base)'} failed: {rf}")
-            elif rf.ok and math.isfinite(rf.train_cost):
-                fits.append((cand, as_result(cand, rf)))
-                refits[frozenset(cand)] = rf
+            out.append(rf if not isinstance(rf, Exception) and rf.ok and math.isfinite(rf.train_cost) else None)
+        return out
 
     say(f"refit by output error on the workspace: the base and {len(structures)} structure(s), side by side...")
+    # every structure first with the stall rule (a wrong structure crawls, and its stalled cost bounds its criterion
+    # from above); the n_finish best by that bound are then finished, as the polish does: a structure whose bound is
+    # already beaten cannot win the ranking, and finishing it cost a third of the refit time (a single term crawling
+    # 470 steps on one core while the other waited)
+    jobs = [((), {}, None, None)] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t]
+                                            for t in cand}, None, False) for cand in structures]
+    got = dict(zip([j[0] for j in jobs], refit_all(jobs)))
+    if got[()] is None:
+        raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
+    lowest = min((c for c, rf in got.items() if rf is not None), key=lambda c: got[c].train_cost)
+    rf = got[lowest]
+    r_low = ws.residuals(ws.z0(base_values=rf.base_values), ws.selection(list(lowest)), ws.phi_vector(rf.values))
+    m_res = ws.train["batch"].n_residuals
+    n_eff0 = max(m_res / inflation(r_low, ws.train["batch"], len(res0.channels)), 2.0)
+    bound = sorted((n_eff0 * math.log(max(2.0 * rf.train_cost / m_res, 1e-300)) + len(c) * math.log(n_eff0), c)
+                   for c, rf in got.items() if c and rf is not None)
+    finish = [(c, dict(got[c].values), dict(got[c].base_values), True) for _, c in bound[:max(int(n_finish), 0)]
+              if not got[c].converged]
+    if finish:
+        say("  finishing the best by their criterion bound: " + "; ".join(" + ".join(c) for c, *_ in finish))
+        for (c, *_), rf in zip(finish, refit_all(finish)):
+            if rf is not None and rf.train_cost <= got[c].train_cost:
+                got[c] = rf
     fits: list[tuple[tuple[str, ...], FitResult]] = []
     refits: dict[frozenset, object] = {}  # structure -> its workspace refit
-    refit_all([((), {})] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand})
-                            for cand in structures])
-    if not fits or fits[0][0]:
-        raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
+    for cand, rf in got.items():
+        if rf is not None:
+            fits.append((cand, as_result(cand, rf)))
+            refits[frozenset(cand)] = rf
     # every structure is simulated with the all-terms model (the others at zero): one compiled simulation serves all
     full = with_terms(base, terms)
 
@@ -393,7 +426,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             polished = polish(res0, spec, train, terms, top.terms, max_terms=max_terms, max_rounds=polish_rounds,
                               start_values={t: top.result.params[t] for t in top.terms},
                               start_base={n: top.result.params[n] for n in res0.params}, workspace=ws,
-                              start_refit=refits.get(frozenset(top.terms)), progress=say)
+                              start_refit=refits.get(frozenset(top.terms)), n_finish=n_finish, progress=say)
         except DiffshipError as exc:
             say(f"  polish failed: {exc}")
     if polished is not None and frozenset(polished.selected) not in {frozenset(c) for c, _ in fits}:
