@@ -301,9 +301,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     # every structure first with the stall rule (a wrong structure crawls, and its stalled cost bounds its criterion
     # from above); the n_finish best by that bound are then finished, as the polish does: a structure whose bound is
     # already beaten cannot win the ranking, and finishing it cost a third of the refit time (a single term crawling
-    # 470 steps on one core while the other waited)
-    jobs = [((), {}, None, None)] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t]
-                                            for t in cand}, None, False) for cand in structures]
+    # 470 steps on one core while the other waited); the base is finished beside them (every structure must beat its
+    # criterion, not a bound of it)
+    jobs = [((), {}, None, False)] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t]
+                                             for t in cand}, None, False) for cand in structures]
     got = dict(zip([j[0] for j in jobs], refit_all(jobs)))
     if got[()] is None:
         raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
@@ -315,9 +316,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     bound = sorted((n_eff0 * math.log(max(2.0 * rf.train_cost / m_res, 1e-300)) + len(c) * math.log(n_eff0), c)
                    for c, rf in got.items() if c and rf is not None)
     finish = [(c, dict(got[c].values), dict(got[c].base_values), True) for _, c in bound[:max(int(n_finish), 0)]
-              if not got[c].converged]
+              if not got[c].converged] + ([((), {}, dict(got[()].base_values), True)] if not got[()].converged else [])
     if finish:
-        say("  finishing the best by their criterion bound: " + "; ".join(" + ".join(c) for c, *_ in finish))
+        say("  finishing the best by their criterion bound: "
+            + "; ".join(" + ".join(c) or "the base" for c, *_ in finish))
         for (c, *_), rf in zip(finish, refit_all(finish)):
             if rf is not None and rf.train_cost <= got[c].train_cost:
                 got[c] = rf
