@@ -12,8 +12,8 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
 3. the **refit** of the base and every candidate by output error on one **workspace**: the base with every library
    term, compiled once, a structure switched on by data (:func:`.oescreen.term_workspace`); each from the base fit
    with the terms at their screen values, side by side (one thread per core). Each stops when its cost stalls (a
-   wrong structure crawls; its stalled cost bounds its criterion from above); the ``n_finish`` best by that bound
-   are finished;
+   wrong structure crawls; its stalled cost bounds its criterion from above) or after :data:`FIRST_PASS_STEPS`; the
+   ``n_finish`` best by that bound, and the base, are finished;
 4. the **ranking** by BIC (or AIC) on the output residuals of each refit (simulated from its own fitted
    initial states: what it minimised) with effective sample sizes (:mod:`.rank`); every structure is simulated with
    the all-terms model (the others at zero), so one compiled simulation serves them all,
