@@ -57,7 +57,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..data import Run
-from ..diagnose.screen import inflation, parallel
+from ..diagnose.screen import parallel
 from ..errors import DiffshipError
 from ..fit import FitResult, OutputError, fit
 from ..fit.driver import fit_priors
@@ -69,7 +69,7 @@ from ..params import ParamSpec
 from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
 from .oescreen import OEScreen, oe_screen, term_workspace
-from .polish import Polish, polish
+from .polish import Polish, bic, effective_count, polish
 from .screen import Screen, screen
 from .separate import Separation, separating_manoeuvre
 
@@ -309,11 +309,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     if got[()] is None:
         raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
     lowest = min((c for c, rf in got.items() if rf is not None), key=lambda c: got[c].train_cost)
-    rf = got[lowest]
-    r_low = ws.residuals(ws.z0(base_values=rf.base_values), ws.selection(list(lowest)), ws.phi_vector(rf.values))
-    m_res = ws.train["batch"].n_residuals
-    n_eff0 = max(m_res / inflation(r_low, ws.train["batch"], len(res0.channels)), 2.0)
-    bound = sorted((n_eff0 * math.log(max(2.0 * rf.train_cost / m_res, 1e-300)) + len(c) * math.log(n_eff0), c)
+    n_eff0 = effective_count(ws, lowest, got[lowest].values, got[lowest].base_values)
+    bound = sorted((bic(rf.train_cost, len(c), ws.train["batch"].n_residuals, n_eff0), c)
                    for c, rf in got.items() if c and rf is not None)
     finish = [(c, dict(got[c].values), dict(got[c].base_values), True) for _, c in bound[:max(int(n_finish), 0)]
               if not got[c].converged] + ([((), {}, dict(got[()].base_values), True)] if not got[()].converged else [])

@@ -65,7 +65,7 @@ from ..models.terms import term_class
 from ..params import ParamSpec
 from .oescreen import conditional_gains, term_workspace
 
-__all__ = ["Polish", "polish", "RISE"]
+__all__ = ["Polish", "polish", "bic", "effective_count", "RISE"]
 
 #: A move whose cost, refitted linearly from the structure's optimum, exceeds this multiple of the structure's
 #: (refitted linearly too) is not refitted. Measured on the ``mixed_four`` truth: the linearised ratio was within
@@ -95,6 +95,19 @@ class Polish:
     result: RefitResult | None = None
 
 
+def effective_count(ws: Workspace, structure: Sequence[str], values: dict[str, float],
+                    base_values: dict[str, float]) -> float:
+    """The effective sample count of a workspace refit's training residuals: residuals over their variance inflation
+    (:func:`~diffship.diagnose.screen.inflation`), at least 2."""
+    r = ws.residuals(ws.z0(base_values=base_values), ws.selection(list(structure)), ws.phi_vector(values))
+    return max(ws.train["batch"].n_residuals / inflation(r, ws.train["batch"], len(ws.channels)), 2.0)
+
+
+def bic(cost: float, k: int, m: int, n_eff: float) -> float:
+    """The BIC of a workspace refit with ``k`` terms: :math:`n\\ln(2C/m) + k\\ln n` (module docstring)."""
+    return n_eff * math.log(max(2.0 * cost / m, 1e-300)) + k * math.log(n_eff)
+
+
 def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], start: Sequence[str], *,
            start_values: dict[str, float] | None = None, start_base: dict[str, float] | None = None,
            max_terms: int = 4, k_swap: int = 3, k_add: int = 3, max_rounds: int = 6, margin: float = 2.0,
@@ -111,7 +124,6 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
-    chans = tuple(res0.channels)
     ws = workspace or term_workspace(res0, spec, runs, terms, max_iter=max_iter, stall=stall)
     names = list(ws.phi_names)
     eq = {t: term_class(t).equation for t in names}
@@ -166,11 +178,10 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     # as the ranking takes its correlation times from its lowest-residual candidate (:mod:`.rank`), so that the two
     # criteria agree (from the base fit's residuals, drifting with the missing terms, a removal looked better here and
     # worse in the ranking)
-    r_start = ws.residuals(ws.z0(base_values=fitted[S][2]), ws.selection(list(S)), ws.phi_vector(fitted[S][1]))
-    n_eff = max(m / inflation(r_start, ws.train["batch"], len(chans)), 2.0)
+    n_eff = effective_count(ws, S, fitted[S][1], fitted[S][2])
 
     def crit(T: tuple[str, ...]) -> float:
-        return n_eff * math.log(max(2.0 * fitted[T][0] / m, 1e-300)) + len(T) * math.log(n_eff)
+        return bic(fitted[T][0], len(T), m, n_eff)
 
     path: list[tuple[str, str, tuple[str, ...], float]] = []
     for _ in range(int(max_rounds)):
