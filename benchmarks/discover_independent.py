@@ -16,8 +16,9 @@ time. Peers (``pip install 'diffship[peers]'``; each skipped with one line if mi
 ensemble and weak-form SINDy with the same products of u, v, r as features, and SysIdentPy FROLS
 (:mod:`benchmarks.discover_peers`).
 
-Each truth's discovery runs in a fresh Python process, so its time includes every compilation
-(``--one-process``: all in this one).
+Each truth's discovery runs in a fresh Python process, so its time includes every compilation or load of a
+compiled program (``--one-process``: all in this one; ``--cold``: each with an empty compilation cache, every
+program compiled).
 
     python -m benchmarks discover_independent [--truths NAME ...] [--duration 240] [--no-peers] [--out DIR]
 """
@@ -87,19 +88,23 @@ def _discover(truth, rr, say):
                 + f" → {' + '.join(d.polish.selected)} ({d.polish.refits} refits, {d.polish.seconds:.0f} s)")}
 
 
-def _fresh(truth, duration: float) -> dict:
+def _fresh(truth, duration: float, cold: bool = False) -> dict:
     """:func:`_discover` of ``truth`` in a new Python process: its wall time includes every compilation, as a
     user's first command does (in one process, later truths reuse the first one's compiled programs: measured,
-    118 s against 153 s on the surge truth)."""
+    118 s against 153 s on the surge truth). ``cold``: with an empty persistent compilation cache
+    (:mod:`diffship.cache`), as on a machine that never ran diffship; otherwise programs an earlier run compiled
+    are loaded from it, as on a user's second run."""
     import json
+    import os
     import subprocess
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
         dump = Path(tmp) / "result.json"
+        env = {**os.environ, "DIFFSHIP_CACHE_DIR": str(Path(tmp) / "cache")} if cold else None
         subprocess.run([sys.executable, "-m", "benchmarks", "discover_independent", "--truths", truth.name,
                         "--duration", str(duration), "--no-peers", "--dump", str(dump)], check=True,
-                       cwd=Path(__file__).resolve().parents[1])
+                       cwd=Path(__file__).resolve().parents[1], env=env)
         return json.loads(dump.read_text())
 
 
@@ -154,7 +159,11 @@ def _write(out: Path, results: list[dict], avail: dict, duration: float, argv: l
          "`benchmarks/independent/discovery_truths.py` (NumPy, own RK4 at 0.01 s, no diffship code): fossen3-form "
          f"USV with added masses and extra hydrodynamic terms; 4 training + 2 held-out runs of {duration:g} s at "
          "10 Hz; noise GNSS 0.5 m, 0.05 m/s, heading 0.5°, gyro 0.2°/s. Heading RMSE is over the noise floor "
-         "0.5° on the held-out pull-out and sway-pulse runs (1.00 = at the noise).", "",
+         "0.5° on the held-out pull-out and sway-pulse runs (1.00 = at the noise). s: wall time of the discovery "
+         + ("in this one process." if "--one-process" in argv else "in a fresh process, " + (
+             "its compilation cache empty (every program compiled, as on a machine that never ran diffship)."
+             if "--cold" in argv else "programs an earlier run compiled loaded from the persistent compilation "
+             "cache (a user's second run; `--cold`: an empty cache).")), "",
          "## diffship (`discover`, fossen3 base, `symmetric` library, RK4, no priors)", "",
          "| truth | true terms | selected | per term | held-out ψ RMSE / floor: base → selected (pull-out; sway) | "
          "s |", "|---|---|---|---|---|---|"]
@@ -211,6 +220,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--one-process", action="store_true",
                     help="every discovery in this process (later truths reuse the first one's compiled programs)")
+    ap.add_argument("--cold", action="store_true",
+                    help="each fresh process with an empty compilation cache (every program compiled, as on a new "
+                         "machine); default: the persistent cache as found (a user's second run)")
     ap.add_argument("--dump", default=None, help=argparse.SUPPRESS)  # a child's result file (JSON)
     a = ap.parse_args(argv)
     if a.dump:  # a child of the fresh-process run: one truth's discovery, its result as JSON
@@ -235,7 +247,7 @@ def main(argv=None) -> int:
             continue
         say(f"truth {tr.name}: {tr.terms or 'no extra term'}")
         rr = D.runs(tr, duration=a.duration)
-        d = None if a.no_diffship else (_discover(tr, rr, lambda s: None) if a.one_process else _fresh(tr, a.duration))
+        d = None if a.no_diffship else (_discover(tr, rr, lambda s: None) if a.one_process else _fresh(tr, a.duration, a.cold))
         if d:
             say(f"  diffship: {d['terms'] or 'none'} {d['classes']}; held-out ψ/floor {d['sel_psi']} "
                 f"(base {d['base_psi']}), {d['seconds']:.0f} s")

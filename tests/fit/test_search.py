@@ -92,3 +92,34 @@ def test_candidates_out_of_steps_keep_residuals_and_their_scales_together():
         f_true = concentrated_cost(again, mask, c["r_scales"], tau)
         assert math.isclose(concentrated_cost(c["r"], mask, c["r_scales"], tau), f_true, rel_tol=1e-9)
     assert moved >= 1  # the case the test is about: scales re-estimated after the residuals were made
+
+
+def test_reweighting_rounds_that_cycle_stop_at_the_first_repeat(monkeypatch):
+    """A correlation time that jumps between two readings of a channel makes the rounds' scales cycle: on the
+    6-DOF ROV test problem with a period of six rounds, repeated until the step budget ran out (45 of the fit's
+    58 s). The candidate stops where the next scales are an earlier round's, and the progress says so. Here the
+    estimate alternates between two readings, so the scales repeat every second round."""
+    import diffship.fit.search as S
+    from tests.fit.test_kernel import _problem
+
+    runs, spec, kernel, data = _problem(2, 40.0, 0.2, seed=3)
+    readings, calls = [np.array([1.0, 1.0]), np.array([4.0, 1.0])], [0]
+
+    def jumping(r, mask, n_c):
+        calls[0] += 1
+        return readings[calls[0] % 2]
+
+    monkeypatch.setattr(S, "correlation_time", jumping)
+    z = np.concatenate([spec.with_values({"K": 0.2, "T1": 8.0, "delta0": 0.01}).to_z(),
+                        np.zeros(len(runs) * len(kernel.x0_idx))])
+    said = []
+    lm = {"jacobian": True, "max_steps": 50, "rtol": 1e-6, "atol": 1e-6, "gntol": 0.05}
+    out = S.reweighted_solves(kernel, [z], data, np.array([0.01, 0.002]), lm, cap=50, total=10_000,
+                              floor=np.full(2, 1e-9), progress=said.append)
+    assert out[0]["cycle"] == 2
+    assert calls[0] <= 6  # stopped after a few rounds, far from the step budget
+    assert any("cycle with a period of 2 rounds" in s for s in said)
+    # a steady estimate has no cycle: the candidate converges at its self-consistent scales
+    monkeypatch.setattr(S, "correlation_time", lambda r, mask, n_c: readings[0])
+    assert S.reweighted_solves(kernel, [z], data, np.array([0.01, 0.002]), lm, cap=50, total=10_000,
+                               floor=np.full(2, 1e-9))[0]["cycle"] == 0

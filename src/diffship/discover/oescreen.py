@@ -35,10 +35,17 @@ import numpy as np
 from ..data import Run
 from ..diagnose.screen import Workspace, inflation
 from ..fit import FitResult
-from ..models.terms import term_class
+from ..integrators import AbstractIntegrator
+from ..models import AbstractModel
+from ..models.terms import term_class, with_terms
 from ..params import ParamSpec
+from ..simulate import simulation_request
 
-__all__ = ["term_workspace", "OEScreen", "conditional_gains", "forward_path", "oe_screen"]
+__all__ = ["term_workspace", "term_programs", "OEScreen", "conditional_gains", "forward_path", "oe_screen"]
+
+#: The term workspace's refits: step cap per solve (``4·MAX_ITER``) and stall rule (a fall of less than ρ·cost
+#: over W steps stops a solve): :class:`~diffship.diagnose.screen.Workspace`.
+MAX_ITER, STALL = 60, (10, 1e-3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +116,7 @@ def forward_path(r0: np.ndarray, J_theta: np.ndarray, G: np.ndarray, max_terms: 
 
 
 def term_workspace(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], refits: bool = True,
-                   max_iter: int = 60, stall: tuple[int, float] | None = (10, 1e-3),
+                   max_iter: int = MAX_ITER, stall: tuple[int, float] | None = STALL,
                    phi_scales: dict[str, float] | None = None) -> Workspace:
     """The all-terms model of the base fit ``res0`` on ``runs`` (:class:`~diffship.diagnose.screen.Workspace`): a
     structure is switched on by data, so the screen, every candidate's refit and the polish run one compiled
@@ -125,6 +132,24 @@ def term_workspace(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms:
     r0 = ws.residuals(ws.z0(), ws.selection([]), ws.phi_null)
     ws.base_cost = 0.5 * float(r0 @ r0)  # a refit that halves it is finished (:meth:`Workspace.refit`)
     return ws
+
+
+def term_programs(base: AbstractModel, spec: ParamSpec, runs: Sequence[Run], validate: Sequence[Run],
+                  terms: Sequence[str], chans: Sequence[str], integrator: AbstractIntegrator,
+                  phi_scales: dict[str, float] | None = None) -> list:
+    """The compiled programs a discovery runs after its base fit, from the base model *before* that fit (they depend
+    on the structure, not on values, as the diagnosis's :func:`~diffship.diagnose.diagnosis.workspace_programs`): the
+    all-terms :func:`term_workspace`'s residuals and solve (the output-error screen, every refit and the polish) and
+    the all-terms model's simulations of the training and held-out runs (the ranking). ``chans`` and ``integrator``:
+    the base fit's. Compiled in the background while the base fit runs (:func:`diffship.compiled.prefetch`), a cold
+    discovery does not compile them after it."""
+    start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # inside the bounds
+    ws = Workspace(base, start, [term_class(t)() for t in terms], runs, chans, {c: 1.0 for c in chans},
+                   integrator=integrator, warmup=0.0, max_iter=MAX_ITER, stall=STALL, phi_scales=phi_scales)
+    full = with_terms(base, terms)
+    sims = [simulation_request(full, r, np.zeros(len(full.state_names)), integrator)
+            for r in {r.n: r for r in (*runs, *validate)}.values()]
+    return ws.programs() + sims
 
 
 def oe_screen(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], *,

@@ -147,7 +147,9 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
             return None
         if not (rf.ok and math.isfinite(rf.train_cost)):
             return None
-        return rf.train_cost, dict(rf.values), dict(rf.base_values), full, rf
+        # a move that converged under the cap is finished already (finishing it again took 6–7 steps, one second a
+        # round, for the same cost)
+        return rf.train_cost, dict(rf.values), dict(rf.base_values), full or bool(rf.converged), rf
 
     def run(jobs) -> None:
         """Refit ``(structure, term values, base values, finish)`` jobs side by side (:func:`parallel`)."""

@@ -19,7 +19,9 @@ property of the data and the model:
    likelihood at one set of correlation times — a number that does not depend on the weights a candidate was
    solved with. Weights taken from a warm-up's or a start's residuals made the answer depend on the path (the
    SSPA zigzag: K 0.79, 1.10 or 0.67 for three option sets); at the self-consistent scales it is K 0.840–0.846
-   at 5, 10, 20 and 50 Hz, with or without the warm-up, from 4 or 64 starts.
+   at 5, 10, 20 and 50 Hz, with or without the warm-up, from 4 or 64 starts. Where the rounds cycle (the next
+   scales are an earlier round's: a correlation time jumping between two readings of a channel), the candidate
+   stops at the first repeat and the progress says so; before, it repeated the cycle to its step budget.
 
 4. **Adaptive** (:func:`adaptive`): while fewer than two candidates reach the best point, the likelihood has
    optima the candidates went to instead, and more candidates are drawn (spread around the best and around the
@@ -140,8 +142,18 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
             f_own = concentrated_cost(rd, mask, c["scales"], tau, rp)
             settled = n_round >= 3 and abs(f_own - c.get("f_last", np.inf)) < F_TOL
             c["f_last"] = f_own
-            if (converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL) or settled:
-                c.update(done=True, tau=tau)
+            # a cycle: the next scales are those of an earlier round, so the rounds would repeat from there; the
+            # correlation-time estimate jumps between two readings of a channel (measured on the 6-DOF ROV test
+            # problem: a six-round cycle, repeated to the step budget, 45 of the fit's 58 s): stop at the repeat
+            seen = c.setdefault("seen", [])
+            period = next((len(seen) + 1 - k for k, s_ in enumerate(seen)
+                           if float(np.max(np.abs(new / s_ - 1.0))) < REWEIGHT_RTOL), 0) if converged else 0
+            seen.append(np.asarray(c["scales"]))
+            if (converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL) or settled or period:
+                c.update(done=True, tau=tau, cycle=period)
+                if period and progress:
+                    progress(f"{label}: start {i + 1}: the channel scales cycle with a period of {period} rounds "
+                             "(a correlation time jumps between two readings): stopped at the first repeat")
             else:
                 c.update(scales=new, tau=tau)
         live = [i for i, c in enumerate(out) if c["merged_into"] is None and not c["blew_up"]]
