@@ -142,16 +142,17 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
             f_own = concentrated_cost(rd, mask, c["scales"], tau, rp)
             settled = n_round >= 3 and abs(f_own - c.get("f_last", np.inf)) < F_TOL
             c["f_last"] = f_own
-            # a cycle: the next scales are those of an earlier round, so the rounds would repeat from there; the
-            # correlation-time estimate jumps between two readings of a channel (measured on the 6-DOF ROV test
-            # problem: a six-round cycle, repeated to the step budget, 45 of the fit's 58 s): stop at the repeat
+            # the next scales against this round's and every earlier round's, the latest first: this round's (period
+            # 1) is convergence at self-consistent scales; an earlier one's is a cycle, where the rounds would repeat
+            # from there (a correlation time jumping between two readings of a channel; measured on the 6-DOF ROV
+            # test problem: a six-round cycle, repeated to the step budget, 45 of the fit's 58 s): stop at the repeat
             seen = c.setdefault("seen", [])
-            period = next((len(seen) + 1 - k for k, s_ in enumerate(seen)
-                           if float(np.max(np.abs(new / s_ - 1.0))) < REWEIGHT_RTOL), 0) if converged else 0
             seen.append(np.asarray(c["scales"]))
-            if (converged and float(np.max(np.abs(new / c["scales"] - 1.0))) < REWEIGHT_RTOL) or settled or period:
-                c.update(done=True, tau=tau, cycle=period)
-                if period and progress:
+            period = next((len(seen) - k for k in range(len(seen) - 1, -1, -1)
+                           if float(np.max(np.abs(new / seen[k] - 1.0))) < REWEIGHT_RTOL), 0) if converged else 0
+            if period or settled:
+                c.update(done=True, tau=tau, cycle=period if period > 1 else 0)
+                if period > 1 and progress:
                     progress(f"{label}: start {i + 1}: the channel scales cycle with a period of {period} rounds "
                              "(a correlation time jumps between two readings): stopped at the first repeat")
             else:
