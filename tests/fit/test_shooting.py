@@ -84,6 +84,29 @@ def test_cli_multiple_shooting(tmp_path, capsys):
     assert "--shooting 'triple'" in capsys.readouterr().err
 
 
+def test_cli_multiple_shooting_goes_on_when_equation_error_is_not_available(tmp_path, capsys, monkeypatch):
+    """The default method (both) with --shooting multiple: equation error failing (as on a model without its
+    form, MMG) is said, and multiple-shooting output error still runs (it exited 2 with the baseline's error)."""
+    import diffship.fit.both as both
+    from diffship.errors import ModelError
+    from diffship.fit.cli import main
+
+    def unavailable(model, *a, **k):
+        raise ModelError(f"model {model.name} has no equation-error form; use output error")
+
+    monkeypatch.setattr(both, "fit_equation_error", unavailable)
+    paths = []
+    for run in nomoto_runs(Nomoto1(**TRUTH), 2, 60.0, 0.1, noise="realistic", seed=4):
+        p = tmp_path / f"{run.name}.csv"
+        run.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    assert main([*paths, "--model", "nomoto1", "--shooting", "multiple:10", "--init", "K=0.1", "T1=12",
+                 "--out", str(tmp_path / "ms")]) == 0
+    captured = capsys.readouterr()
+    assert "equation error not available: model nomoto1 has no equation-error form" in captured.err + captured.out
+    assert "multiple shooting: 7 segments of 100 samples" in captured.out
+
+
 @pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_block_jacobian_is_the_jacobian():
     """The per-segment (block) Jacobian equals forward-mode differentiation of the whole residual."""

@@ -237,10 +237,15 @@ def _fit(args, say) -> int:
     if args.bootstrap and ("output_error" not in methods or multiple):
         raise DiffshipError("--bootstrap: refits single-shooting output error (use --method output-error or both, "
                             "without --shooting multiple)")
-    results = fit_both(model, fit_runs, spec=spec, methods=tuple(m for m in methods if not (multiple and m == "output_error")),
-                       init=init or None, flt=flt, estimate_x0=_x0(args, model),
-                       channels=args.channels, options=options, progress=say, ee_filter=ee_filter,
-                       **_starts(args)) if methods else {}
+    first = tuple(m for m in methods if not (multiple and m == "output_error"))
+    try:
+        results = fit_both(model, fit_runs, spec=spec, methods=first, init=init or None, flt=flt,
+                           estimate_x0=_x0(args, model), channels=args.channels, options=options, progress=say,
+                           ee_filter=ee_filter, **_starts(args)) if first else {}
+    except DiffshipError:  # equation error alone before multiple shooting: its failure was said; output error goes on
+        if not multiple:
+            raise
+        results = {}
     results.update(_sea_estimators(args, model, fit_runs, spec, init, flt, options, shooting if multiple else None,
                                    results, say))
     say("simulating every run over its whole horizon for the metrics...")
