@@ -15,11 +15,17 @@ the rudder a pre-drawn sequence: no feedback). Per seed and case (3 training run
 
 ``python -m benchmarks at_sea_synthetic [--seeds 4] [--cases waves,calm,open]``; writes
 ``results/at_sea_synthetic.md`` and ``.csv``.
+
+The 3-DOF USV (:func:`~benchmarks.independent.autopilot_waves.usv_autopilot_runs`): ``--usv-seeds 0,1,2
+--usv-cases waves,calm`` fits it by output error and runs the sea-state check on each seed and case (minutes
+each); every row is kept in ``results/at_sea_usv.jsonl`` (a seed and case run again replaces its row, so seeds can
+run in separate processes) and the table of all of them is written to ``results/at_sea_usv.md``.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -77,9 +83,10 @@ def one(seed: int, case: str) -> list[dict]:
     return rows
 
 
-def usv_one(seed: int) -> dict:
-    """The 3-DOF USV under its heading autopilot in a 6-s wave (:func:`~benchmarks.independent.autopilot_waves.
-    usv_autopilot_runs`; 3 training runs, 1 held out): the default output-error fit and the sea-state check."""
+def usv_one(seed: int, case: str = "waves") -> dict:
+    """The 3-DOF USV under its heading autopilot in a 6-s wave, or in calm water (``case="calm"``: the same runs
+    without the wave) (:func:`~benchmarks.independent.autopilot_waves.usv_autopilot_runs`; 3 training runs, 1 held
+    out): the default output-error fit and the sea-state check."""
     from benchmarks.independent.autopilot_waves import usv_autopilot_runs
     from benchmarks.independent.robust_truths import USV_FREE
     from diffship.data import Run
@@ -89,7 +96,7 @@ def usv_one(seed: int) -> dict:
     from diffship.metrics import evaluate
     from diffship.models import Fossen3
 
-    g = usv_autopilot_runs(seed)
+    g = usv_autopilot_runs(seed, waves=case == "waves")
     tv = g[0]["truth"]
     runs = [Run(x["name"], x["time"], x["channels"], {"source": "benchmarks.independent"}) for x in g]
     train, val = runs[:3], runs[3:]
@@ -108,28 +115,61 @@ def usv_one(seed: int) -> dict:
                                                                          for n in USV_FREE}
     oe_rel, oe_z = err({n: (oe.params[n], oe.stderr[n]) for n in USV_FREE})
     pe_rel, pe_z = err(s.K_T)
-    return dict(seed=seed, closed=loop["closed"], oe_rel=oe_rel, oe_z=oe_z, oe_s=t_oe, found=s.found,
+    return dict(seed=seed, case=case, closed=loop["closed"], oe_rel=oe_rel, oe_z=oe_z, oe_s=t_oe, found=s.found,
                 period=s.period_s, damping=s.damping, sd_v=s.intensity.get("v"), sd_r=s.intensity.get("r"),
-                share_r=s.share.get("r"), pe_rel=pe_rel, pe_z=pe_z, pe_s=s.seconds, line=s.line(), truth=tv)
+                share_r=s.share.get("r"), pe_rel=pe_rel, pe_z=pe_z, pe_s=s.seconds, line=s.line(), truth=tv,
+                commit=_commit())
+
+
+def _commit() -> str:
+    import subprocess
+
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              cwd=Path(__file__).parent, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "?"
 
 
 def write_usv(rows: list[dict], out: Path) -> None:
-    L = ["", "## The 3-DOF USV under a heading autopilot in a 6-s wave", "",
-         "`python -m benchmarks at_sea_synthetic --usv-seeds N`: the water-jet USV of `benchmarks/independent/vessels.py`"
-         " (10 hydrodynamic coefficients free, mass and inertia known) under a PD autopilot on its yaw moment, in "
-         "narrow-band sway (sd 0.03 m/s²) and yaw (0.01 rad/s²) accelerations of period 6 s; 3 × 300 s trained, 1 "
-         "held out, 5 Hz; channels ψ, u, v, r.", "",
-         "| seed | loop closed | output error: worst \\|rel. error\\|, worst \\|z\\| | sea state named | period | sd v, r | "
-         "share (r) | its fit: worst \\|rel. error\\|, worst \\|z\\| (which) | s (output error, sea state) |",
-         "|---|---|---|---|---|---|---|---|---|"]
+    """Add ``rows`` to ``at_sea_usv.jsonl`` (replacing a seed and case measured before) and write the table of all
+    rows to ``at_sea_usv.md``."""
+    import json
+
+    log = out / "at_sea_usv.jsonl"
+    kept = {}
+    if log.exists():
+        for line in log.read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                kept[(r.get("case", "waves"), r["seed"])] = r
     for r in rows:
+        kept[(r["case"], r["seed"])] = r
+    log.write_text("".join(json.dumps(r, default=float) + "\n" for r in kept.values()))
+    L = ["# At sea, synthetic: the 3-DOF USV under a heading autopilot", "",
+         "`python -m benchmarks at_sea_synthetic --cases \"\" --usv-seeds 0,1,2 --usv-cases waves,calm`: the water-jet "
+         "USV of `benchmarks/independent/vessels.py` (10 hydrodynamic coefficients free, mass and inertia known) "
+         "under a PD autopilot on its yaw moment, in narrow-band sway (sd 0.03 m/s²) and yaw (0.01 rad/s²) "
+         "accelerations of period 6 s with a random phase per run (`waves`), or the same runs without them "
+         "(`calm`); 3 × 300 s trained, 1 held out, 5 Hz; channels ψ, u, v, r. The output-error fit is the default; "
+         "the sea-state check is `diffship.diagnose.sea_state` (prediction error with the wave disturbance, judged "
+         "by held-out one-sample prediction). Rows from `results/at_sea_usv.jsonl` (each with the commit it ran "
+         "at).", "",
+         "| case | seed | loop closed | output error: worst \\|rel. error\\|, worst \\|z\\| | sea state named | period | "
+         "sd v, r | share (r) | its fit: worst \\|rel. error\\|, worst \\|z\\| (which) | s (output error, sea state) "
+         "| commit |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def num(x, fmt, unit=""):
+        return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt) + unit
+    for (case, seed), r in sorted(kept.items()):
         wz = max(r["pe_z"], key=lambda n: abs(r["pe_z"][n]))
-        L.append(f"| {r['seed']} | {r['closed']} | {max(map(abs, r['oe_rel'].values())):.0%}, "
-                 f"{max(map(abs, r['oe_z'].values())):.1f} | {r['found']} | {r['period']:.2f} s | {r['sd_v']:.4f}, "
-                 f"{r['sd_r']:.4f} | {r['share_r']:.0%} | {max(map(abs, r['pe_rel'].values())):.0%}, "
-                 f"{abs(r['pe_z'][wz]):.1f} ({wz}) | {r['oe_s']:.0f}, {r['pe_s']:.0f} |")
-    with open(out / "at_sea_synthetic.md", "a") as fh:
-        fh.write("\n".join(L) + "\n")
+        L.append(f"| {case} | {seed} | {r['closed']} | {max(map(abs, r['oe_rel'].values())):.0%}, "
+                 f"{max(map(abs, r['oe_z'].values())):.1f} | {r['found']} | {num(r['period'], '.2f', ' s')} | "
+                 f"{num(r['sd_v'], '.4f')}, {num(r['sd_r'], '.4f')} | {num(r['share_r'], '.0%')} | "
+                 f"{max(map(abs, r['pe_rel'].values())):.0%}, {abs(r['pe_z'][wz]):.1f} ({wz}) | "
+                 f"{r['oe_s']:.0f}, {r['pe_s']:.0f} | {r.get('commit', '?')} |")
+    (out / "at_sea_usv.md").write_text("\n".join(L) + "\n")
 
 
 def write(df: pd.DataFrame, out: Path) -> None:
@@ -162,7 +202,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--cases", default="waves,calm,open")
-    ap.add_argument("--usv-seeds", type=int, default=0, help="seeds of the USV case (minutes each; 0: not run)")
+    ap.add_argument("--usv-seeds", default="", help="comma-separated seeds of the USV (minutes each; none: not run)")
+    ap.add_argument("--usv-cases", default="waves", help="comma-separated USV cases: waves, calm")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -172,10 +213,12 @@ def main(argv=None) -> int:
         for seed in range(args.seeds):
             rows += one(seed, case)
             write(pd.DataFrame(rows), out)
-    usv = [usv_one(seed) for seed in range(args.usv_seeds)]
-    if usv:
-        write_usv(usv, out)
-    print((out / "at_sea_synthetic.md").read_text())
+    for case in [c for c in args.usv_cases.split(",") if c]:
+        for seed in [int(x) for x in args.usv_seeds.split(",") if x]:
+            write_usv([usv_one(seed, case)], out)
+            print((out / "at_sea_usv.md").read_text(), flush=True)
+    if rows:
+        print((out / "at_sea_synthetic.md").read_text())
     return 0
 
 

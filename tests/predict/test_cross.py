@@ -112,8 +112,12 @@ def test_right_model_predicts_the_turn_wrong_one_is_flagged(runs, fits, tmp_path
 
     text = cross_text(wrong)
     assert "Manoeuvre validation on held-out runs (trained on: zigzag 10/10 starboard first, zigzag 20/20 port first)" in text
-    assert "FAILS cross-manoeuvre validation" in text and "tactical_diameter" in text
-    assert "MISS" in text or "UNDETERMINED" in text
+    assert "tactical_diameter" in text.split("verdict:")[-1]
+    # a miss fails the validation; an interval wider than five tolerances only says the runs do not determine it
+    if wtc["tactical_diameter"].outside_tolerance:
+        assert "MISS" in text and "FAILS cross-manoeuvre validation: misses turn35 (" in text
+    else:
+        assert "UNDETERMINED" in text and "verdict: no held-out metric is missed" in text
     doc = json.loads(json.dumps(cross_json(wrong)))
     assert doc["train_types"] == ["zigzag"] and doc["passed"] is False
     td = doc["heldout"][0]["metrics"]["tactical_diameter"]

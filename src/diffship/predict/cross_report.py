@@ -48,12 +48,24 @@ def cross_text(cv: CrossValidation) -> str:
     if not cv.checks:
         lines.append("  no held-out run is a standard manoeuvre: nothing to judge")
     else:
-        bad = [f"{c.run} ({', '.join(m.name for m in c.metrics if m.flagged) or 'blew up'})" for c in cv.checks
-               if c.flagged]
-        lines += ["", "  verdict: " + ("the model PREDICTS the held-out manoeuvres within their intervals or "
-                                       "tolerances" if cv.passed else "FAILS cross-manoeuvre validation: "
-                                       + "; ".join(bad) + ". The training manoeuvres do not determine these; add "
-                                       "them to the training set or constrain the model (priors, bounds)")]
+        def names(c, missed):
+            return ", ".join(m.name for m in c.metrics if m.flagged and bool(m.outside_tolerance) == missed)
+        # a miss (measured outside the interval and beyond tolerance, or a blow-up) fails; an interval wider than
+        # five tolerances around a prediction within tolerance only says the training runs do not determine it
+        miss = [f"{c.run} ({names(c, True) or 'blew up'})" for c in cv.checks
+                if c.flagged and (names(c, True) or not names(c, False))]
+        wide = [f"{c.run} ({names(c, False)})" for c in cv.checks if names(c, False)]
+        if cv.passed:
+            text = "the model PREDICTS the held-out manoeuvres within their intervals or tolerances"
+        elif miss:
+            text = ("FAILS cross-manoeuvre validation: misses " + "; ".join(miss)
+                    + (f"; undetermined: {'; '.join(wide)}" if wide else "")
+                    + ". Add such manoeuvres to the training set or constrain the model (priors, bounds)")
+        else:
+            text = ("no held-out metric is missed, but the training manoeuvres do not determine "
+                    + "; ".join(wide) + " (95 % intervals wider than five tolerances): add such manoeuvres to the "
+                    "training set or constrain the model (priors, bounds)")
+        lines += ["", "  verdict: " + text]
     return "\n".join(lines)
 
 
