@@ -47,6 +47,7 @@ from .conditioning import thinning
 from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
+from .hints import next_steps
 from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
@@ -298,6 +299,12 @@ def _fit(args, say) -> int:
             per_method[m]["feedback"] = loop
     if notes:
         tail += "\n" + "\n".join(notes)
+    if oe is not None and not any(v.usable for v in verdicts.values()):  # the options the model and data point to
+        steps = next_steps(model, spec, verdicts["output_error"].runs, horizon=args.horizon,
+                           priors=not args.no_prior, free_hydrodynamic=args.free_hydrodynamic)
+        if steps:
+            tail += "\n\nwhat to try (the fit is not usable):\n" + "\n".join(f"  {s}" for s in steps)
+            per_method["output_error"]["next_steps"] = steps
     report += tail
     print(screen + tail)
     write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say, verdicts=verdicts,

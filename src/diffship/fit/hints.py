@@ -1,0 +1,66 @@
+r"""What to try when no fit is usable: the options that the model and the data point to, one line each.
+
+A fit report can name two causes without a refit:
+
+* **Coefficients held at reference values.** On a model whose reference set applies (its reference vessel:
+  :func:`~diffship.fit.priors.default_priors`), the coefficients outside the default free set are held at the
+  reference values, as if they were known exactly. ``--free-hydrodynamic`` estimates them under the same
+  reference priors as the free ones: the priors hold what the data do not determine.
+* **A training run followed only up to a time.** When the model stops following a training run from
+  :math:`t = T` (:class:`~diffship.usability.RunProblem`), the rest of that run shows what the model lacks.
+  ``--horizon S`` (:math:`S` = the earliest such :math:`T`, rounded down to 10 s) fits the part it follows,
+  and ``python -m diffship.diagnose`` looks for what is missing in the rest.
+
+Measured on the HSVA KVLCC2 zigzags (MMG on ``kvlcc2_model``, the README's four training and two held-out
+runs): the plain command's fit is FAILED (a held-out second overshoot 4.8° short) and names the held
+coefficients; with ``--free-hydrodynamic`` it is FAILED again (2.0° short), and the training run ``Z_35_05`` is
+not followed from t = 66 s; with ``--free-hydrodynamic --horizon 60`` it is usable, the held-out first
+overshoots within 0.3°, and the 35° turn's tactical diameters are 3.04 and 3.07 L (HSVA measured 3.1–3.3 L).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from ..models import AbstractModel
+from ..params import ParamSpec
+from .priors import default_priors, reference_class
+
+__all__ = ["held_reference_coefficients", "next_steps"]
+
+
+def held_reference_coefficients(model: AbstractModel, spec: ParamSpec) -> list[str]:
+    """The fixed coefficients of ``spec`` that are not vessel particulars and have a reference value a prior
+    would be centred on (nonzero, in the model's reference set); empty where the reference set does not apply
+    to this vessel."""
+    if not len(default_priors(model, spec, 0.5)[0]):
+        return []
+    cls = reference_class(model)
+    ref = {p.name: p.value for p in cls.PARAMS}
+    particulars = set(getattr(model, "PARTICULARS", {}) or ())
+    return [n for n in spec.fixed_names if n not in particulars and ref.get(n, 0.0) != 0.0]
+
+
+def next_steps(model: AbstractModel, spec: ParamSpec, runs: Sequence, *, horizon: float | None,
+               priors: bool, free_hydrodynamic: bool) -> list[str]:
+    """One line per option worth a try after a fit that is not usable (module docstring).
+
+    ``runs``: the verdict's run problems (:class:`~diffship.usability.RunProblem`); ``horizon``: the
+    ``--horizon`` given (or None); ``priors``: whether the reference priors are on (not ``--no-prior``);
+    ``free_hydrodynamic``: whether ``--free-hydrodynamic`` was given."""
+    out = []
+    held = held_reference_coefficients(model, spec) if priors and not free_hydrodynamic else []
+    if held:
+        shown = ", ".join(held[:6]) + (f", … ({len(held)} in all)" if len(held) > 6 else "")
+        out.append(f"--free-hydrodynamic: {len(held)} coefficient(s) are held at the reference set's values as if "
+                   f"known exactly ({shown}); it estimates them under their reference priors")
+    late = [p for p in runs if p.kind == "training" and math.isfinite(p.from_s) and p.from_s >= 10.0]
+    if late:
+        first = min(late, key=lambda p: p.from_s)
+        s = 10.0 * math.floor(first.from_s / 10.0)
+        if horizon is None or s < horizon:
+            out.append(f"--horizon {s:g}: the model does not follow training run {first.run} ({first.channel}) from "
+                       f"t = {first.from_s:.0f} s; this fits the part it follows (python -m diffship.diagnose looks "
+                       "for what the model lacks in the rest)")
+    return out
