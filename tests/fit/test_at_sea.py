@@ -54,6 +54,19 @@ def test_the_sea_state_is_named_with_its_period_and_intensity_and_the_dynamics_r
     assert s.share["r"] > 0.3
 
 
+def test_the_two_estimates_are_set_side_by_side(sea):
+    """The diagnosis report and JSON show output error's estimates beside prediction error's with the sea state:
+    under the autopilot in waves output error's K is far off, prediction error's is not, and the comparison says
+    they are many standard errors apart."""
+    _, _, tv, oe, s = sea
+    rows = {r["name"]: r for r in s.compare(oe.params, oe.stderr)}
+    assert set(rows) == set(oe.free)
+    k = rows["K"]
+    assert k["output_error"] == oe.params["K"] and k["prediction_error"] == s.K_T["K"][0]
+    assert abs(k["prediction_error"] - tv["K"]) < 0.5 * abs(k["output_error"] - tv["K"])
+    assert k["z"] > 3
+
+
 def test_the_wave_model_predicts_the_held_out_run_better_one_sample_ahead(sea):
     _, val, _, _, s = sea
     with_w, without = ahead(s.fit, val, None, True), ahead(s.fit, val, None, False)

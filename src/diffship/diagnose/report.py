@@ -29,6 +29,18 @@ def to_markdown(d) -> str:
               "|---|---|---|---|---|---|"]
         L += [f"| {k} | {f.shown()} | {'yes' if f.found else 'no'} | {f.heldout[0]:.3g} → {f.heldout[1]:.3g} "
               f"{f.misfit_unit} | {f.method} | {f.reason} |" for k, f in checks.items()] + [""]
+    sea = getattr(d, "sea_state", None)
+    if sea is not None:
+        L += ["## Sea state (prediction from the Kalman filter's state, held-out runs)", "", sea.line(), ""]
+        rows = sea.compare(d.base_fit.params, d.base_fit.stderr) if sea.found else []
+        if rows:
+            L += ["The two estimates of the base model: output error (the measured input as given; biased where the "
+                  "input answers the sea, as an autopilot does) and prediction error with the sea state "
+                  "(`--method prediction-error --disturbance wave`).", "",
+                  "| parameter | output error | prediction error with the sea state | apart [combined SE] |",
+                  "|---|---|---|---|"]
+            L += [f"| {r['name']} | {r['output_error']:.4g} ± {r['se_output_error']:.2g} | {r['prediction_error']:.4g} ± "
+                  f"{r['se_prediction_error']:.2g} | {r['z']:.1f} |".replace("| nan |", "| — |") for r in rows] + [""]
     L += ["## Gap budget (validation, normalised by the noise floor)", "",
           "| total E | noise | parameter | structural |", "|---|---|---|---|",
           f"| {d.gap.E_total:.3g} | {d.gap.E_noise:.3g} | {d.gap.E_param:.3g} | {d.gap.E_struct:.3g} |", ""]

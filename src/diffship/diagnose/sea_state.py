@@ -72,6 +72,22 @@ class SeaState:
                     + "; prediction error with --disturbance wave estimates the dynamics with it.")
         return f"Sea state: none found ({self.why})."
 
+    def compare(self, params: dict[str, float], stderr: dict[str, float]) -> list[dict]:
+        r"""The check's prediction-error estimates beside the base fit's (output error) for every parameter both
+        have: ``{"name", "output_error", "se_output_error", "prediction_error", "se_prediction_error", "z"}`` with
+        :math:`z = |\hat\theta_{PE} - \hat\theta_{OE}| / \sqrt{s_{PE}^2 + s_{OE}^2}`. Under a closed loop in a sea
+        state the output-error estimates are biased (the input answers the disturbance) and the prediction-error ones
+        are not: a large ``z`` says which parameters the bias moved."""
+        out = []
+        for n, (v, s) in self.K_T.items():
+            if n not in params:
+                continue
+            so = float(stderr.get(n, math.nan))
+            comb = math.hypot(s, so) if math.isfinite(s) and math.isfinite(so) else math.nan
+            out.append({"name": n, "output_error": float(params[n]), "se_output_error": so, "prediction_error": v,
+                        "se_prediction_error": s, "z": abs(v - float(params[n])) / comb if comb > 0 else math.nan})
+        return out
+
     def to_dict(self) -> dict:
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "fit"}
         return {**d, "K_T": {k: list(v) for k, v in self.K_T.items()}, "line": self.line(),
