@@ -174,8 +174,7 @@ class Diagnosis:
             "in_base": self.in_base,
             "in_data": {k: f.to_dict() for k, f in self.in_data.items()},
             "sea_state": ({**self.sea_state.to_dict(), "estimates": self.sea_state.compare(
-                self.base_fit.params, self.base_fit.stderr) if self.sea_state.found else []}
-                if self.sea_state is not None else None),
+                self.base_fit.params, self.base_fit.stderr)} if self.sea_state is not None else None),
             "timings_s": self.timings,
         }
 

@@ -32,7 +32,7 @@ def to_markdown(d) -> str:
     sea = getattr(d, "sea_state", None)
     if sea is not None:
         L += ["## Sea state (prediction from the Kalman filter's state, held-out runs)", "", sea.line(), ""]
-        rows = sea.compare(d.base_fit.params, d.base_fit.stderr) if sea.found else []
+        rows = sea.compare(d.base_fit.params, d.base_fit.stderr)
         if rows:
             L += ["The two estimates of the base model: output error (the measured input as given; biased where the "
                   "input answers the sea, as an autopilot does) and prediction error with the sea state "

@@ -77,8 +77,10 @@ class SeaState:
         have: ``{"name", "output_error", "se_output_error", "prediction_error", "se_prediction_error", "z"}`` with
         :math:`z = |\hat\theta_{PE} - \hat\theta_{OE}| / \sqrt{s_{PE}^2 + s_{OE}^2}`. Under a closed loop in a sea
         state the output-error estimates are biased (the input answers the disturbance) and the prediction-error ones
-        are not: a large ``z`` says which parameters the bias moved."""
+        are not: a large ``z`` says which parameters the bias moved. Empty where no sea state was found."""
         out = []
+        if not self.found:
+            return out
         for n, (v, s) in self.K_T.items():
             if n not in params:
                 continue

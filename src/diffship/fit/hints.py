@@ -25,7 +25,7 @@ from collections.abc import Sequence
 
 from ..models import AbstractModel
 from ..params import ParamSpec
-from .priors import default_priors, reference_class
+from .priors import default_priors, reference_priors
 
 __all__ = ["held_reference_coefficients", "next_steps"]
 
@@ -36,10 +36,9 @@ def held_reference_coefficients(model: AbstractModel, spec: ParamSpec) -> list[s
     to this vessel."""
     if not len(default_priors(model, spec, 0.5)[0]):
         return []
-    cls = reference_class(model)
-    ref = {p.name: p.value for p in cls.PARAMS}
-    particulars = set(getattr(model, "PARTICULARS", {}) or ())
-    return [n for n in spec.fixed_names if n not in particulars and ref.get(n, 0.0) != 0.0]
+    held = [n for n in spec.fixed_names if n not in model.PARTICULARS]
+    # the same rule that puts priors on free parameters (a zero reference value is no prior)
+    return [n for n in held if n in reference_priors(model, spec.free(held)).by_name]
 
 
 def next_steps(model: AbstractModel, spec: ParamSpec, runs: Sequence, *, horizon: float | None,
