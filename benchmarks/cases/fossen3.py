@@ -29,8 +29,9 @@ CHANNELS = ("psi", "u", "v", "r")
 
 
 def fit_fossen3_oe(spec, runs, weights="spread"):
-    """diffship output error on the scipy peer's problem (raw initial states of psi, u, v, r estimated per run)."""
-    return fit_oe(Fossen3(), runs, spec=spec, estimate_x0=CHANNELS, weights=weights, flt=FLT_NONE)
+    """diffship output error on the scipy peer's problem (raw initial states of psi, u, v, r estimated per run, free
+    as in the peer's least squares: no prior holding them near the first samples)."""
+    return fit_oe(Fossen3(), runs, spec=spec, estimate_x0=CHANNELS, weights=weights, flt=FLT_NONE, x0_prior=False)
 
 
 def _ols(rec, case, variant, tr, va, truth, free):

@@ -125,8 +125,9 @@ def nomoto_spec(start):
 
 
 def fit_nomoto_oe(spec, train, weights="spread"):
-    """diffship output error on the scipy peer's problem (raw initial states, psi and r estimated per run)."""
-    return fit_oe(Nomoto1(), train, spec=spec, estimate_x0=("psi", "r"), weights=weights, flt=FLT_NONE)
+    """diffship output error on the scipy peer's problem (raw initial states, psi and r estimated per run, free:
+    no prior holding them near the first samples, which the peer's least squares does not have)."""
+    return fit_oe(Nomoto1(), train, spec=spec, estimate_x0=("psi", "r"), weights=weights, flt=FLT_NONE, x0_prior=False)
 
 
 def nomoto_problem(spec, train):

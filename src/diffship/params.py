@@ -24,6 +24,7 @@ import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -262,14 +263,23 @@ def values_from_z(z: Float[Array, " n_free"], kind, lo, hi, s) -> Float[Array, "
     """
     # Clamp the exponent argument so that a wild trial step cannot overflow to inf; a value never rounds onto its
     # bound (deep in the tail, l + s·e^z == l in floating point: a fit file's value on its bound could not start a
-    # later fit), it stays one representable number inside
-    ez = jnp.exp(jnp.clip(z, -50.0, 50.0))
-    lin = s * z
-    inside_lo, inside_hi = jnp.nextafter(lo, jnp.inf), jnp.nextafter(hi, -jnp.inf)
-    lower = jnp.maximum(lo + s * ez, inside_lo)
-    upper = jnp.minimum(hi - s * ez, inside_hi)
-    both = jnp.clip(lo + (hi - lo) * (1.0 / (1.0 + jnp.exp(-jnp.clip(z, -50.0, 50.0)))), inside_lo, inside_hi)
-    return jnp.where(kind == _LINEAR, lin, jnp.where(kind == _LOWER, lower, jnp.where(kind == _UPPER, upper, both)))
+    # later fit), it stays one representable number inside.
+    # Outside a trace (concrete values, e.g. a start converted on the host) the same formulas run in NumPy: JAX would
+    # compile each operation for each new shape, seconds of a fit's first call in a new process.
+    concrete = not any(isinstance(a, jax.core.Tracer) for a in (z, kind, lo, hi, s))
+    xp = np if concrete else jnp
+    if concrete:
+        z, kind, lo, hi, s = (np.asarray(a, dtype=np.float64) if i != 1 else np.asarray(a)
+                              for i, a in enumerate((z, kind, lo, hi, s)))
+    with np.errstate(all="ignore"):  # the branches not taken may be inf − inf (NumPy warns; JAX does not)
+        ez = xp.exp(xp.clip(z, -50.0, 50.0))
+        lin = s * z
+        inside_lo, inside_hi = xp.nextafter(lo, xp.inf), xp.nextafter(hi, -xp.inf)
+        lower = xp.maximum(lo + s * ez, inside_lo)
+        upper = xp.minimum(hi - s * ez, inside_hi)
+        both = xp.clip(lo + (hi - lo) * (1.0 / (1.0 + xp.exp(-xp.clip(z, -50.0, 50.0)))), inside_lo, inside_hi)
+        out = xp.where(kind == _LINEAR, lin, xp.where(kind == _LOWER, lower, xp.where(kind == _UPPER, upper, both)))
+    return jnp.asarray(out) if concrete else out
 
 
 def parse_assignments(items: Sequence[str] | None, what: str = "--fix") -> dict[str, float]:
