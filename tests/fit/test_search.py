@@ -123,3 +123,37 @@ def test_reweighting_rounds_that_cycle_stop_at_the_first_repeat(monkeypatch):
     monkeypatch.setattr(S, "correlation_time", lambda r, mask, n_c: readings[0])
     assert S.reweighted_solves(kernel, [z], data, np.array([0.01, 0.002]), lm, cap=50, total=10_000,
                                floor=np.full(2, 1e-9))[0]["cycle"] == 0
+
+
+def test_rounds_stay_short_while_the_scales_move_and_end_self_consistent(monkeypatch):
+    """A candidate whose channel scales moved by more than ``SCALES_MOVING`` over a round takes a round of
+    ``FIRST_ROUND_STEPS`` next (its weights follow its residuals); it ends at scales that its own residuals
+    reproduce (within ``REWEIGHT_RTOL``), at the point that rounds growing regardless reach."""
+    import diffship.fit.search as S
+    from diffship.fit.weights import correlation_time
+    from tests.fit.test_kernel import _problem
+
+    runs, spec, kernel, data = _problem(2, 40.0, 0.2, seed=3)
+    z = np.concatenate([spec.with_values({"K": 0.2, "T1": 8.0, "delta0": 0.01}).to_z(),
+                        np.zeros(len(runs) * len(kernel.x0_idx))])
+    lm = {"jacobian": True, "max_steps": 100, "rtol": 1e-6, "atol": 1e-6, "gntol": 0.05}
+    caps, real = [], type(kernel).solve_many
+
+    def recording(self, z0s, d, **kw):
+        caps.append(int(np.asarray(d.step_cap)[0]))
+        return real(self, z0s, d, **kw)
+
+    monkeypatch.setattr(type(kernel), "solve_many", recording)
+    first = np.array([0.05, 0.02])  # far from the residuals' own levels: the scales move a lot at first
+    short = S.reweighted_solves(kernel, [z], data, first, lm, cap=100, total=10_000, floor=np.full(2, 1e-9))[0]
+    assert caps[:2] == [S.FIRST_ROUND_STEPS] * 2  # the first round's scales were far off: the second is short too
+    mask = np.asarray(data.mask)
+    tau = correlation_time(short["r"], mask, 2)
+    again = self_consistent_scales(short["r"], mask, short["r_scales"], tau, np.full(2, 1e-9))
+    assert np.max(np.abs(again / short["r_scales"] - 1.0)) < 10 * S.REWEIGHT_RTOL
+    monkeypatch.setattr(S, "SCALES_MOVING", math.inf)  # rounds growing regardless
+    caps.clear()
+    grown = S.reweighted_solves(kernel, [z], data, first, lm, cap=100, total=10_000, floor=np.full(2, 1e-9))[0]
+    assert caps[:2] == [S.FIRST_ROUND_STEPS, 2 * S.FIRST_ROUND_STEPS]
+    n_p = len(spec.free_names)
+    np.testing.assert_allclose(short["z"][:n_p], grown["z"][:n_p], atol=2e-3)
