@@ -439,10 +439,8 @@ class Kernel(eqx.Module):
         return out
 
     def _solve_threads(self, z0s, data, workers, per_problem, done, **lm):
-        if per_problem:  # sliced on the host: indexing device arrays compiles a program per field shape
-            data = jax.tree_util.tree_map(np.asarray, data)
-        first = jax.tree_util.tree_map(lambda a: a[0], data) if per_problem else data
-        fn, _ = self.compiled("solve", z0s[0], first, **lm)
+        data = jax.tree_util.tree_map(np.asarray, data) if per_problem else data  # host slices: no per-shape program
+        fn, _ = self.compiled("solve", z0s[0], jax.tree_util.tree_map(lambda a: a[0], data) if per_problem else data, **lm)
 
         def one(b):
             d = jax.tree_util.tree_map(lambda a: a[b], data) if per_problem else data
