@@ -269,8 +269,8 @@ def values_from_z(z: Float[Array, " n_free"], kind, lo, hi, s) -> Float[Array, "
     concrete = not any(isinstance(a, jax.core.Tracer) for a in (z, kind, lo, hi, s))
     xp = np if concrete else jnp
     if concrete:
-        z, kind, lo, hi, s = (np.asarray(a, dtype=np.float64) if i != 1 else np.asarray(a)
-                              for i, a in enumerate((z, kind, lo, hi, s)))
+        z, lo, hi, s = (np.asarray(a, dtype=np.float64) for a in (z, lo, hi, s))
+        kind = np.asarray(kind)
     with np.errstate(all="ignore"):  # the branches not taken may be inf − inf (NumPy warns; JAX does not)
         ez = xp.exp(xp.clip(z, -50.0, 50.0))
         lin = s * z

@@ -446,10 +446,7 @@ class OutputError(AbstractEstimator):
             messages.extend([note] if note else [])
         prior_rows = np.asarray(kernel.split(np.asarray(res_fn(jnp.asarray(z), data)), data)[1])
         x0_rows, prior_rows = prior_rows[n_pw:], prior_rows[:n_pw]
-        x0_fit = np.array(data.x0)  # kernel.initial_states on the host (op by op it would compile each operation)
-        if kernel.x0_idx:
-            k_ = kernel.n_theta + kernel.n_extra
-            x0_fit[:, list(kernel.x0_idx)] += np.asarray(z[k_:]).reshape(x0_fit.shape[0], -1) * np.asarray(data.x0_scale)
+        x0_fit = np.asarray(kernel.initial_states(jnp.asarray(z), data))
         return Solved(
             z=z, r_data=r, J_data=J, J_extra=J_prior, r_extra=prior_rows, result=result, steps=sum(steps_per_pass),
             seconds=fit_s, compile_seconds=c, cost=0.5 * float(np.sum(r * r)),

@@ -454,13 +454,7 @@ def _closed_loop(model, names, thetas, integ, run: Run, rt: RunType, x0: np.ndar
     k = max(1, math.ceil(run.dt / REPLAY_DT - 1e-9))
     flown = fly_draws(model, names, thetas, law, initial=initial, inputs=inputs, duration=run.duration, dt=run.dt / k,
                       rudder_rate_deg_s=rate, integrator=integ, metadata={"manoeuvre": "zigzag"})
-    return [f if f is None or k == 1 else _every(f, k) for f in flown]
-
-
-def _every(run: Run, k: int) -> Run:
-    """Every ``k``-th sample of ``run``."""
-    return Run(run.name, np.asarray(run.time)[::k], {c: np.asarray(run[c])[::k] for c in run.channel_names},
-               dict(run.metadata), check_units=False)
+    return [f if f is None or k == 1 else f.resample(run.dt) for f in flown]
 
 
 def _check(model, names, draws, integ, run: Run, rt: RunType, flt: Filter, length, fitted=None,
