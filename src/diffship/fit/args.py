@@ -52,6 +52,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "and held-out runs use the same rule with the parameters held (diffship.initial); data: "
                         "the filtered first sample taken as exact (a noisy first sample biases every estimate; the "
                         "report says what it costs)")
+    p.add_argument("--as-given", action="store_true",
+                   help="fit with the options as given; without it a fit that is not usable is refitted with the "
+                        "first option its report names (--free-hydrodynamic, then --horizon S), each step said and "
+                        "listed in the report")
     p.add_argument("--weights", default="noise", choices=("noise", "spread"),
                    help="output-error channel weights: noise (default: each channel's residual RMS times the square "
                         "root of its correlation time, re-estimated to the likelihood's optimum) or spread (one pass)")

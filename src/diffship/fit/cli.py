@@ -11,6 +11,7 @@ line ``error: ...`` on stderr with exit status 2 and no traceback.
 
 from __future__ import annotations
 
+import argparse
 import math
 import dataclasses
 import sys
@@ -47,7 +48,7 @@ from .conditioning import thinning
 from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
-from .hints import next_steps
+from .hints import NextStep, next_step, next_steps
 from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
@@ -193,6 +194,18 @@ def _filters(args):
     return Filter.parse(args.filter), None
 
 
+def _with_step(args, step: NextStep, taken: tuple) -> argparse.Namespace:
+    """A copy of ``args`` with ``step`` taken (:func:`~diffship.fit.hints.next_step`); ``args`` is not changed."""
+    out = argparse.Namespace(**vars(args))
+    out.free = list(args.free)
+    if step.option == "--free-hydrodynamic":
+        out.free_hydrodynamic = True
+    elif step.option == "--horizon":
+        out.horizon = float(step.value)
+    out.steps_taken = (*taken, step)
+    return out
+
+
 def _fit(args, say) -> int:
     model = get_model(args.model)
     if args.free_hydrodynamic:  # every parameter that is not a vessel particular
@@ -262,6 +275,17 @@ def _fit(args, say) -> int:
     held = [r for r in val if not any(r.name == t.name and r.n == t.n for t in train)]
     verdicts = {m: verdict(r, ev_train.get(m), train, ev_val.get(m), held, manoeuvres=cross if m == "output_error"
                            and len(held) == len(val) else None) for m, r in results.items()}
+    taken = tuple(getattr(args, "steps_taken", ()))
+    steps = next_steps(model, spec, verdicts["output_error"].runs, horizon=args.horizon, priors=not args.no_prior,
+                       free_hydrodynamic=args.free_hydrodynamic) \
+        if oe is not None and not any(v.usable for v in verdicts.values()) else []
+    # the options the report would name; a --horizon the user gave stays (an override, as every option)
+    given = {"--horizon"} if args.horizon and not any(t.option == "--horizon" for t in taken) else set()
+    if (step := None if args.as_given else next_step([s for s in steps if s.option not in given], taken)) is not None:
+        v = verdicts["output_error"]
+        say(f"output error is not usable ({v.reasons[0] if v.reasons else v.label}): refitting with {step} "
+            "(--as-given: fit with the options as given)")
+        return _fit(_with_step(args, step, taken), say)
     notes = ([""] + [thin.text] if thin is not None else []) + resample_notes(args, model, spec, results, flt, options,
                                                                                say)
     details = str(Path(args.out) / "report.txt") if args.out else None
@@ -299,12 +323,13 @@ def _fit(args, say) -> int:
             per_method[m]["feedback"] = loop
     if notes:
         tail += "\n" + "\n".join(notes)
-    if oe is not None and not any(v.usable for v in verdicts.values()):  # the options the model and data point to
-        steps = next_steps(model, spec, verdicts["output_error"].runs, horizon=args.horizon,
-                           priors=not args.no_prior, free_hydrodynamic=args.free_hydrodynamic)
-        if steps:
-            tail += "\n\nwhat to try (the fit is not usable):\n" + "\n".join(f"  {s}" for s in steps)
-            per_method["output_error"]["next_steps"] = steps
+    if taken:  # options the command chose after fits that were not usable
+        tail += ("\n\noptions chosen after a fit that was not usable (--as-given: fit with the options as given):\n"
+                 + "\n".join(f"  {t}" for t in taken))
+        per_method["output_error"]["steps_taken"] = [str(t) for t in taken]
+    if steps:  # the options the model and data point to
+        tail += "\n\nwhat to try (the fit is not usable):\n" + "\n".join(f"  {s}" for s in steps)
+        per_method["output_error"]["next_steps"] = [str(s) for s in steps]
     report += tail
     print(screen + tail)
     write_outputs(args, model.name, results, ev_train, ev_val, train, val, report, say, verdicts=verdicts,

@@ -157,6 +157,10 @@ def _ramp_start(raw: np.ndarray, a: int, b: int, level: float) -> int:
 
 _RUDDERS = (5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
 _SWITCHES = (1.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
+#: A run of alternating rudder plateaus is a zigzag only where its reversals come at one heading change: their
+#: spread (largest minus smallest) at most this [deg] or this share of their median, whichever is larger.
+ZIGZAG_SPREAD_DEG = 3.0
+ZIGZAG_SPREAD_REL = 0.3
 
 
 def _standard(x: float, values: tuple[float, ...], rel: float) -> float:
@@ -209,6 +213,12 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
         psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
         h = np.abs(np.degrees(psi[[_ramp_start(raw, a, b, lv + base) for a, b, lv in nz[:-1]]] - psi[i0]))
         rudder, sw = _standard(float(np.median(mags)), _RUDDERS, 0.1), float(np.median(h))
+        if len(h) >= 2 and float(np.ptp(h)) > max(ZIGZAG_SPREAD_DEG, ZIGZAG_SPREAD_REL * sw):
+            # a zigzag reverses its rudder at one heading change; reversals at different ones follow a clock or
+            # an operator, and flying the run again by the heading would not be the same manoeuvre
+            return RunType("other", math.nan, math.nan, side, levels,
+                           f"alternating rudder of equal magnitude, but reversed at heading changes "
+                           f"{np.min(h):.3g}–{np.max(h):.3g}° (a zigzag reverses at one): not a zigzag")
         # the heading is read when the rudder leaves its plateau, a sample or an autopilot delay
         # after the switch: the largest standard switch angle not above it, within 2.5°
         std = [a for a in _SWITCHES if a <= sw + 0.3 and sw - a <= 2.5]
