@@ -157,3 +157,27 @@ def test_rounds_stay_short_while_the_scales_move_and_end_self_consistent(monkeyp
     assert caps[:2] == [S.FIRST_ROUND_STEPS, 2 * S.FIRST_ROUND_STEPS]
     n_p = len(spec.free_names)
     np.testing.assert_allclose(short["z"][:n_p], grown["z"][:n_p], atol=2e-3)
+
+
+def test_no_candidates_are_drawn_beyond_the_starts_when_the_search_is_not_adaptive(monkeypatch):
+    """``OutputError(adaptive=False)`` (structure discovery's base fit: a model that lacks terms by design) solves
+    the starts' candidates only; by default, a single start that no other candidate confirms draws more."""
+    import diffship.fit.output_error as oe_mod
+    from diffship.fit import OutputError, fit
+    from diffship.models import Nomoto1
+    from diffship.synthetic import nomoto_runs
+
+    seen = []
+    real = oe_mod.adaptive
+
+    def spy(cands, sols, solve, more, mask, n, say=None):
+        seen.append(n)
+        return real(cands, sols, solve, more, mask, n, say)
+
+    monkeypatch.setattr(oe_mod, "adaptive", spy)
+    runs = nomoto_runs(n_runs=2, duration=60.0, dt=0.2, seed=1)
+    a = fit(Nomoto1(), runs, OutputError(adaptive=False), n_starts=1)
+    b = fit(Nomoto1(), runs, OutputError(), n_starts=1)
+    assert seen == [0, 1]
+    # the same data, the same optimum: the draw confirms the start's point
+    assert all(math.isclose(a.params[k], b.params[k], rel_tol=1e-4) for k in ("K", "T1"))

@@ -229,8 +229,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             noise; with estimated initial states −390 ± 16 kg and 1.02×.
         oe_first: run the output-error screen (:mod:`.oescreen`) and refit its path's structures first,
             then the equation-error screen's; ``False``: the equation-error screen alone.
-        n_starts: starts of the base fit (the driver's multi-start; ``--starts N``); the candidate
-            structures start from the base optimum with the screen's term values.
+        n_starts: starts of the base fit (the driver's multi-start; ``--starts N``; no candidates drawn beyond
+            them: ``OutputError.adaptive``); the structures start from the base optimum with the screen's values.
         polish_rounds: the most rounds of the polish (:mod:`.polish`) from the best-ranked structure with terms,
             when it beats the base by the margin; 0: none.
         n_finish: the stalled refits finished, by their criterion bound: of the candidate structures, and of each
@@ -266,7 +266,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     with ThreadPoolExecutor(1) as pool:
         ee = pool.submit(screen, base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
         try:
-            res0 = fit(base, train, options, spec=spec, n_starts=n_starts, progress=say)
+            res0 = fit(base, train, dataclasses.replace(options, adaptive=False), spec=spec, n_starts=n_starts,
+                       progress=say)  # the base lacks the terms looked for: more draws only cost time
         except BaseException:
             if pre is not None:
                 pre.cancel()

@@ -112,6 +112,11 @@ class OutputError(AbstractEstimator):
             whole-run solve; the starts report says so, with its cost). Measured on the USV fit of
             ``benchmarks/timing``: three starts converged in 11–28 steps, the fourth (the model's reference
             values) crawled 67 steps to the same point (cost 5.2 after 30 steps against 4.29).
+        adaptive: while fewer than two whole-run candidates reach the best point, more are drawn (the search's
+            adaptive part, :func:`~diffship.fit.search.adaptive`). ``False``: the starts' candidates only — for a
+            model incomplete by design, such as structure discovery's base model, whose rugged likelihood sends
+            every draw elsewhere (on an independent USV missing four terms, the one draw re-converged in 250
+            steps, 19 s, to the point the start had reached).
         x0_prior: an estimated initial state that a fitted channel measures is held by the measurement
             of its first sample: a Gaussian prior row centred on the raw first sample with the channel's
             sensor noise (:func:`diffship.initial.start_prior`); states no channel measures are free.
@@ -140,6 +145,7 @@ class OutputError(AbstractEstimator):
     ee_start: bool = True
     stall: tuple[int, float] | None = None
     warmup_round: int = 30
+    adaptive: bool = True
 
     def __post_init__(self):
         if self.estimate_x0 != "auto":
@@ -312,7 +318,7 @@ class OutputError(AbstractEstimator):
                     + spread_starts(spec, {**spec.values(), **around[1]}, k // 2, seed=201 + seed))
             zz = [wrap_periodic(problem.z_start(v), per) for v in vals]
             return [z for z in zz if math.isfinite(self.start_cost(problem, z))]
-        cands, sols = adaptive(cands, solve(cands), solve, more, mask, n if reweight and self.choose == "best" else 0, say)
+        cands, sols = adaptive(cands, solve(cands), solve, more, mask, n if reweight and self.choose == "best" and self.adaptive else 0, say)
         good = [s_ for s_ in sols if not s_["blew_up"] and s_["merged_into"] is None]
         # one scale for every candidate: the smallest correlation time of each channel among them
         tau = np.min(np.stack([s_["tau"] for s_ in good]), axis=0) if good and reweight else None
