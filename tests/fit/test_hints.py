@@ -54,6 +54,8 @@ def test_the_command_takes_each_option_once_and_stops_after_max_steps():
     # a horizon once: a second, shorter one is reported, not taken (a run would otherwise be cut ever shorter)
     assert next_step([h40], (free, h60)) is None and next_step([h40], (h60,)) is None
     assert next_step([], ()) is None
+    # an option the user gave is named, not taken
+    assert next_step([h60], (), given=("--horizon",)) is None and next_step([free, h60], (), ("--horizon",)) == free
     assert MAX_STEPS == 2 and next_step([h60], (free, free)) is None
 
 

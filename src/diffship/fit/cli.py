@@ -197,7 +197,6 @@ def _filters(args):
 def _with_step(args, step: NextStep, taken: tuple) -> argparse.Namespace:
     """A copy of ``args`` with ``step`` taken (:func:`~diffship.fit.hints.next_step`); ``args`` is not changed."""
     out = argparse.Namespace(**vars(args))
-    out.free = list(args.free)
     if step.option == "--free-hydrodynamic":
         out.free_hydrodynamic = True
     elif step.option == "--horizon":
@@ -279,9 +278,8 @@ def _fit(args, say) -> int:
     steps = next_steps(model, spec, verdicts["output_error"].runs, horizon=args.horizon, priors=not args.no_prior,
                        free_hydrodynamic=args.free_hydrodynamic) \
         if oe is not None and not any(v.usable for v in verdicts.values()) else []
-    # the options the report would name; a --horizon the user gave stays (an override, as every option)
-    given = {"--horizon"} if args.horizon and not any(t.option == "--horizon" for t in taken) else set()
-    if (step := None if args.as_given else next_step([s for s in steps if s.option not in given], taken)) is not None:
+    # the options the report would name (a --horizon given stays: an override, as every option)
+    if (step := None if args.as_given else next_step(steps, taken, ("--horizon",) if args.horizon else ())) is not None:
         v = verdicts["output_error"]
         say(f"output error is not usable ({v.reasons[0] if v.reasons else v.label}): refitting with {step} "
             "(--as-given: fit with the options as given)")

@@ -92,10 +92,11 @@ def next_steps(model: AbstractModel, spec: ParamSpec, runs: Sequence, *, horizon
     return out
 
 
-def next_step(steps: Sequence[NextStep], taken: Sequence[NextStep]) -> NextStep | None:
+def next_step(steps: Sequence[NextStep], taken: Sequence[NextStep], given: Sequence[str] = ()) -> NextStep | None:
     """The step the command takes after a fit that is not usable: the first of ``steps`` whose option it has
-    not taken yet (``taken``), while fewer than :data:`MAX_STEPS` were taken; ``None``: report as it is."""
+    not taken yet (``taken``) and the user did not give (``given``: an option given is an override, named but
+    not changed), while fewer than :data:`MAX_STEPS` were taken; ``None``: report as it is."""
     if len(taken) >= MAX_STEPS:
         return None
-    done = {t.option for t in taken}
+    done = {t.option for t in taken} | set(given)
     return next((s for s in steps if s.option not in done), None)

@@ -318,7 +318,8 @@ class OutputError(AbstractEstimator):
                     + spread_starts(spec, {**spec.values(), **around[1]}, k // 2, seed=201 + seed))
             zz = [wrap_periodic(problem.z_start(v), per) for v in vals]
             return [z for z in zz if math.isfinite(self.start_cost(problem, z))]
-        cands, sols = adaptive(cands, solve(cands), solve, more, mask, n if reweight and self.choose == "best" and self.adaptive else 0, say)
+        n_more = n if reweight and self.choose == "best" and self.adaptive else 0
+        cands, sols = adaptive(cands, solve(cands), solve, more, mask, n_more, say)
         good = [s_ for s_ in sols if not s_["blew_up"] and s_["merged_into"] is None]
         # one scale for every candidate: the smallest correlation time of each channel among them
         tau = np.min(np.stack([s_["tau"] for s_ in good]), axis=0) if good and reweight else None
