@@ -60,7 +60,7 @@ from .preprocess import Filter, smooth_and_derivative
 from .simulate import initial_state, model_inputs, simulate, simulate_run
 
 __all__ = ["NOISE_FLOOR_SHARE", "StartPrior", "channel_noise", "noise_floor", "rate_channel", "start_prior",
-           "estimate_starts", "estimated_states", "state_scales"]
+           "estimate_starts", "start_request", "estimated_states", "state_scales"]
 
 #: The sensor-noise estimate of a channel is at least this share of its spread (noise-free data:
 #: the start is then pinned to the measured value, as it should be).
@@ -253,29 +253,13 @@ class _StartSolver(eqx.Module):
         return jax.vmap(one)(ts, us, ys, mask, x0, pw, pm)
 
 
-def estimate_starts(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str],
-                    scales: Mapping[str, float] | None = None, *, flt: Filter = Filter(),
-                    integrator: AbstractIntegrator = Diffrax(), noise: Mapping[str, float] | None = None
-                    ) -> list[np.ndarray]:
-    """**The initial-state rule with the parameters held** (module docstring): each run's initial state,
-    estimated over the whole run with the model as it is, for the metrics and held-out runs.
-
-    Args:
-        model: the model (its parameters are not changed).
-        runs: the runs; each must have ``channels``.
-        channels: the fitted channels (a fit's ``channels``); states outside them keep the data's value.
-        scales: the channel scales ``w_c`` of the fit (``FitResult.channel_scales``). Default: each
-            channel's residual RMS at the data's start times the square root of its correlation time
-            (one simulation per run).
-        flt: the filter of the data's initial states.
-        integrator: the fit's integrator.
-        noise: the sensor noise per channel (default: estimated from these runs, :func:`channel_noise`).
-    """
-    channels = tuple(c for c in channels if c in model.output_names)
+def _start_problem(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str], flt: Filter,
+                   integrator: AbstractIntegrator, noise: Mapping[str, float] | None):
+    """The initial-state solve of :func:`estimate_starts` for ``runs`` (``channels`` the model's outputs, at least
+    one, every run has them): ``(solver, args(wc), sig, x_data, ys, mask)``; ``args(wc)`` the compiled solve's
+    arguments at channel scales ``wc``, ``sig`` the channels' sensor noise."""
     x_data = [np.asarray(initial_state(model, r, flt), dtype=np.float64) for r in runs]
     states = estimated_states(model, channels)
-    if not runs or not channels or not states:
-        return x_data
     n = max(r.n for r in runs)
     R, C = len(runs), len(channels)
     ts, us = np.zeros((R, n)), np.zeros((R, n, len(model.input_names)))
@@ -300,12 +284,53 @@ def estimate_starts(model: AbstractModel, runs: Sequence[Run], channels: Sequenc
                           tuple(model.state_names.index(s) for s in states), integrator)
     f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
 
-    def solve(wc):
-        args = (model, f(ts), f(us), f(ys), jnp.asarray(mask), f(x0), f(st_scale), f(wc), f(prior.weight),
+    def args(wc):
+        return (model, f(ts), f(us), f(ys), jnp.asarray(mask), f(x0), f(st_scale), f(wc), f(prior.weight),
                 f(prior.mean))
-        fn, _ = compiled(solver, "solve", args)
-        out = np.asarray(fn(*args))
-        return [out[i] if np.all(np.isfinite(out[i])) else x_data[i] for i in range(R)]
+    return solver, args, sig, x_data, ys, mask
+
+
+def start_request(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str], *, flt: Filter = Filter(),
+                  integrator: AbstractIntegrator = Diffrax()) -> list:
+    """The :mod:`diffship.compiled` requests ``[(owner, name, args, static)]`` of :func:`estimate_starts` on
+    ``runs`` (the program depends on the model's structure, the channels and the runs' count and length, not on
+    values): compile it ahead (:func:`diffship.compiled.prefetch`) and the estimate finds it. Empty where nothing is
+    estimated."""
+    channels = tuple(c for c in channels if c in model.output_names)
+    if not runs or not channels or not estimated_states(model, channels):
+        return []
+    solver, args, sig, *_ = _start_problem(model, runs, channels, flt, integrator, None)
+    return [(solver, "solve", args(sig), {})]
+
+
+def estimate_starts(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str],
+                    scales: Mapping[str, float] | None = None, *, flt: Filter = Filter(),
+                    integrator: AbstractIntegrator = Diffrax(), noise: Mapping[str, float] | None = None
+                    ) -> list[np.ndarray]:
+    """**The initial-state rule with the parameters held** (module docstring): each run's initial state,
+    estimated over the whole run with the model as it is, for the metrics and held-out runs.
+
+    Args:
+        model: the model (its parameters are not changed).
+        runs: the runs; each must have ``channels``.
+        channels: the fitted channels (a fit's ``channels``); states outside them keep the data's value.
+        scales: the channel scales ``w_c`` of the fit (``FitResult.channel_scales``). Default: each
+            channel's residual RMS at the data's start times the square root of its correlation time
+            (one simulation per run).
+        flt: the filter of the data's initial states.
+        integrator: the fit's integrator.
+        noise: the sensor noise per channel (default: estimated from these runs, :func:`channel_noise`).
+    """
+    channels = tuple(c for c in channels if c in model.output_names)
+    if not runs or not channels or not estimated_states(model, channels):
+        return [np.asarray(initial_state(model, r, flt), dtype=np.float64) for r in runs]
+    solver, args, sig, x_data, ys, mask = _start_problem(model, runs, channels, flt, integrator, noise)
+
+    def solve(wc):
+        a = args(wc)
+        fn, _ = compiled(solver, "solve", a)
+        out = np.asarray(fn(*a))
+        return [out[i] if np.all(np.isfinite(out[i])) else x_data[i] for i in range(len(runs))]
     if scales is not None:
         return solve(np.asarray([float(scales[c]) for c in channels]))
     # without a fit's scales: the start estimated with the sensor noise as scales, then the scales of the

@@ -17,6 +17,8 @@ from diffship.fit.problem import default_channels
 from diffship.integrators import RK4
 from diffship.models import Fossen3
 from diffship.models.terms import with_terms
+from diffship.initial import start_request
+from diffship.metrics import start_channels
 from diffship.simulate import simulation_request
 
 
@@ -45,8 +47,9 @@ def test_the_start_models_term_programs_are_the_fitted_discoverys():
     terms = ["X_v_r", "N_r_r_r"]
     chans = default_channels(base, train)
     before = term_programs(base, spec, train, val, terms, chans, RK4())
-    # the workspace's residuals and refits' solve, and the all-terms simulation of the runs (one length)
-    assert len(before) == 3
+    # the workspace's residuals and refits' solve, the all-terms simulation of the runs (one length), and its
+    # initial-state estimates by the metrics' start rule on the training and on the held-out runs
+    assert len(before) == 5
     # the fit's end: other values, noise scales and initial states
     start = spec.nudged({p.name: p.value for p in spec.params})[0]
     fitted = {n: 1.3 * start[n] - 0.01 for n in spec.free_names}
@@ -58,6 +61,8 @@ def test_the_start_models_term_programs_are_the_fitted_discoverys():
     ws = term_workspace(res0, spec, train, terms)
     assert _keys(before[:2]) == _keys(ws.programs())
     full = with_terms(res0.model, terms).with_params({t: -50.0 for t in terms})
-    assert _keys(before[2:]) == _keys([simulation_request(full, val[0], np.full(len(full.state_names), 0.2), RK4())])
+    assert _keys(before[2:3]) == _keys([simulation_request(full, val[0], np.full(len(full.state_names), 0.2), RK4())])
+    assert _keys(before[3:]) == _keys([q for rs in (train, val)
+                                       for q in start_request(full, rs, start_channels(full, rs, chans), integrator=RK4())])
     # other refit options are another program: the comparison can fail
     assert _keys(term_workspace(res0, spec, train, terms, max_iter=61).programs()) != _keys(before[:2])

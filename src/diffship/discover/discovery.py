@@ -35,10 +35,9 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    predicts them better than the base model (mean over runs and channels of the RMSE relative to the
    base's below 1); else the base model alone. Terms that appear in a better-ranked structure or win
    some resamples but fail these tests are reported as **possible**, with their inclusion probability;
-5a. the selected structure's **final fit** through the driver (:func:`diffship.fit.fit`), from its workspace
-   optimum: the user's priors, the search's starts and the covariance; it is what is reported, saved and
-   bootstrapped. The ranking stands on the workspace refits: one estimator, the same problem for every structure
-   (without parameter priors);
+5a. the selected structure's **final fit** through the driver (:func:`diffship.fit.fit`) from its workspace optimum
+   alone: the user's priors and the covariance; it is reported, saved and bootstrapped. The ranking stands on the
+   workspace refits: one estimator, the same problem for every structure (without parameter priors);
 6. **warnings**: pairs of free parameters whose estimates correlate beyond 0.95 in the selected fit
    (terms that trade off);
 7. **equivalent explanations**: the structures whose criterion is within :data:`MARGIN` of the selected one's
@@ -384,9 +383,9 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         return simulated[id(res)]
 
     def judged(res: FitResult, runs: Sequence[Run]) -> Evaluation:
-        """``runs`` by the metrics' start rule with the fit's own model (what the report shows for the base and the
-        selected fit, and what its fit file reproduces)."""
-        return evaluate(res.model, runs, flt=flt, integrator=res.integrator, fitted=res.channels,
+        """``runs`` by the metrics' start rule with the fit's model (what the report shows and its fit file reproduces)
+        as the all-terms model, the other terms at zero: the same vector field, in the programs compiled ahead."""
+        return evaluate(scored(res), runs, flt=flt, integrator=res.integrator, fitted=res.channels,
                         scales=res.channel_scales)
 
     def rank(fits):
@@ -443,7 +442,6 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
             reasons[" + ".join(c.terms)] = "; ".join(why)
         return cands, ranked, chosen, reasons, inclusion, n_eff
 
-
     cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
     # the polish: removals, swaps and additions from the best structure with terms, every move refitted on the
     # output-error cost (:mod:`.polish`) on the same workspace; the structure it ends at is ranked with the rest
@@ -464,7 +462,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         fits.append((polished.selected, as_result(polished.selected, polished.result)))
         cands, ranked, chosen, reasons, inclusion, n_eff = rank(fits)
     # the selected structure through the driver, from its workspace optimum: what is reported, saved and bootstrapped
-    # (the user's priors, the search's starts, the covariance); the ranking stands on the workspace refits, the same
+    # (the user's priors, the covariance); the ranking stands on the workspace refits, the same
     # problem for every structure
     base_c = next(c for c in cands if not c.terms)
     base_c = dataclasses.replace(base_c, result=res0, train=judged(res0, train),
@@ -477,8 +475,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         cspec = term_spec(model, spec.with_values({n: best.result.params[n] for n in spec.free_names}), train,
                           _levels(train, base))
         try:
-            res = fit(model, train, term_options, spec=cspec, starts={"the workspace optimum": start}, progress=say,
-                      throw=False)
+            # one start, already converged on the whole runs: no warm-up (it would fit the first part of the runs
+            # and move away from it) and no drawn starts (the refits searched; 8 s of a cold discovery)
+            res = fit(model, train, dataclasses.replace(term_options, warmup=0.0, adaptive=False), spec=cspec,
+                      starts={"the workspace optimum": start}, n_starts=1, progress=say, throw=False)
         except DiffshipError as exc:
             raise DiffshipError(f"discover: the selected structure {' + '.join(best.terms)} failed in the driver: "
                                 f"{exc}") from exc

@@ -35,7 +35,9 @@ import numpy as np
 from ..data import Run
 from ..diagnose.screen import Workspace, inflation
 from ..fit import FitResult
+from ..initial import start_request
 from ..integrators import AbstractIntegrator
+from ..metrics import start_channels
 from ..models import AbstractModel
 from ..models.terms import term_class, with_terms
 from ..params import ParamSpec
@@ -140,7 +142,8 @@ def term_programs(base: AbstractModel, spec: ParamSpec, runs: Sequence[Run], val
     """The compiled programs a discovery runs after its base fit, from the base model *before* that fit (they depend
     on the structure, not on values, as the diagnosis's :func:`~diffship.diagnose.diagnosis.workspace_programs`): the
     all-terms :func:`term_workspace`'s residuals and solve (the output-error screen, every refit and the polish) and
-    the all-terms model's simulations of the training and held-out runs (the ranking). ``chans`` and ``integrator``:
+    the all-terms model's simulations of the training and held-out runs and its initial-state estimates on them by
+    the metrics' start rule (the ranking, and the judging of the base and the selected fit). ``chans`` and ``integrator``:
     the base fit's. Compiled in the background while the base fit runs (:func:`diffship.compiled.prefetch`), a cold
     discovery does not compile them after it."""
     start = spec.with_values(spec.nudged({p.name: p.value for p in spec.params})[0])  # inside the bounds
@@ -149,7 +152,9 @@ def term_programs(base: AbstractModel, spec: ParamSpec, runs: Sequence[Run], val
     full = with_terms(base, terms)
     sims = [simulation_request(full, r, np.zeros(len(full.state_names)), integrator)
             for r in {r.n: r for r in (*runs, *validate)}.values()]
-    return ws.programs() + sims
+    starts = [q for rs in (runs, validate) if rs
+              for q in start_request(full, list(rs), start_channels(full, rs, chans), integrator=integrator)]
+    return ws.programs() + sims + starts
 
 
 def oe_screen(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequence[str], *,
