@@ -5,7 +5,8 @@ noise is amplified (a derivative multiplies noise at frequency f by 2πf). Filte
 zero-phase so that they add no lag:
 
 * ``"butter"`` (default): 4th-order Butterworth low-pass applied forwards and backwards
-  (``scipy.signal.filtfilt``), cut-off ``cutoff`` [Hz]: a number, ``"auto"`` — chosen **from
+  (:func:`diffship.dsp.filtfilt`, the numbers of ``scipy.signal.filtfilt``), cut-off ``cutoff``
+  [Hz]: a number, ``"auto"`` — chosen **from
   the data, per channel** (:func:`auto_cutoff`: where the signal's spectrum meets its noise
   floor), so that fast degrees of freedom (roll and pitch of a small ROV) are not filtered away
   and slow ones not left noisy; what the equation-error fit uses unless told otherwise — or
@@ -26,6 +27,7 @@ import dataclasses
 import numpy as np
 
 from .errors import DataError
+from .dsp import butter_lowpass, detrend_linear, filtfilt, welch
 
 __all__ = ["Filter", "smooth", "derivative", "smooth_and_derivative", "auto_cutoff"]
 
@@ -105,9 +107,7 @@ def auto_cutoff(y: np.ndarray, dt: float, *, snr: float = 100.0, lo: float = 0.0
     nyq = 0.5 / dt
     if n < 32 or not np.any(y != y[0]):
         return hi * nyq
-    from scipy import signal  # imported here: scipy.signal costs 0.5 s of every process's start
-
-    f, P = signal.welch(signal.detrend(y), fs=1.0 / dt, nperseg=min(256, n))
+    f, P = welch(detrend_linear(y), 1.0 / dt, min(256, n))
     tail = f > 0.6 * nyq
     floor = float(np.median(P[tail])) if np.any(tail) else 0.0
     if floor <= 0 or not np.isfinite(floor):
@@ -123,7 +123,6 @@ def smooth_and_derivative(t: np.ndarray, y: np.ndarray, flt: Filter = Filter(), 
     y = np.asarray(y, dtype=np.float64)
     if flt.kind == "none":
         return y.copy(), np.gradient(y, t)
-    from scipy import signal  # see auto_cutoff
     dt = _uniform_dt(t, what)
     n = y.size
     if flt.kind == "butter":
@@ -131,10 +130,11 @@ def smooth_and_derivative(t: np.ndarray, y: np.ndarray, flt: Filter = Filter(), 
         fc = auto_cutoff(y, dt) if flt.cutoff == "auto" else flt.cutoff if flt.cutoff is not None else 0.1 * nyq
         if not 0 < fc < nyq:
             raise DataError(f"{what}: Butterworth cut-off {fc} Hz must lie between 0 and the Nyquist frequency {nyq:g} Hz")
-        b, a = signal.butter(flt.order, fc / nyq)
-        padlen = min(3 * max(len(a), len(b)), n - 1)
-        ys = signal.filtfilt(b, a, y, padlen=padlen)
+        # in NumPy (diffship.dsp): every fit reads its initial states through this filter, and importing
+        # scipy.signal cost 1.4 s of every process
+        ys = filtfilt(butter_lowpass(flt.order, fc / nyq), y, padlen=min(3 * (flt.order + 1), n - 1))
         return ys, np.gradient(ys, t)
+    from scipy import signal  # imported here (Savitzky–Golay only): scipy.signal costs 1.4 s of a process's start
     win = int(round(flt.window / dt)) | 1
     win = max(5, min(win, (n - 1) | 1 if n % 2 == 0 else n))
     if win > n:
