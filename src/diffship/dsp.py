@@ -29,6 +29,7 @@ reflection, filtered forwards from the steady state of its first value (:func:`s
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -86,15 +87,15 @@ def sosfilt_zi(sos: np.ndarray) -> np.ndarray:
     return np.asarray(out)
 
 
-def lfilter(b, a, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
-    """``y`` of the IIR filter ``(b, a)`` (of one length, ``a[0] = 1``) on ``x`` from state ``zi`` (default zero):
-    ``scipy.signal.lfilter(b, a, x, zi=zi)[0]`` (module docstring: blocks of :data:`BLOCK` samples)."""
-    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
+@functools.lru_cache(maxsize=64)
+def _blocks(coeffs: tuple[float, ...], L: int) -> tuple[np.ndarray, ...]:
+    """``(P, T, G, A^L)`` of the filter ``coeffs = (*b, *a)`` for blocks of ``L`` samples: the free-response rows
+    :math:`C A^j` (:math:`C = e_0^\\top`), the Toeplitz matrix of the impulse response :math:`h_0 = b_0`,
+    :math:`h_j = C A^{j-1} B`, and the block-end maps. Built once per filter: a zero-phase pass runs every section
+    twice, and every run's channels share one filter."""
+    b, a = np.asarray(coeffs[:len(coeffs) // 2]), np.asarray(coeffs[len(coeffs) // 2:])
     n = a.size - 1
     A, B = _state_space(b, a)
-    L = min(BLOCK, max(x.size, 1))
-    # free response rows C Aʲ (C = e₀ᵀ) and impulse response h₀ = b₀, hⱼ = C Aʲ⁻¹ B; block-end maps Aᴸ and G
     P, h, G = np.zeros((L, n)), np.zeros(L), np.zeros((n, L))
     Aj = np.eye(n)
     h[0] = b[0]
@@ -106,6 +107,17 @@ def lfilter(b, a, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
         Aj = A @ Aj
     idx = np.arange(L)
     T = np.where(idx[:, None] >= idx[None, :], h[np.clip(idx[:, None] - idx[None, :], 0, L - 1)], 0.0)
+    return P, T, G, Aj
+
+
+def lfilter(b, a, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
+    """``y`` of the IIR filter ``(b, a)`` (of one length, ``a[0] = 1``) on ``x`` from state ``zi`` (default zero):
+    ``scipy.signal.lfilter(b, a, x, zi=zi)[0]`` (module docstring: blocks of :data:`BLOCK` samples)."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    n = a.size - 1
+    L = min(BLOCK, max(x.size, 1))
+    P, T, G, AL = _blocks(tuple(map(float, b)) + tuple(map(float, a)), L)
     nb = -(-x.size // L)
     X = np.zeros(nb * L)
     X[:x.size] = x
@@ -115,7 +127,7 @@ def lfilter(b, a, x: np.ndarray, zi: np.ndarray | None = None) -> np.ndarray:
     z = np.zeros(n) if zi is None else np.asarray(zi, dtype=np.float64)
     for i in range(nb):
         Z[i] = z
-        z = Aj @ z + GX[i]
+        z = AL @ z + GX[i]
     Y = Z @ P.T + X @ T.T
     return Y.reshape(-1)[:x.size]
 
