@@ -66,3 +66,32 @@ def test_the_start_models_term_programs_are_the_fitted_discoverys():
                                        for q in start_request(full, rs, start_channels(full, rs, chans), integrator=RK4())])
     # other refit options are another program: the comparison can fail
     assert _keys(term_workspace(res0, spec, train, terms, max_iter=61).programs()) != _keys(before[:2])
+
+
+def test_the_final_fits_programs_are_known_before_it(monkeypatch):
+    """A discovery compiles the final fit of each structure its polish reaches while the polish goes on
+    (:meth:`diffship.fit.OutputError.programs`): they must be the programs that fit then compiles, whatever values
+    the structure ends at, and another structure's must differ."""
+    from diffship.discover.scaling import force_levels, term_spec
+    from diffship.fit import OutputError, fit
+    from diffship.fit import kernel as K
+
+    seen = []
+    real = K.compiled_many
+    monkeypatch.setattr(K, "compiled_many", lambda reqs: (seen.extend(reqs), real(reqs))[1])
+    runs = _runs()
+    base = Fossen3()
+    spec = base.spec().only_free(("Xu", "Yv", "Nr"))
+    o = OutputError(integrator=RK4(), reference_priors=False, warmup=0.0, adaptive=False, max_steps=2)
+
+    def problem(terms, scale):
+        model = with_terms(base.with_params({"Xu": -20.0 * scale}), terms)
+        return model, term_spec(model, spec.with_values({"Xu": -20.0 * scale}), runs, force_levels(runs, base))
+
+    before = o.programs(*problem(("X_v_r", "N_r_r_r"), 1.0)[:1], runs, problem(("X_v_r", "N_r_r_r"), 1.0)[1])
+    assert len(before) == 3  # the residuals, the solve and the noisy-input covariance term (tau_x is noisy here)
+    model, cspec = problem(("X_v_r", "N_r_r_r"), 1.7)
+    fit(model, runs, o, spec=cspec, n_starts=1, throw=False)
+    assert set(_keys(before)) <= set(_keys(seen))
+    other = o.programs(*problem(("X_v_r",), 1.0)[:1], runs, problem(("X_v_r",), 1.0)[1])
+    assert not set(_keys(other)) & set(_keys(before))

@@ -53,3 +53,11 @@ def test_a_full_structure_exchanges_a_stand_in_of_another_equation(usv_nv_ar):
     assert out.selected == ("N_v_ar",), out.path
     assert out.path[0][1] == "Y_v_r_r → N_v_ar", out.path
     assert abs(out.values["N_v_ar"] - 3000.0) < 0.2 * 3000.0, out.values
+
+
+def test_a_move_short_of_the_margin_is_kept_only_with_the_next(usv_nv_ar):
+    """With a margin no pair of moves can reach, the best move (the true term in) is taken only tentatively: the
+    round after it finds no move that brings the two to the margin, and the polish goes back to its start."""
+    runs, spec, res0 = usv_nv_ar
+    out = polish(res0, spec, runs, ["N_v_ar", "N_v_r_r", "N_r_r_r"], ["N_v_r_r"], max_rounds=3, margin=1e12)
+    assert out.selected == ("N_v_r_r",) and out.path == (), out.path

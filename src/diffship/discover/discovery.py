@@ -72,9 +72,10 @@ from ..models.terms import library_terms, term_class, with_terms
 from ..params import ParamSpec
 from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
-from .oescreen import OEScreen, oe_screen, term_programs, term_workspace
+from .oescreen import STALL, OEScreen, oe_screen, term_programs, term_workspace
 from .polish import Polish, bic, effective_count, polish
 from .screen import Screen, screen
+from .scaling import force_levels, term_scales, term_spec
 from .separate import Separation, separating_manoeuvre
 
 __all__ = ["Candidate", "Discovery", "discover", "term_spec", "term_scales", "TRADEOFF", "MARGIN", "MIN_INCLUSION", "MAX_EQUIVALENT"]
@@ -158,38 +159,6 @@ class Discovery:
         return self.selected.result.model
 
 
-def term_scales(runs: Sequence[Run], terms: Sequence[str], level: dict[str, float]) -> dict[str, float]:
-    """``{term: scale}``: a tenth of its equation's force level over the RMS of its regressor on ``runs`` (a term at
-    one scale unit explains a tenth of the force), so that every coefficient is of order one to the solver."""
-    u = np.concatenate([np.asarray(r["u"]) for r in runs])
-    v = np.concatenate([np.asarray(r["v"]) if r.has("v") else np.zeros(r.n) for r in runs])
-    r_ = np.concatenate([np.asarray(r["r"]) for r in runs])
-    out = {}
-    for t in terms:
-        cls = term_class(t)
-        out[t] = 0.1 * level[cls.equation] / (float(np.sqrt(np.mean(np.asarray(cls.regressor(u, v, r_)) ** 2))) or 1.0)
-    return out
-
-
-def term_spec(model: AbstractModel, base_spec: ParamSpec, runs: Sequence[Run], level: dict[str, float]) -> ParamSpec:
-    """The spec of ``model`` (base with terms): ``base_spec`` followed by the terms, free, each scaled by
-    :func:`term_scales`."""
-    spec = model.spec(base_spec)
-    scales = term_scales(runs, [p.name for p in spec.params if p.name not in base_spec], level)
-    return ParamSpec(tuple(p if p.name in base_spec else dataclasses.replace(p, scale=scales[p.name])
-                           for p in spec.params))
-
-
-def _levels(runs: Sequence[Run], model: AbstractModel) -> dict[str, float]:
-    """Force level per equation: the RMS of the measured generalised force, at least a tenth of the largest."""
-    out = {}
-    for eq, name in zip(("X", "Y", "N"), ("tau_x", "tau_y", "tau_z")):
-        vals = [np.asarray(r[name]) for r in runs if r.has(name)]
-        out[eq] = float(np.sqrt(np.mean(np.concatenate(vals) ** 2))) if vals else 1.0
-    top = max(out.values()) or 1.0
-    return {k: max(v, 0.1 * top) for k, v in out.items()}
-
-
 def _score(ev: Evaluation | None, ref: Evaluation | None) -> float:
     """Mean over held-out runs and channels of the RMSE relative to ``ref``'s."""
     if ev is None or ref is None:
@@ -251,7 +220,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     # every structure under the base's priors (a model with terms has no reference set of its own)
     priors, _ = fit_priors(base, spec, options)
     term_options = dataclasses.replace(options, priors=priors if len(priors) else None, reference_priors=False)
-    phi_scales = term_scales(train, terms, _levels(train, base))
+    phi_scales = term_scales(train, terms, force_levels(train, base))
     say(f"base fit: {base.name} by output error on {len(train)} run(s); beside it, the equation-error screen of "
         f"{len(terms)} library terms and the compiling of the all-terms programs...")
     # the base fit's solves keep about one core busy: the equation-error screen (the start model's, not the fit's)
@@ -265,8 +234,11 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     with ThreadPoolExecutor(1) as pool:
         ee = pool.submit(screen, base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
         try:
-            res0 = fit(base, train, dataclasses.replace(options, adaptive=False), spec=spec, n_starts=n_starts,
-                       progress=say)  # the base lacks the terms looked for: more draws only cost time
+            # the base lacks the terms looked for: more draws only cost time, and its solve stops when the cost
+            # stalls (a model lacking terms crawls: on a four-term truth 233 whole-run steps moved its cost by
+            # 0.3 % and none of its values by 0.1 %, 9 s of a cold discovery); a base that is selected is finished
+            res0 = fit(base, train, dataclasses.replace(options, adaptive=False, stall=options.stall or STALL),
+                       spec=spec, n_starts=n_starts, progress=say)
         except BaseException:
             if pre is not None:
                 pre.cancel()
@@ -449,13 +421,34 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     top = next((c for c in ranked if c.terms and math.isfinite(c.criteria[criterion])), None)
     if top is not None and not top.criteria[criterion] <= cands[0].criteria[criterion] - MARGIN:
         top = None  # no structure with terms beats the base: nothing to polish (a null case costs no more)
+    # the selected structure's final fit through the driver: one start, already converged on the whole runs, so no
+    # warm-up (it would fit the first part of the runs and move away from it) and no drawn starts (the refits
+    # searched; 8 s of a cold discovery); its programs compile while the polish goes on, for each structure it reaches
+    final_options = dataclasses.replace(term_options, warmup=0.0, adaptive=False)
+    ahead: list = []
+
+    def final_problem(cand: tuple[str, ...], params: dict[str, float]) -> tuple[AbstractModel, ParamSpec]:
+        model = with_terms(base.with_params({n: params[n] for n in base.param_names}), cand)
+        return model, term_spec(model, spec.with_values({n: params[n] for n in spec.free_names}), train,
+                                force_levels(train, base))
+
+    def compile_ahead(cand: tuple[str, ...], params: dict[str, float]) -> None:
+        for p in ahead:
+            p.cancel()
+        try:
+            model, cspec = final_problem(cand, params)
+            ahead.append(prefetch(final_options.programs(model, train, cspec,
+                                                         priors=fit_priors(model, cspec, final_options)[0]), 0.0))
+        except Exception:  # noqa: BLE001 - only a head start: the final fit compiles what is missing and says why
+            pass
     if polish_rounds and top is not None:
         say(f"polish: removals, swaps and additions from {' + '.join(top.terms)}, every move refitted...")
         try:
             polished = polish(res0, spec, train, terms, top.terms, max_terms=max_terms, max_rounds=polish_rounds,
                               start_values={t: top.result.params[t] for t in top.terms},
                               start_base={n: top.result.params[n] for n in res0.params}, workspace=ws,
-                              start_refit=refits.get(frozenset(top.terms)), n_finish=n_finish, progress=say)
+                              start_refit=refits.get(frozenset(top.terms)), n_finish=n_finish, progress=say,
+                              on_move=lambda S, vals, base_vals: compile_ahead(S, {**res0.params, **base_vals}))
         except DiffshipError as exc:
             say(f"  polish failed: {exc}")
     if polished is not None and frozenset(polished.selected) not in {frozenset(c) for c, _ in fits}:
@@ -468,23 +461,30 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     base_c = dataclasses.replace(base_c, result=res0, train=judged(res0, train),
                                  validation=judged(res0, validate) if validate else None)
     best = ranked[chosen] if ranked[chosen].terms else base_c
+    if not best.terms and res0.result == RESULTS.cost_stalled and options.stall is None:
+        # the base is the answer: its stalled solve is finished from where it stopped (no warm-up, no draws)
+        say(f"refit by output error through the driver: {base.name} (selected; its base fit had stalled)")
+        res0 = fit(base, train, dataclasses.replace(options, warmup=0.0, adaptive=False), spec=spec,
+                   starts={"the base fit": {n: res0.params[n] for n in spec.free_names}}, n_starts=1, progress=say,
+                   throw=False)
+        base_c = dataclasses.replace(base_c, result=res0, train=judged(res0, train),
+                                     validation=judged(res0, validate) if validate else None)
+        best = base_c
     if best.terms:
         start = {**{n: best.result.params[n] for n in spec.free_names}, **{t: best.result.params[t] for t in best.terms}}
         say(f"refit by output error through the driver: {' + '.join(best.terms)} (the selected structure)")
-        model = with_terms(base.with_params({n: best.result.params[n] for n in base.param_names}), best.terms)
-        cspec = term_spec(model, spec.with_values({n: best.result.params[n] for n in spec.free_names}), train,
-                          _levels(train, base))
+        model, cspec = final_problem(best.terms, best.result.params)
         try:
-            # one start, already converged on the whole runs: no warm-up (it would fit the first part of the runs
-            # and move away from it) and no drawn starts (the refits searched; 8 s of a cold discovery)
-            res = fit(model, train, dataclasses.replace(term_options, warmup=0.0, adaptive=False), spec=cspec,
-                      starts={"the workspace optimum": start}, n_starts=1, progress=say, throw=False)
+            res = fit(model, train, final_options, spec=cspec, starts={"the workspace optimum": start}, n_starts=1,
+                      progress=say, throw=False)
         except DiffshipError as exc:
             raise DiffshipError(f"discover: the selected structure {' + '.join(best.terms)} failed in the driver: "
                                 f"{exc}") from exc
         vev = judged(res, validate) if validate else None
         best = dataclasses.replace(best, result=res, train=judged(res, train), validation=vev,
                                    held_out=_score(vev, base_c.validation))
+    for p in ahead:
+        p.cancel()
     ranked = [best if i == chosen else (base_c if not c.terms else c) for i, c in enumerate(ranked)]
     cands = [base_c if not c.terms else c for c in cands]
     confirmed = None if not validate else bool(best.held_out <= 1.0 + 1e-9)

@@ -124,7 +124,7 @@ def term_workspace(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms:
     structure is switched on by data, so the screen, every candidate's refit and the polish run one compiled
     program. Refits start from the base fit's initial states and stop when the cost stalls (``stall``: a fall of
     less than ρ·cost over W steps); one that removes half the base fit's cost is finished without the rule.
-    ``phi_scales``: the terms' scales (:func:`~.discovery.term_scales`; default: their declared placeholder)."""
+    ``phi_scales``: the terms' scales (:func:`~.scaling.term_scales`; default: their declared placeholder)."""
     chans = tuple(res0.channels)
     scales = {c: res0.noise_std.get(c, res0.channel_scales.get(c, 1.0)) for c in chans}
     x0 = res0.initial_states if len(res0.initial_states) == len(runs) else None

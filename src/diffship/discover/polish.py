@@ -32,7 +32,12 @@ criterion from above). The ``n_finish`` best are finished without the rule, and 
 it lowers the criterion:
 
 - a removal, by any amount;
-- a swap or an addition, by at least ``margin``.
+- a swap or an addition, by at least ``margin``;
+- a swap or an addition that lowers it by less, **tentatively**: the next round starts from it, and its best move
+  is taken with it only when the two together lower the criterion by ``margin`` from the structure before them
+  (else the polish goes back to that structure and stops). The true structure can be two moves away with each
+  move alone worth less than the margin: on the ``mixed_four`` truth, from ``X_v_r + Y_v_r_r + N_r_r_r`` the
+  addition of ``Y_v_ar`` lowers the criterion by 0.3, and with the swap ``Y_v_r_r`` → ``N_u_v`` after it by 27.
 
 The rounds stop when no move is taken, or after ``max_rounds``.
 
@@ -113,7 +118,8 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
            max_terms: int = 4, k_swap: int = 3, k_add: int = 3, max_rounds: int = 6, margin: float = 2.0,
            max_iter: int = 60, stall: tuple[int, float] = (10, 1e-3), n_finish: int = 2, workspace: Workspace | None = None,
            start_refit: RefitResult | None = None, first_pass: int | None = 60,
-           progress: Callable[[str], None] | None = None) -> Polish:
+           progress: Callable[[str], None] | None = None,
+           on_move: Callable[[tuple[str, ...], dict[str, float], dict[str, float]], None] | None = None) -> Polish:
     """Polish the structure ``start`` (module docstring).
 
     ``res0`` is the base fit (its model, channels, noise scales, initial states and integrator); ``spec`` gives the
@@ -121,6 +127,8 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     structure's term and base values (default: the base fit, with the terms at zero). ``workspace``: the all-terms
     :func:`~.oescreen.term_workspace` of ``res0`` (built when not given); ``start_refit``: the start structure's
     refit on it, when already run. ``first_pass``: the step cap of a move's stalled refit (``None``: the workspace's).
+    ``on_move(structure, term values, base values)`` hears of every move taken (a discovery compiles that structure's
+    final fit while the polish goes on).
     """
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
@@ -186,6 +194,10 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         return bic(fitted[T][0], len(T), m, n_eff)
 
     path: list[tuple[str, str, tuple[str, ...], float]] = []
+    # a tentative move (one that lowers the criterion by less than the margin): the structure before it and that
+    # structure's criterion, and the move; the next round's best move is taken with it only if the two together
+    # lower the criterion by the margin
+    pending: tuple[tuple[str, ...], float, tuple] | None = None
     for _ in range(int(max_rounds)):
         r, J_th, G = linearised(S)
         _, vals, base_vals, _, _ = fitted[S]
@@ -238,16 +250,40 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         # and the best finished move is taken when it lowers the criterion (a removal by any amount, else by margin)
         best = sorted((crit(T), T) for _, _, T in moves if T in fitted)[:n_finish]
         run([(T, fitted[T][1], fitted[T][2], True) for _, T in best if not fitted[T][3]])
-        done = [(crit(T), kind, what, T) for kind, what, T in moves if T in fitted and fitted[T][3]]
+        done = [(crit(T), kind, what, T) for kind, what, T in moves if T in fitted and fitted[T][3]
+                and (pending is None or T != pending[0])]
+        ref = here if pending is None else pending[1]  # after a tentative move: the criterion before it
         taken = next(((kind, what, T, c) for c, kind, what, T in sorted(done)
-                      if c <= (here if kind == "remove" else here - margin)), None)
+                      if c <= (here if kind == "remove" and pending is None else ref - margin)), None)
         if taken is None:
             near = min(done, default=None)
+            if pending is not None:  # the tentative move led nowhere: back to the structure before it
+                say(f"  polish: no move from {' + '.join(S)} lowers the criterion by {margin:g} from "
+                    f"{' + '.join(pending[0])}'s: back to it")
+                S = pending[0]
+                break
+            if near is not None and near[0] < here and near[1] != "remove":
+                # lower, but by less than the margin: the true structure can be two moves away, each alone worth
+                # less than the margin (measured on the four-term truth: from X_v_r + Y_v_r_r + N_r_r_r, "add Y_v_ar"
+                # alone -0.3, with the swap Y_v_r_r → N_u_v after it -27)
+                say(f"  polish: best move {near[1]} {near[2]} lowers the criterion by {here - near[0]:.1f} (< {margin:g}):"
+                    " taken tentatively, one move further...")
+                pending = (S, here, (near[1], near[2], near[3], near[0]))
+                S = near[3]
+                continue
             say("  polish: no move lowers the criterion" + ("" if near is None else
                 f" (best: {near[1]} {near[2]}, {near[0] - here:+.1f})"))
             break
-        kind, what, S, c = taken
+        kind, what, T, c = taken
+        if pending is not None:
+            path.append(pending[2])
+            pending = None
+        S = T
         path.append((kind, what, S, c))
-        say(f"  polish: {kind} {what} → {' + '.join(S)} (criterion {c - here:+.1f})")
+        say(f"  polish: {kind} {what} → {' + '.join(S)} (criterion {c - ref:+.1f})")
+        if on_move is not None:
+            on_move(S, dict(fitted[S][1]), dict(fitted[S][2]))
+    if pending is not None:  # the rounds ran out on a tentative move
+        S = pending[0]
     return Polish(start=order(start), selected=S, path=tuple(path), values=dict(fitted[S][1]),
                   base=dict(fitted[S][2]), refits=count[0], seconds=time.perf_counter() - t0, result=fitted[S][4])

@@ -193,8 +193,17 @@ class OutputError(AbstractEstimator):
         return lm
 
     # -- prepare -----------------------------------------------------------------------------------
-    def prepare(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, priors: Priors,
-                say: Callable[[str], None]) -> Problem:
+    def programs(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels=None,
+                 priors: Priors | None = None) -> list:
+        """The compiled programs :meth:`prepare` needs, as :mod:`diffship.compiled` requests, without compiling them
+        (:func:`diffship.compiled.prefetch`): they depend on the structure (model, free set, runs' shapes, channels,
+        options), not on the values. ``priors``: the fit's (:func:`~diffship.fit.driver.fit_priors`; default none)."""
+        kernel, data, z_shape, meat = self._setup(model, runs, spec, channels, priors or Priors({}, "none"))[:4]
+        return kernel.requests([("residuals", z_shape, data, {}),
+                                ("solve", z_shape, data, {"jacobian": True, **self.lm})]) + ([meat] if meat else [])
+
+    def _setup(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, priors: Priors):
+        """``(kernel, data, z_shape, meat request, batch, est, start prior, spread, n_warm)`` of :meth:`prepare`."""
         o = self
         batch = make_batch(model, runs, channels, o.flt)
         est = o.x0_states(model, batch.channels)
@@ -224,11 +233,20 @@ class OutputError(AbstractEstimator):
         # warm-up, the whole runs' rounds and the final solves share one compiled solve instead of compiling several
         data = data.with_horizon().with_step_cap() if n_warm else data.with_step_cap()
         z_shape = np.zeros(n_p + n_x0)
-        say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
-            f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
         # the full-horizon solve also returns the Jacobian at its solution (for the covariance), and
         # the input-noise covariance term's program where the measured inputs are noisy
         meat = meat_request(kernel, data, int(batch.mask.size) * len(batch.channels), n_p + n_x0)
+        return kernel, data, z_shape, meat, batch, est, start, spread, n_warm
+
+    def prepare(self, model: AbstractModel, runs: Sequence[Run], spec: ParamSpec, channels, priors: Priors,
+                say: Callable[[str], None]) -> Problem:
+        o = self
+        kernel, data, z_shape, meat, batch, est, start, spread, n_warm = self._setup(model, runs, spec, channels,
+                                                                                    priors)
+        n_p, n_x0 = len(spec.free_names), len(kernel.x0_idx) * len(runs)
+        x0_m = None if start is None else start.mean.reshape(-1)
+        say(f"output error: compiling the fit of {model.name} ({n_p} parameters, {len(runs)} runs, "
+            f"{batch.n_residuals} residuals, {o.integrator.describe()})...")
         lm = self.lm
         # the equation-error start is computed in a thread beside the compile: its Python work
         # (filtering, tracing) runs while XLA compiles the fit's programs without the interpreter
