@@ -140,6 +140,7 @@ def test_null_check_adds_no_supported_term(tmp_path):
     assert doc["selected"]["terms"] == {}, doc["selected"]["terms"]
     assert all(v["inclusion_probability"] < 0.5 for v in doc["selected"]["possible"].values())
     assert [c for c in doc["candidates"] if c["selected"]][0]["terms"] == []
+    assert doc["selected"]["converged"], doc["selected"]["status"]  # the base is the answer: finished, not stalled
     assert len(doc["candidates"]) >= 2  # the screens did propose structures, and they were refitted and rejected
 
 

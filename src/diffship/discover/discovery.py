@@ -2,9 +2,9 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
 
 :func:`discover` runs, in order:
 
-1. the **base fit** — the base model by output error through the one driver (:func:`diffship.fit.fit`), each
-   run's initial state estimated within its noise (``x0="estimate"``, as every refit); beside it, on the core its
-   solves leave, the equation-error screen runs and the all-terms programs compile (:func:`.oescreen.term_programs`);
+1. the **base fit** — the base model by output error through the one driver (:func:`diffship.fit.fit`), initial states
+   estimated within their noise, stopped when its cost stalls (finished only if the base is selected); beside it, on
+   the core its solves leave, the equation-error screen runs and the all-terms programs compile (``term_programs``);
 2. the **screens** — greedy forward selection over the term library on the output-error Jacobian at the
    base fit (:mod:`.oescreen`: simulated regressors, no errors in variables), and equation error on
    smoothed derivatives with block-bootstrap frequencies (:mod:`.screen`); they propose candidate
