@@ -61,3 +61,14 @@ def test_a_move_short_of_the_margin_is_kept_only_with_the_next(usv_nv_ar):
     runs, spec, res0 = usv_nv_ar
     out = polish(res0, spec, runs, ["N_v_ar", "N_v_r_r", "N_r_r_r"], ["N_v_r_r"], max_rounds=3, margin=1e12)
     assert out.selected == ("N_v_r_r",) and out.path == (), out.path
+
+
+def test_the_base_fit_stops_its_crawl_within_a_standard_error(usv_nv_ar):
+    """A discovery's base fit lacks the terms looked for and crawls: with the stall rule ending the fit
+    (``stall_ends_fit``) it takes no more steps than the plain fit, and no value ends a standard error from it."""
+    runs, spec, res0 = usv_nv_ar
+    o = OutputError(integrator=get_integrator("rk4"), reference_priors=False, stall=(10, 1e-3), stall_ends_fit=True)
+    res = fit(Fossen3(), runs, o, spec=spec)
+    assert res.iterations <= res0.iterations, (res.iterations, res0.iterations)
+    for n in spec.free_names:
+        assert abs(res.params[n] - res0.params[n]) < res0.stderr[n], (n, res.params[n], res0.params[n], res0.stderr[n])

@@ -234,10 +234,10 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     with ThreadPoolExecutor(1) as pool:
         ee = pool.submit(screen, base, train, spec, terms, max_terms=max_terms, n_boot=n_boot, seed=seed)
         try:
-            # the base lacks the terms looked for: more draws only cost time, and its solve stops when the cost
-            # stalls (a model lacking terms crawls: on a four-term truth 233 whole-run steps moved its cost by
-            # 0.3 % and none of its values by 0.1 %, 9 s of a cold discovery); a base that is selected is finished
-            res0 = fit(base, train, dataclasses.replace(options, adaptive=False, stall=options.stall or STALL),
+            # the base lacks the terms looked for: more draws only cost time, and it stops when its cost stalls (it
+            # crawls: 233 whole-run steps moved its cost by 0.3 %, no value by 0.1 %); a selected base is finished
+            res0 = fit(base, train, dataclasses.replace(options, adaptive=False, stall=options.stall or STALL,
+                                                        stall_ends_fit=options.stall is None),
                        spec=spec, n_starts=n_starts, progress=say)
         except BaseException:
             if pre is not None:

@@ -104,6 +104,9 @@ class OutputError(AbstractEstimator):
             steps while the Gauss–Newton step is still long (a mis-specified model crawls along a
             curved valley for hundreds of steps; :mod:`diffship.fit.batched`, item 6). The fit then
             reports ``RESULTS.cost_stalled`` (not converged) and says so. ``None`` (default): off.
+        stall_ends_fit: with ``stall``, a whole-run round that stalls at settled channel scales ends the fit, where
+            the search would start another round (:func:`~diffship.fit.search.reweighted_solves`): for a model known
+            to lack terms (a discovery's base fit, whose crawl over 14 further rounds moved its cost by 0.13 %).
         warmup_round: the warm-up runs in rounds of this many Levenberg–Marquardt steps (the whole
             runs' compiled solve, with the warm-up's horizon and this step cap as data:
             :meth:`warm_data`; a start still running after a round goes on from where it is, up to
@@ -144,6 +147,7 @@ class OutputError(AbstractEstimator):
     x0_prior: bool = True
     ee_start: bool = True
     stall: tuple[int, float] | None = None
+    stall_ends_fit: bool = False
     warmup_round: int = 30
     adaptive: bool = True
 
@@ -327,7 +331,8 @@ class OutputError(AbstractEstimator):
             return reweighted_solves(kernel, [c[1] for c in cs], data, first, {"jacobian": True, **self.lm},
                                      cap=int(self.max_steps), total=3 * int(self.max_steps), floor=1e-6 * st_["spread"],
                                      reweight=reweight, effective_samples=self.effective_samples, period=per,
-                                     progress=say, label="output error, whole runs")
+                                     progress=say, label="output error, whole runs",
+                                     stall_ends=self.stall is not None and self.stall_ends_fit)
         spec = problem.spec
 
         def more(best: dict, k: int, seed: int) -> list:  # spread around the best candidate and the first start

@@ -100,14 +100,17 @@ def candidates(starts: Sequence[np.ndarray], proposals: Sequence[tuple[int, np.n
 
 def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray, lm: dict, *, cap: int, total: int,
                       floor: np.ndarray, reweight: bool = True, effective_samples: bool = True,
-                      period: np.ndarray | None = None, progress=None, label: str = "solve") -> list[dict]:
+                      period: np.ndarray | None = None, progress=None, label: str = "solve",
+                      stall_ends: bool = False) -> list[dict]:
     r"""Every candidate solved on the whole runs at its own self-consistent channel scales (module docstring,
     rule 3), together: rounds of :data:`FIRST_ROUND_STEPS` while a candidate's scales move by more than
     :data:`SCALES_MOVING`, otherwise each twice its last, up to ``cap`` Levenberg–Marquardt
     steps (the data's traced step cap, per candidate), after each round each candidate's scales :math:`s_c = \sqrt{\tau_c\,\mathrm{SSE}_c/N}` re-estimated from its residuals
     (``reweight``; τ its residuals' correlation times where ``effective_samples``); a candidate is done when
     its solve converged at scales that moved by less than :data:`REWEIGHT_RTOL`, when its likelihood changed by less
-    than :data:`F_TOL` over a round (from the third), or after ``total`` steps. After
+    than :data:`F_TOL` over a round (from the third), or after ``total`` steps; with ``stall_ends``, also when a round
+    stopped because its cost stalled (the solve's stall rule) at scales that moved by less than :data:`SCALES_MOVING`.
+    After
     the third round (once each has converged in a round or taken :data:`JUDGED_STEPS` steps) the candidates are compared by the likelihood on one scale: one :data:`DOMINATED` behind the
     best stops there, and of two within :data:`SAME_OBJECTIVE` of each other the higher is merged into the lower. Every candidate's first round runs at ``scales`` (the channels' sensor noise: a start far
     from the optimum has drifting residuals whose scales would leave the data almost no weight in that round).
@@ -168,7 +171,8 @@ def reweighted_solves(kernel, zs: Sequence[np.ndarray], data, scales: np.ndarray
             seen.append(np.asarray(c["scales"]))
             period = next((len(seen) - k for k in range(len(seen) - 1, -1, -1)
                            if float(np.max(np.abs(new / seen[k] - 1.0))) < REWEIGHT_RTOL), 0) if converged else 0
-            if period or settled:
+            crawl = stall_ends and not converged and int(k) < caps[i] and moved <= SCALES_MOVING
+            if period or settled or crawl:
                 c.update(done=True, tau=tau, cycle=period if period > 1 else 0)
                 if period > 1 and progress:
                     progress(f"{label}: start {i + 1}: the channel scales cycle with a period of {period} rounds "
