@@ -62,3 +62,20 @@ def test_a_run_is_never_changed_in_place():
     estimate_starts(Nomoto1(K=0.2, T1=8.0), [run], ("psi", "r"))
     assert all(np.array_equal(before[c], run[c]) for c in before)
     assert isinstance(run, Run)
+
+
+def test_run_sets_of_one_length_share_one_program_and_the_same_starts(monkeypatch):
+    """The runs are independent problems: solved in chunks of two, the starts are those of one solve over every run
+    (to the bit), and three runs, two runs or one of the same length ask for the same compiled program."""
+    import diffship.initial as initial
+    from diffship.compiled import _key
+
+    model = Nomoto1(K=0.2, T1=8.0)
+    runs = nomoto_runs(model, n_runs=3, duration=40.0, dt=0.1, noise="realistic", seed=2)
+    chunked = estimate_starts(model, runs, ("psi", "r"))
+    keys = {_key(*initial.start_request(model, runs[:k], ("psi", "r"))[0]) for k in (1, 2, 3)}
+    assert len(keys) == 1
+    monkeypatch.setattr(initial, "RUNS_PER_SOLVE", 3)  # one solve over the three runs
+    whole = estimate_starts(model, runs, ("psi", "r"))
+    assert np.array_equal(np.stack(chunked), np.stack(whole))
+    assert not np.allclose(chunked[0], chunked[2])  # three different runs, three different starts

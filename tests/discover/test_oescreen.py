@@ -64,6 +64,7 @@ def test_the_start_models_term_programs_are_the_fitted_discoverys():
     assert _keys(before[2:3]) == _keys([simulation_request(full, val[0], np.full(len(full.state_names), 0.2), RK4())])
     assert _keys(before[3:]) == _keys([q for rs in (train, val)
                                        for q in start_request(full, rs, start_channels(full, rs, chans), integrator=RK4())])
+    assert _keys(before[3:4]) == _keys(before[4:5])  # two training runs and one held-out run: one start-rule program
     # other refit options are another program: the comparison can fail
     assert _keys(term_workspace(res0, spec, train, terms, max_iter=61).programs()) != _keys(before[:2])
 

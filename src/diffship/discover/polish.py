@@ -203,16 +203,21 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         _, vals, base_vals, _, _ = fitted[S]
         moves: list[tuple[str, str, tuple[str, ...]]] = []
 
+        u, sv, _ = np.linalg.svd(J_th, full_matrices=False)
+        Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]  # the base and initial-state columns' span, once a round
+
         def lin(T) -> float:
             """T's cost from S's optimum by one Gauss–Newton step: the terms of S not in T taken out linearly, the
-            base parameters, initial states and T's terms refitted linearly."""
+            base parameters, initial states and T's terms refitted linearly (least squares on the part of T's columns
+            and of the residual orthogonal to the base columns: the same fit, 30 moves in a fraction of a second)."""
             r_out = r.copy()
             for t in S:
                 if t not in T:
                     i = names.index(t)
                     r_out -= G[:, i] * (vals[t] - ws.phi_null[i]) / ws.phi_scale[i]
-            A = np.concatenate([J_th, G[:, [names.index(x) for x in T]]], axis=1)
-            e = r_out - A @ np.linalg.lstsq(A, r_out, rcond=None)[0]
+            H = G[:, [names.index(x) for x in T]]
+            H, r_out = H - Q @ (Q.T @ H), r_out - Q @ (Q.T @ r_out)
+            e = r_out - H @ np.linalg.lstsq(H, r_out, rcond=None)[0] if H.shape[1] else r_out
             return 0.5 * float(e @ e)
 
         for t in S:
