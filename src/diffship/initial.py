@@ -257,7 +257,8 @@ def _start_problem(model: AbstractModel, runs: Sequence[Run], channels: Sequence
                    integrator: AbstractIntegrator, noise: Mapping[str, float] | None):
     """The initial-state solve of :func:`estimate_starts` for ``runs`` (``channels`` the model's outputs, at least
     one, every run has them): ``(solver, args(wc), sig, x_data, ys, mask)``; ``args(wc)`` the compiled solve's
-    arguments at channel scales ``wc``, ``sig`` the channels' sensor noise."""
+    arguments at channel scales ``wc``, one tuple per chunk of :data:`RUNS_PER_SOLVE` runs, ``sig`` the channels'
+    sensor noise."""
     x_data = [np.asarray(initial_state(model, r, flt), dtype=np.float64) for r in runs]
     states = estimated_states(model, channels)
     n = max(r.n for r in runs)
@@ -283,10 +284,15 @@ def _start_problem(model: AbstractModel, runs: Sequence[Run], channels: Sequence
                           tuple(c in model.angle_outputs for c in channels),
                           tuple(model.state_names.index(s) for s in states), integrator)
     f = lambda a: jnp.asarray(a, dtype=jnp.float64)  # noqa: E731
+    # the run axis filled up to whole chunks with copies of the last run, masked (after every pooled quantity above)
+    k = RUNS_PER_SOLVE
+    idx = np.minimum(np.arange(-(-R // k) * k), R - 1)
+    per_run = [f(ts[idx]), f(us[idx]), f(ys[idx]), jnp.asarray(mask[idx] & (np.arange(idx.size) < R)[:, None]),
+               f(x0[idx]), f(prior.weight[idx]), f(prior.mean[idx])]
 
     def args(wc):
-        return (model, f(ts), f(us), f(ys), jnp.asarray(mask), f(x0), f(st_scale), f(wc), f(prior.weight),
-                f(prior.mean))
+        return [(model, *(a[c:c + k] for a in per_run[:5]), f(st_scale), f(wc), *(a[c:c + k] for a in per_run[5:]))
+                for c in range(0, idx.size, k)]
     return solver, args, sig, x_data, ys, mask
 
 
@@ -295,23 +301,6 @@ def _start_problem(model: AbstractModel, runs: Sequence[Run], channels: Sequence
 #: (its output dropped): every run set of one length shares one program. A discovery's training runs (4) and held-out
 #: runs (2) compiled two programs of the all-terms model, 9 s of CPU each from an empty cache.
 RUNS_PER_SOLVE = 2
-#: The positions of :meth:`_StartSolver.solve`'s arguments that have one entry per run (the others are shared), and
-#: of the mask among them.
-_PER_RUN, _MASK = (1, 2, 3, 4, 5, 8, 9), 4
-
-
-def _chunks(a: tuple) -> list[tuple]:
-    """The compiled solve's arguments ``a`` split into chunks of :data:`RUNS_PER_SOLVE` runs."""
-    R, k = int(a[1].shape[0]), RUNS_PER_SOLVE
-    out = []
-    for s in range(0, R, k):
-        idx = np.minimum(np.arange(s, s + k), R - 1)
-        real = jnp.asarray(np.arange(s, s + k) < R)[:, None]
-
-        def take(i, x):
-            return x if i not in _PER_RUN else (x[idx] & real) if i == _MASK else x[idx]
-        out.append(tuple(take(i, x) for i, x in enumerate(a)))
-    return out
 
 
 def start_request(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str], *, flt: Filter = Filter(),
@@ -324,7 +313,7 @@ def start_request(model: AbstractModel, runs: Sequence[Run], channels: Sequence[
     if not runs or not channels or not estimated_states(model, channels):
         return []
     solver, args, sig, *_ = _start_problem(model, runs, channels, flt, integrator, None)
-    return [(solver, "solve", _chunks(args(sig))[0], {})]
+    return [(solver, "solve", args(sig)[0], {})]
 
 
 def estimate_starts(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str],
@@ -351,7 +340,7 @@ def estimate_starts(model: AbstractModel, runs: Sequence[Run], channels: Sequenc
     solver, args, sig, x_data, ys, mask = _start_problem(model, runs, channels, flt, integrator, noise)
 
     def solve(wc):
-        parts = _chunks(args(wc))
+        parts = args(wc)
         fn, _ = compiled(solver, "solve", parts[0])
         out = np.concatenate([np.asarray(fn(*a)) for a in parts])
         return [out[i] if np.all(np.isfinite(out[i])) else x_data[i] for i in range(len(runs))]

@@ -76,13 +76,17 @@ class OEScreen:
         return [tuple(self.path[:k]) for k in range(1, min(max_terms, len(self.path)) + 1)]
 
 
+def span(A: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of ``A`` (its left singular vectors above 10⁻¹⁰ of the largest)."""
+    u, sv, _ = np.linalg.svd(A, full_matrices=False)
+    return u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
+
+
 def conditional_gains(r: np.ndarray, J_theta: np.ndarray, G: np.ndarray, chosen: Sequence[int]) -> np.ndarray:
     r"""Each column's linearised cost reduction given the base columns and the ``chosen`` ones:
     :math:`(h_k^\top e)^2/\|h_k\|^2`, with :math:`h_k` column k orthogonal to them and :math:`e` the residual
     orthogonal to them (0 for the chosen columns and for columns inside their span)."""
-    A = np.concatenate([J_theta, G[:, list(chosen)]], axis=1) if len(chosen) else J_theta
-    u, sv, _ = np.linalg.svd(A, full_matrices=False)
-    Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]
+    Q = span(np.concatenate([J_theta, G[:, list(chosen)]], axis=1) if len(chosen) else J_theta)
     H = G - Q @ (Q.T @ G)
     e = r - Q @ (Q.T @ r)
     nn = np.sum(H * H, axis=0)

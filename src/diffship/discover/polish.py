@@ -68,7 +68,7 @@ from ..errors import DiffshipError
 from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
-from .oescreen import conditional_gains, term_workspace
+from .oescreen import conditional_gains, span, term_workspace
 
 __all__ = ["Polish", "polish", "bic", "effective_count", "RISE"]
 
@@ -203,8 +203,7 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         _, vals, base_vals, _, _ = fitted[S]
         moves: list[tuple[str, str, tuple[str, ...]]] = []
 
-        u, sv, _ = np.linalg.svd(J_th, full_matrices=False)
-        Q = u[:, sv > sv[0] * 1e-10] if sv.size else u[:, :0]  # the base and initial-state columns' span, once a round
+        Q = span(J_th)  # the base and initial-state columns' span, once a round
 
         def lin(T) -> float:
             """T's cost from S's optimum by one Gauss–Newton step: the terms of S not in T taken out linearly, the
