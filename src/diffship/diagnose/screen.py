@@ -224,10 +224,11 @@ class Workspace:
     def n_x0(self, data=None) -> int:
         return (data or self.train)["x0"].shape[0] * len(self.x0_idx)
 
-    def z0(self, data=None, base_values=None) -> np.ndarray:
+    def z0(self, data=None, base_values=None, x0=None) -> np.ndarray:
+        """The unknowns at the base fit (or ``base_values``), effects at null, initial-state unknowns ``x0`` (or 0)."""
         zt = self.z_theta if not base_values else self.spec.with_values(
             {n: base_values[n] for n in self.spec.names}).to_z()
-        return np.concatenate([zt, np.zeros(P_MAX), np.zeros(self.n_x0(data))])
+        return np.concatenate([zt, np.zeros(P_MAX), np.zeros(self.n_x0(data)) if x0 is None else np.asarray(x0, float)])
 
     def residuals(self, z, S, phi0, data=None, model=None):
         return np.asarray(self.kernel.call("residuals", z, self._kd(data, S, phi0, model)))
@@ -340,17 +341,16 @@ class Workspace:
     def refit(self, names: Sequence[str], starts: Sequence[dict[str, float]], fixed: dict[str, float] | None = None,
               progress: Callable[[str], None] | None = None, rounds: int = 3,
               finish: bool | None = None, base_start: dict[str, float] | None = None,
-              step_cap: int | None = None) -> RefitResult:
+              step_cap: int | None = None, x0_start: np.ndarray | None = None) -> RefitResult:
         """Refit base parameters + the parameters of effects ``names`` (``fixed``: other effect values held).
 
-        Every start (each φ start, from the base fit's values — or ``base_start`` — and, for a non-smooth effect,
-        from the model's reference values) is solved by the output-error kernel's Levenberg–Marquardt on the first
-        quarter of every run (:meth:`_warmup`); the lowest warm-up point of each base start then goes on to the
-        whole runs (a solve whose cost falls by less than ρ·cost over W steps stops: the workspace's ``stall``). When
-        the lowest removes half the base training cost (or ``finish``), every candidate within twice its cost is
-        finished (:meth:`_finish`) and the lowest whole-run cost wins (``step_cap``: fewer whole-run steps, a bound).
-        Standard errors come from :func:`diffship.fit.covariance.covariance` on the active unknowns (infinite for an
-        effect parameter the data do not inform). Every refit runs the workspace's one compiled solve (:meth:`programs`).
+        Every start (each φ start, from the base fit's values — or ``base_start`` and ``x0_start``, :meth:`z0`'s
+        ``x0`` — and, for a non-smooth effect, from the reference values) is solved by the kernel's Levenberg–Marquardt
+        on the first quarter of every run (:meth:`_warmup`); the lowest warm-up point of each base start goes on to the
+        whole runs (a solve whose cost falls by less than ρ·cost over W steps stops: ``stall``). When the lowest removes
+        half the base training cost (or ``finish``), every candidate within twice its cost is finished (:meth:`_finish`)
+        and the lowest whole-run cost wins (``step_cap``: fewer whole-run steps, a bound). Standard errors: covariance
+        on the active unknowns (infinite for an effect parameter the data do not inform). One compiled solve.
         """
         max_iter = self.max_iter
         lm = self._solve_static(max_iter, self.stall)
@@ -365,7 +365,7 @@ class Workspace:
             list(range(nk, nk + self.n_x0()))
         # a non-smooth effect (delay, lag, rate limit) also from the reference values: a base fit biased by the missing
         # effect is a poor start (a withheld 2.5-s lag: 2.16 s from the biased base alone, 2.45 s from the reference)
-        bases = [self.z0(base_values=base_start)]
+        bases = [self.z0(base_values=base_start, x0=x0_start)]
         rough = any(not self.owner[n].smooth_null for n in pn)
         if rough and base_start is None and self.reference_start is not None:
             bases.append(self.reference_start)

@@ -11,11 +11,11 @@ r"""Structure discovery: which library terms a vessel's equations need, fitted b
    structures: the output-error path's prefixes first, then the equation-error path's prefixes and its
    terms nested by frequency;
 3. the **refit** of the base and every candidate by output error on one **workspace**: the base with every library
-   term, compiled once, a structure switched on by data (:func:`.oescreen.term_workspace`); each from the base fit
-   with the terms at their screen values, side by side (one thread per core). Each stops when its cost stalls (a
-   wrong structure crawls; its stalled cost bounds its criterion from above) or after :data:`FIRST_PASS_STEPS`; the
-   ``n_finish`` best by that bound are finished, and the base where its cost could decide (no structure's stalled
-   cost is under :data:`BASE_FINISH` of it);
+   term, compiled once, a structure switched on by data (:func:`.oescreen.term_workspace`); each from the lowest-cost
+   of its linearised refit's point at the base fit (:class:`.oescreen.Linearisation`), fractions of that step and the
+   screen values, side by side (one thread per core). Each stops when its cost stalls (a wrong structure crawls; its
+   stalled cost bounds its criterion from above) or after :data:`FIRST_PASS_STEPS`; the ``n_finish`` best by that
+   bound are finished, and the base where its cost could decide (no stalled cost under :data:`BASE_FINISH` of it);
 4. the **ranking** by BIC (or AIC) on the output residuals of each refit (simulated from its own fitted
    initial states: what it minimised) with effective sample sizes (:mod:`.rank`); every structure is simulated with
    the all-terms model (the others at zero), so one compiled simulation serves them all,
@@ -72,7 +72,7 @@ from ..models.terms import library_terms, term_class, with_terms
 from ..params import ParamSpec
 from ..preprocess import Filter
 from .rank import criteria, effective_samples, residuals, selection_frequency
-from .oescreen import STALL, OEScreen, oe_screen, term_programs, term_workspace
+from .oescreen import STALL, OEScreen, lowest_start, oe_screen, term_programs, term_workspace
 from .polish import Polish, bic, effective_count, polish
 from .screen import Screen, screen
 from .scaling import force_levels, term_scales, term_spec
@@ -92,6 +92,9 @@ MAX_EQUIVALENT = 3
 #: are then finished): a single term crawled to the workspace's cap of 240 steps, 20 s on one core while the other
 #: waited.
 FIRST_PASS_STEPS = 120
+#: The step cap of the base's first pass: its cost matters only where it could decide (:data:`BASE_FINISH`; it is then
+#: finished), and from the base fit's stalled optimum it crawls (the surge truth: 120 steps, 16 s on one core).
+BASE_FIRST_PASS = 40
 #: The base's workspace refit is finished only when the lowest stalled cost of a structure is at least this share of
 #: the base's (below it, no crawl of the base could bring it level with the best structure).
 BASE_FINISH = 0.8
@@ -198,7 +201,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         oe_first: run the output-error screen (:mod:`.oescreen`) and refit its path's structures first,
             then the equation-error screen's; ``False``: the equation-error screen alone.
         n_starts: starts of the base fit (the driver's multi-start; ``--starts N``; no candidates drawn beyond
-            them: ``OutputError.adaptive``); the structures start from the base optimum with the screen's values.
+            them: ``OutputError.adaptive``); the structures start from their linearised refits at the base optimum.
         polish_rounds: the most rounds of the polish (:mod:`.polish`) from the best-ranked structure with terms,
             when it beats the base by the margin; 0: none.
         n_finish: the stalled refits finished, by their criterion bound: of the candidate structures, and of each
@@ -258,13 +261,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         except DiffshipError as exc:
             say(f"  output-error screen failed: {exc}")
     proposed = (oe.candidates(max_terms) if oe else []) + sc.candidates(max_terms)
-    seen: set[frozenset] = set()
-    structures = []
-    for c in proposed:
-        c = tuple(t for t in terms if t in c)
-        if c and frozenset(c) not in seen:
-            seen.add(frozenset(c))
-            structures.append(c)
+    # each structure once, its terms in the library's order
+    structures = [c for c in dict.fromkeys(tuple(t for t in terms if t in p) for p in proposed) if c]
     structures = structures[: max(max_candidates - 1, 0)]
     chans = tuple(res0.channels)
 
@@ -280,14 +278,16 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
                          result=RESULTS.successful if rf.converged else RESULTS.nonlinear_max_steps_reached)
 
     def refit_all(jobs) -> list:
-        """Refit ``(structure, term starts, base start, finish)`` jobs on the workspace, side by side
-        (:func:`parallel`), each from the base fit (or the base start) with the terms at their start values (and at
-        zero, where those blow up); the refits in the order given (``None`` where one failed or ended non-finite)."""
+        """Refit ``(structure, starts, finish)`` jobs on the workspace side by side (:func:`parallel`), each from the
+        lowest-cost of its starts (:func:`.oescreen.lowest_start`; the terms at zero where that blows up); the refits
+        in the order given (``None`` where one failed or ended non-finite)."""
         def one(job):
-            cand, start, base_start, finish = job
+            cand, options, finish = job
+            start, base_start, x0 = lowest_start(ws, cand, options)
             starts = [start, {t: 0.0 for t in cand}] if cand and not finish else [start] if cand else [{}]
-            return ws.refit(list(cand), starts, progress=say, finish=finish, base_start=base_start,
-                            step_cap=FIRST_PASS_STEPS if finish is False else None)
+            return ws.refit(list(cand), starts, progress=say, finish=finish, base_start=base_start, x0_start=x0,
+                            step_cap=None if finish is not False else FIRST_PASS_STEPS if cand else BASE_FIRST_PASS)
+
         out = []
         for (cand, *_), rf in zip(jobs, parallel(one, jobs)):
             if isinstance(rf, Exception):
@@ -296,13 +296,17 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         return out
 
     say(f"refit by output error on the workspace: the base and {len(structures)} structure(s), side by side...")
-    # every structure first with the stall rule (a wrong structure crawls, and its stalled cost bounds its criterion
-    # from above); the n_finish best by that bound are then finished, as the polish does: a structure whose bound is
-    # already beaten cannot win the ranking, and finishing it cost a third of the refit time (a single term crawling
-    # 470 steps on one core while the other waited); the base is finished beside them where its cost could decide
-    # (every structure must beat its criterion, not a bound of it)
-    jobs = [((), {}, None, False)] + [(cand, {t: oe.values[t] if oe and t in oe.values else sc.coefficients[t]
-                                             for t in cand}, None, False) for cand in structures]
+    # every structure first with the stall rule (a wrong structure crawls; its stalled cost bounds its criterion from
+    # above), from the lowest-cost of its linearised refit's point at the base fit (:class:`.oescreen.Linearisation`:
+    # the Gauss–Newton step moves the base parameters and initial states with the terms; on the four-term truth 22–29
+    # steps to convergence, from the base with the terms at the screens' values 41–101 stalled ones), fractions of that
+    # step and the screens' values; the n_finish best by the bound are then finished (a structure whose bound is beaten
+    # cannot win), and the base beside them where its cost could decide
+    lin0 = oe.linearisation if oe else None
+    jobs = [((), [({}, None, None)], False)] + [
+        (cand, ([lin0.start(cand, a) for a in (1.0, 0.5, 0.25, 0.125)] if lin0 is not None else [])
+         + [({t: oe.values[t] if oe and t in oe.values else sc.coefficients[t] for t in cand}, None, None)], False)
+        for cand in structures]
     got = dict(zip([j[0] for j in jobs], refit_all(jobs)))
     if got[()] is None:
         raise DiffshipError(f"discover: the workspace refit of the base model {base.name} failed")
@@ -314,9 +318,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
     # beats it whatever the base's crawl still gains (on the surge truth the base's finish took 151 steps and 17 s,
     # on the critical path behind a candidate's, and lowered its cost by under 10⁻⁶; a stalled structure's fell 2–3 %)
     base_decides = got[lowest].train_cost >= BASE_FINISH * got[()].train_cost
-    finish = [(c, dict(got[c].values), dict(got[c].base_values), True) for _, c in bound[:max(int(n_finish), 0)]
-              if not got[c].converged] + ([((), {}, dict(got[()].base_values), True)]
-                                          if not got[()].converged and base_decides else [])
+    finish = [(c, [(dict(got[c].values), dict(got[c].base_values), None)], True) for c in
+              [c for _, c in bound[:max(int(n_finish), 0)]] + ([()] if base_decides else []) if not got[c].converged]
     if finish:
         say("  finishing the best by their criterion bound: "
             + "; ".join(" + ".join(c) or "the base" for c, *_ in finish))

@@ -26,8 +26,10 @@ than about :math:`\ln n / n`, and such a refit crawls to its step cap.
 
 Every other move is refitted by output error on one compiled all-terms model (the workspace of
 :func:`~.oescreen.term_workspace`, :class:`~diffship.diagnose.screen.Workspace`): switching a term on is data, not a
-new program. The moves of a round are refitted side by side (one thread per core), each from the structure's
-optimum, with the stall rule and a step cap (``first_pass``: a wrong structure crawls; its stalled cost bounds its
+new program. The moves of a round are refitted side by side (one thread per core), each from the point of its
+linearised refit (the Gauss–Newton step above, base parameters and initial states moved with the terms:
+:class:`~.oescreen.Linearisation`) or from the structure's optimum, whichever costs less, with the stall rule and a
+step cap (``first_pass``: a wrong structure crawls; its stalled cost bounds its
 criterion from above). The ``n_finish`` best are finished without the rule, and the best finished move is taken when
 it lowers the criterion:
 
@@ -68,7 +70,7 @@ from ..errors import DiffshipError
 from ..fit import FitResult
 from ..models.terms import term_class
 from ..params import ParamSpec
-from .oescreen import conditional_gains, span, term_workspace
+from .oescreen import Linearisation, conditional_gains, lowest_start, term_workspace
 
 __all__ = ["Polish", "polish", "bic", "effective_count", "RISE"]
 
@@ -146,10 +148,11 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     count = [0]
 
     def refit(job) -> tuple | None:
-        struct, vals, base_vals, full = job
+        struct, starts, full = job
+        vals, base_vals, x0 = lowest_start(ws, struct, starts)
         try:
             rf = ws.refit(list(struct), [{t: vals.get(t, 0.0) for t in struct}], finish=full, base_start=base_vals,
-                          step_cap=None if full else first_pass)
+                          step_cap=None if full else first_pass, x0_start=x0)
         except DiffshipError as exc:
             say(f"  polish refit {' + '.join(struct)}: failed ({exc})")
             return None
@@ -159,8 +162,14 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         # round, for the same cost)
         return rf.train_cost, dict(rf.values), dict(rf.base_values), full or bool(rf.converged), rf
 
+    def resumed(T) -> tuple:
+        """T's refit as a start: its values, base values and initial states."""
+        _, vals, base_vals, _, rf = fitted[T]
+        return vals, base_vals, None
+
     def run(jobs) -> None:
-        """Refit ``(structure, term values, base values, finish)`` jobs side by side (:func:`parallel`)."""
+        """Refit ``(structure, starts, finish)`` jobs side by side (:func:`parallel`); each from the lowest-cost of
+        its starts ``(term values, base values, initial-state offsets or None)``."""
         jobs = [(order(j[0]),) + tuple(j[1:]) for j in jobs]
         count[0] += len(jobs)
         for (struct, *_), got in zip(jobs, parallel(refit, jobs)):
@@ -169,19 +178,13 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
             elif got is not None and (struct not in fitted or got[0] <= fitted[struct][0] or not fitted[struct][3]):
                 fitted[struct] = got
 
-    def linearised(S: tuple[str, ...]):
-        """Residuals, base/initial-state columns and every term's column at S's optimum."""
-        _, vals, base_vals, _, _ = fitted[S]
-        r, J_th, cols = ws.columns(base_values=base_vals, values=vals)
-        return r, J_th, np.stack([cols[n] for n in names], axis=1)
-
     S = order(start)
     if not S:
         raise DiffshipError("polish: give a structure with at least one term")
     if start_refit is not None and set(start_refit.effects) == set(S):  # the start as the caller refitted it
         fitted[S] = (start_refit.train_cost, dict(start_refit.values), dict(start_refit.base_values), True, start_refit)
     else:
-        run([(S, dict(start_values or {}), dict(start_base) if start_base else None, True)])
+        run([(S, [(dict(start_values or {}), dict(start_base) if start_base else None, None)], True)])
     if S not in fitted:
         raise DiffshipError(f"polish: the start structure {' + '.join(S)} could not be refitted")
     # the effective sample count from the start structure's residuals: the lowest-cost structure yet, closest to white,
@@ -199,25 +202,11 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
     # lower the criterion by the margin
     pending: tuple[tuple[str, ...], float, tuple] | None = None
     for _ in range(int(max_rounds)):
-        r, J_th, G = linearised(S)
         _, vals, base_vals, _, _ = fitted[S]
+        L = Linearisation(ws, S, vals, base_vals)  # the moves linearised at S's optimum, once a round
+        r, J_th, G = L.r, L.J_theta, L.G
+        lin = L.cost
         moves: list[tuple[str, str, tuple[str, ...]]] = []
-
-        Q = span(J_th)  # the base and initial-state columns' span, once a round
-
-        def lin(T) -> float:
-            """T's cost from S's optimum by one Gauss–Newton step: the terms of S not in T taken out linearly, the
-            base parameters, initial states and T's terms refitted linearly (least squares on the part of T's columns
-            and of the residual orthogonal to the base columns: the same fit, 30 moves in a fraction of a second)."""
-            r_out = r.copy()
-            for t in S:
-                if t not in T:
-                    i = names.index(t)
-                    r_out -= G[:, i] * (vals[t] - ws.phi_null[i]) / ws.phi_scale[i]
-            H = G[:, [names.index(x) for x in T]]
-            H, r_out = H - Q @ (Q.T @ H), r_out - Q @ (Q.T @ r_out)
-            e = r_out - H @ np.linalg.lstsq(H, r_out, rcond=None)[0] if H.shape[1] else r_out
-            return 0.5 * float(e @ e)
 
         for t in S:
             rest = tuple(x for x in S if x != t)
@@ -248,12 +237,13 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         if skipped:
             say(f"  polish: {len(skipped)} move(s) not refitted (linearised cost over {RISE:g}× S's): "
                 + ", ".join(skipped))
-        run([(T, vals, base_vals, False) for T in dict.fromkeys(T for _, _, T in moves) if T not in fitted])
+        run([(T, [L.start(T), (vals, base_vals, None)], False)
+             for T in dict.fromkeys(T for _, _, T in moves) if T not in fitted])
         here = crit(S)
         # the best moves by their stalled refits (an upper bound of each one's criterion) are finished side by side,
         # and the best finished move is taken when it lowers the criterion (a removal by any amount, else by margin)
         best = sorted((crit(T), T) for _, _, T in moves if T in fitted)[:n_finish]
-        run([(T, fitted[T][1], fitted[T][2], True) for _, T in best if not fitted[T][3]])
+        run([(T, [resumed(T)], True) for _, T in best if not fitted[T][3]])
         done = [(crit(T), kind, what, T) for kind, what, T in moves if T in fitted and fitted[T][3]
                 and (pending is None or T != pending[0])]
         ref = here if pending is None else pending[1]  # after a tentative move: the criterion before it
