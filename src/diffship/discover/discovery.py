@@ -88,13 +88,10 @@ MARGIN = 2.0
 MIN_INCLUSION = 0.5
 #: The most equivalent explanations reported beside the selected structure.
 MAX_EQUIVALENT = 3
-#: The step cap of the candidate structures' first, stalled pass (its cost bounds the criterion from above; the best
-#: are then finished): a single term crawled to the workspace's cap of 240 steps, 20 s on one core while the other
-#: waited.
-FIRST_PASS_STEPS = 120
-#: The step cap of the base's first pass: its cost matters only where it could decide (:data:`BASE_FINISH`; it is then
-#: finished), and from the base fit's stalled optimum it crawls (the surge truth: 120 steps, 16 s on one core).
-BASE_FIRST_PASS = 40
+#: The step caps of the structures' and the base's first, stalled pass (a cost that bounds the criterion from above;
+#: the best are finished, the base where it could decide: a term crawled 240 steps, 20 s on one core, the surge
+#: truth's base 120 steps, 16 s, to its cost after 40).
+FIRST_PASS_STEPS, BASE_FIRST_PASS = 120, 40
 #: The base's workspace refit is finished only when the lowest stalled cost of a structure is at least this share of
 #: the base's (below it, no crawl of the base could bring it level with the best structure).
 BASE_FINISH = 0.8
