@@ -101,10 +101,10 @@ class Linearisation:
     """
 
     def __init__(self, ws: Workspace, S: Sequence[str] = (), values: dict[str, float] | None = None,
-                 base_values: dict[str, float] | None = None, columns: tuple | None = None):
+                 base_values: dict[str, float] | None = None):
         self.ws, self.S, self.values = ws, tuple(S), dict(values or {})
         self.base_values = base_values
-        r, self.J_theta, cols = columns or ws.columns(base_values=base_values, values=values)
+        r, self.J_theta, cols = ws.columns(base_values=base_values, values=values)
         self.names = list(ws.phi_names)
         self.G = np.stack([cols[n] for n in self.names], axis=1)
         self.r = np.asarray(r)
@@ -147,8 +147,7 @@ class Linearisation:
             # the base parameters' step in θ/scale, not in the fit variables: a parameter near a log-mapped bound has a
             # vanishing column in z, where the pseudo-inverse's step is huge (a base fit's X_u at −0.08 against its
             # bound 0 moved to −10²³); in θ it is the step the linearisation means, then kept inside the bounds
-            self._col = per_scale_columns(spec, self.z_theta, self.J_theta.shape[1])
-            self._pinv = np.linalg.pinv(self.J_theta * self._col)
+            self._pinv = np.linalg.pinv(self.J_theta * per_scale_columns(spec, self.z_theta, self.J_theta.shape[1]))
         d_s = -self._pinv @ (r + H @ d) * step
         w = np.asarray([self.scaled(x) for x in T]) + d * step
         phi = np.clip(ws.phi_null[idx] + ws.phi_scale[idx] * w, ws.lo[idx], ws.hi[idx])

@@ -162,11 +162,6 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         # round, for the same cost)
         return rf.train_cost, dict(rf.values), dict(rf.base_values), full or bool(rf.converged), rf
 
-    def resumed(T) -> tuple:
-        """T's refit as a start: its values, base values and initial states."""
-        _, vals, base_vals, _, rf = fitted[T]
-        return vals, base_vals, None
-
     def run(jobs) -> None:
         """Refit ``(structure, starts, finish)`` jobs side by side (:func:`parallel`); each from the lowest-cost of
         its starts ``(term values, base values, initial-state offsets or None)``."""
@@ -210,8 +205,7 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
 
         for t in S:
             rest = tuple(x for x in S if x != t)
-            i = names.index(t)
-            r_out = r - G[:, i] * (vals[t] - ws.phi_null[i]) / ws.phi_scale[i]  # S without t, linearly
+            r_out = r - G[:, names.index(t)] * L.scaled(t)  # S without t, linearly
             if rest:
                 moves.append(("remove", t, rest))
             gain = conditional_gains(r_out, J_th, G, [names.index(x) for x in rest])
@@ -243,7 +237,7 @@ def polish(res0: FitResult, spec: ParamSpec, runs: Sequence[Run], terms: Sequenc
         # the best moves by their stalled refits (an upper bound of each one's criterion) are finished side by side,
         # and the best finished move is taken when it lowers the criterion (a removal by any amount, else by margin)
         best = sorted((crit(T), T) for _, _, T in moves if T in fitted)[:n_finish]
-        run([(T, [resumed(T)], True) for _, T in best if not fitted[T][3]])
+        run([(T, [(fitted[T][1], fitted[T][2], None)], True) for _, T in best if not fitted[T][3]])
         done = [(crit(T), kind, what, T) for kind, what, T in moves if T in fitted and fitted[T][3]
                 and (pending is None or T != pending[0])]
         ref = here if pending is None else pending[1]  # after a tentative move: the criterion before it
