@@ -51,35 +51,6 @@ def load(path: str):
     return Run("HAKUSAN", t, {"psi": psi, "r": r, "delta": delta}, {"source": str(path)})
 
 
-def neg_log_likelihood(result, runs) -> float:
-    r"""The Gaussian negative log-likelihood of ``runs`` under a prediction-error fit's filter, per sample,
-
-    .. math:: \tfrac{1}{N}\sum_k \tfrac12\big(\varepsilon_k^\top\varepsilon_k + \log\det S_k + n_c\log 2\pi\big),
-
-    with the fitted dynamics and noise model held (what the fit minimises on its training runs, up to the constant;
-    :attr:`FitResult.cost <diffship.fit.FitResult>` is only the :math:`\varepsilon` part)."""
-    import jax.numpy as jnp
-
-    from diffship.fit.output_error import OutputErrorOptions
-    from diffship.fit.prediction_error import PredictionErrorOptions, pe_problem
-
-    info, model = result.info, result.model
-    kind = info["disturbance"]
-    hyper = ({"tau": info["disturbance_tau"]} if kind == "ou" else
-             {"wave_period": info["wave_period"], "wave_damping": info["wave_damping"]} if kind == "wave" else {})
-    po = PredictionErrorOptions(process_states=tuple(info["process_states"]), estimate_noise=False,
-                                process_noise=dict(info["process_sd"]), measurement_noise=dict(info["measurement_sd"]),
-                                disturbance=kind, **hyper)
-    kernel, data, batch, _ = pe_problem(model, runs, model.spec().fix(model.param_names), result.channels,
-                                        OutputErrorOptions(integrator=result.integrator), po)
-    fp = kernel.filter(jnp.zeros(0), data)
-    mask = np.asarray(batch.mask, bool)
-    eps, logdet = np.asarray(fp.eps), np.asarray(fp.logdet)
-    n_c = eps.shape[-1]
-    total = 0.5 * (np.sum(eps[mask] ** 2) + np.sum(logdet[mask]) + mask.sum() * n_c * np.log(2 * np.pi))
-    return float(total / mask.sum())
-
-
 #: A process-noise start [rad/s², on the yaw rate's rate] far above the default (``q_start`` times the state's spread).
 Q_HIGH = 0.02
 
@@ -125,7 +96,7 @@ def main(argv=None) -> int:
               "CRAN or github.com/cran/TSSS, data/HAKUSAN.txt.gz)")
         return 0
     from diffship.fit import fit_output_error, fit_prediction_error
-    from diffship.fit.ahead import ahead
+    from diffship.fit.ahead import ahead, neg_log_likelihood
     from diffship.fit.feedback import loop_evidence
     from diffship.fit.prediction_error import PredictionErrorOptions
     from diffship.metrics import evaluate

@@ -34,7 +34,7 @@ from .output_error import OutputErrorOptions
 from .prediction_error import PredictionErrorOptions, pe_problem
 from .result import FitResult
 
-__all__ = ["ahead", "ahead_table"]
+__all__ = ["ahead", "ahead_table", "neg_log_likelihood"]
 
 
 def _noise(result: FitResult) -> PredictionErrorOptions:
@@ -92,6 +92,30 @@ def ahead(result: FitResult, runs: Sequence[Run], seconds: float | None = 30.0,
                            f"{'with' if disturbance else 'without'} the disturbance")
 
 
+def neg_log_likelihood(result: FitResult, runs: Sequence[Run]) -> float:
+    r"""The Gaussian negative log-likelihood of ``runs`` per sample under a prediction-error fit's filter, with its
+    dynamics and noise model held,
+
+    .. math:: \bar\ell = \frac{1}{N}\sum_k \tfrac12\big(\varepsilon_k^\top\varepsilon_k + \log\det S_k
+              + n_c \log 2\pi\big),
+
+    over the ``N`` measured samples (:mod:`diffship.fit.ekf`: the normalised innovations :math:`\varepsilon_k` and
+    their covariances :math:`S_k`). On the training runs it is what the fit minimises (up to its constant); on
+    held-out runs it judges a noise model as the one-sample prediction does, with the filter's own stated
+    uncertainty: two fits of different noise models compare by it, not by ``FitResult.cost`` (which holds only the
+    :math:`\varepsilon` part, about ``N/2`` for any consistent noise level)."""
+    if result.method != "prediction_error":
+        raise ValueError(f"the filter's likelihood needs a prediction-error fit (its noise model), got {result.method}")
+    model = result.model
+    kernel, data, batch, _ = pe_problem(model, runs, model.spec().fix(model.param_names), result.channels,
+                                        OutputErrorOptions(integrator=result.integrator), _noise(result))
+    fp = kernel.filter(jnp.zeros(0), data)
+    mask = np.asarray(batch.mask, dtype=bool)
+    eps, logdet = np.asarray(fp.eps)[mask], np.asarray(fp.logdet)[mask]
+    n_c = eps.shape[-1]
+    return float(0.5 * np.mean(np.sum(eps ** 2, axis=-1) + logdet + n_c * math.log(2 * math.pi)))
+
+
 def ahead_table(result: FitResult, train: Sequence[Run], val: Sequence[Run] = (),
                 seconds: float = 30.0) -> tuple[str, dict, dict[str, Evaluation]]:
     """The one-sample and ``seconds``-ahead predictions with and without the disturbance, on the training and the
@@ -110,6 +134,10 @@ def ahead_table(result: FitResult, train: Sequence[Run], val: Sequence[Run] = ()
                                                       for c in ev.channels))
                 if s is not None and d:
                     evs["val" if label == "held-out" else "train"] = ev
+    nll = {label: neg_log_likelihood(result, runs) for label, runs in (("held-out", val), ("training", train)) if runs}
+    doc["neg_log_likelihood_per_sample"] = nll
+    rows.append("  negative log-likelihood per sample (the filter's innovations): "
+                + ", ".join(f"{label} {v:.4g}" for label, v in nll.items()))
     text = ("prediction from the Kalman filter's state (RMSE, fit %; a sea state is predicted, not simulated):\n"
             + "\n".join(rows))
     return text, doc, evs
