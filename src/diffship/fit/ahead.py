@@ -49,6 +49,14 @@ def _noise(result: FitResult) -> PredictionErrorOptions:
                                   disturbance=kind, **hyper)
 
 
+def _held_filter(result: FitResult, runs: Sequence[Run], keep: bool = False):
+    """``(kernel, data, batch, filter pass)``: the fit's filter over ``runs``, its dynamics and noise model held."""
+    model = result.model
+    kernel, data, batch, _ = pe_problem(model, runs, model.spec().fix(model.param_names), result.channels,
+                                        OutputErrorOptions(integrator=result.integrator), _noise(result))
+    return kernel, data, batch, kernel.filter(jnp.zeros(0), data, keep=keep)
+
+
 def ahead(result: FitResult, runs: Sequence[Run], seconds: float | None = 30.0,
           disturbance: bool = True) -> Evaluation:
     """The ``seconds``-ahead predictions (``None``: one sample ahead) of a prediction-error fit on ``runs``
@@ -56,12 +64,8 @@ def ahead(result: FitResult, runs: Sequence[Run], seconds: float | None = 30.0,
     if result.method != "prediction_error":
         raise ValueError(f"k-step-ahead prediction needs a prediction-error fit (its noise model), got {result.method}")
     model = result.model
-    spec = model.spec().fix(model.param_names)
-    kernel, data, batch, _ = pe_problem(model, runs, spec, result.channels,
-                                        OutputErrorOptions(integrator=result.integrator), _noise(result))
-    z = jnp.zeros(0)
-    f, h, *_ = kernel.system(z, data)
-    fp = kernel.filter(z, data, keep=True)
+    kernel, data, batch, fp = _held_filter(result, runs, keep=True)
+    f, h, *_ = kernel.system(jnp.zeros(0), data)
     dt = float(np.median(np.concatenate([np.diff(r.time) for r in runs])))
     H = 1 if seconds is None else max(1, int(round(seconds / dt)))
     n_x = len(model.state_names)
@@ -106,10 +110,7 @@ def neg_log_likelihood(result: FitResult, runs: Sequence[Run]) -> float:
     :math:`\varepsilon` part, about ``N/2`` for any consistent noise level)."""
     if result.method != "prediction_error":
         raise ValueError(f"the filter's likelihood needs a prediction-error fit (its noise model), got {result.method}")
-    model = result.model
-    kernel, data, batch, _ = pe_problem(model, runs, model.spec().fix(model.param_names), result.channels,
-                                        OutputErrorOptions(integrator=result.integrator), _noise(result))
-    fp = kernel.filter(jnp.zeros(0), data)
+    _, _, batch, fp = _held_filter(result, runs)
     mask = np.asarray(batch.mask, dtype=bool)
     eps, logdet = np.asarray(fp.eps)[mask], np.asarray(fp.logdet)[mask]
     n_c = eps.shape[-1]
