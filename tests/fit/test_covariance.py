@@ -188,3 +188,25 @@ def test_output_error_propagates_measured_rudder_noise():
     assert res.info["input_noise"]["delta"] == pytest.approx(sd, rel=0.2)
     assert "white" in res.info["whiteness"] and any(m.startswith("covariance:") for m in res.messages)
     assert res.stderr["K"] > exact.stderr["K"]
+
+
+def test_predictability_is_near_zero_for_white_residuals_and_high_for_an_oscillation():
+    """The share of the residuals' variance their own past predicts (AR(4) per run and channel, pooled): about
+    4/N for white noise, and that of a lightly damped oscillation (an AR(2) with poles at radius 0.95 and a period
+    of 8 samples, a yaw wave sampled slowly) is 1 - σ²/var(x) = 0.91."""
+    from diffship.fit.covariance import predictability
+
+    rng = np.random.default_rng(3)
+    mask = np.ones((2, 600), bool)
+    white = rng.standard_normal(2 * 600 * 2)
+    assert predictability(white, mask, 2) < 0.03
+    a1, a2 = 2 * 0.95 * np.cos(2 * np.pi / 8), -0.95 ** 2
+    x = np.zeros((2, 600, 2))
+    e = rng.standard_normal(x.shape)
+    for k in range(2, 600):
+        x[:, k] = a1 * x[:, k - 1] + a2 * x[:, k - 2] + e[:, k]
+    # the AR(2)'s variance: σ²(1 - a2)/((1 + a2)((1 - a2)² - a1²))
+    var = (1 - a2) / ((1 + a2) * ((1 - a2) ** 2 - a1 ** 2))
+    assert predictability(x.reshape(-1), mask, 2) == pytest.approx(1 - 1 / var, abs=0.05)
+    mask[1, 300:] = False  # padded samples are left out
+    assert predictability(x.reshape(-1), mask, 2) == pytest.approx(1 - 1 / var, abs=0.05)

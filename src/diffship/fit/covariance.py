@@ -74,7 +74,7 @@ from jaxtyping import Bool, Float
 
 from ..errors import FitError
 
-__all__ = ["KINDS", "Covariance", "Whiteness", "aggregated", "covariance", "relabelled", "whiteness"]
+__all__ = ["KINDS", "Covariance", "Whiteness", "aggregated", "covariance", "predictability", "relabelled", "whiteness"]
 
 #: Accepted values of ``kind``.
 KINDS = ("white", "hac", "block", "auto")
@@ -221,6 +221,29 @@ def whiteness(r: Float[np.ndarray, " m"], mask: Bool[np.ndarray, "R N"], n_chann
 
             p[i, c] = float(chdtrc(h, q))
     return Whiteness(lag1, p, h, alpha, tuple(runs), tuple(channels))
+
+
+def predictability(r: Float[np.ndarray, " m"], mask: Bool[np.ndarray, "R N"], n_channels: int,
+                   order: int = 4) -> float:
+    r"""Share of the residuals' variance that their own past predicts: :math:`1 - \sum e_k^2 / \sum (x_k-\bar x)^2`
+    pooled over runs and channels, with :math:`e_k` the error of an AR(``order``) model of each run's channel
+    :math:`x` fitted by least squares, :math:`x_k \approx c + \sum_{l=1}^{p} a_l x_{k-l}`. About ``order``/N for white
+    residuals; near 1 when they carry an oscillation or a drift the model's noise description misses (a
+    prediction-error fit whose measurement noise holds the disturbance). NaN where no run is long enough."""
+    mask = np.asarray(mask, dtype=bool)
+    e = np.asarray(r, dtype=np.float64).reshape(mask.shape + (n_channels,))
+    num = den = 0.0
+    for i in range(mask.shape[0]):
+        for c in range(n_channels):
+            x = e[i, mask[i], c]
+            if x.size < 4 * (order + 1):
+                continue
+            X = np.column_stack([np.ones(x.size - order)] + [x[order - l: x.size - l] for l in range(1, order + 1)])
+            y = x[order:]
+            a, *_ = np.linalg.lstsq(X, y, rcond=None)
+            num += float(np.sum((y - X @ a) ** 2))
+            den += float(np.sum((y - y.mean()) ** 2))
+    return 1.0 - num / den if den > 0 else math.nan
 
 
 # -- long-run covariance of the score ------------------------------------------------------------
