@@ -422,8 +422,7 @@ class PredictionError(OnOutputError):
         return res
 
     def first_solves(self, problem, zs, say):
-        st_ = problem.state
-        t0 = time.perf_counter()
+        st_, t0 = problem.state, time.perf_counter()
         z0s = np.stack([np.asarray(z) for z in (zs[:1] if self.oe.choose == "first" else zs)])
         outs = self._solves(problem, z0s, say)
         b = int(np.argmin([o_[1] for o_ in outs]))
@@ -441,7 +440,8 @@ class PredictionError(OnOutputError):
             st_["noise_note"] = (
                 f"noise start: {100 * share:.0f} % of the innovations' variance at the first optimum was predictable "
                 f"from their past (AR(4)); from a disturbance-dominated start (process noise at each state's spread "
-                f"per time scale, sensor noise a tenth) -log L per sample changes by {d:+.3g}: "
+                f"per time scale, sensor noise a tenth) -log L per sample changes by {d:+.3g}"
+                f"{'' if math.isfinite(d) else ' (its filter diverges)'}: "
                 + ("kept" if won else "the first kept; its innovations stay predictable: try another --disturbance"))
             st_["noise_start"], outs[b] = ("disturbance", o_alt) if won else ("sensor", outs[b])
         st_["pe_s"] = time.perf_counter() - t0
