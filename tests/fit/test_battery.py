@@ -144,6 +144,8 @@ def test_recovery(name):
             assert err < REL_TOL[name] * abs(TRUTH[n]), (n, res.params[n], TRUTH[n])
         else:
             assert err < 3.0 * res.stderr[n], (n, res.params[n], TRUTH[n], res.stderr[n])
+    if name == "prediction_error":  # calm water, white innovations: no second (disturbance-dominated) noise start
+        assert res.info["noise_start"] == "sensor" and not any(m.startswith("noise start") for m in res.messages)
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
