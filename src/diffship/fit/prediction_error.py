@@ -94,9 +94,9 @@ from ..models import AbstractModel
 from ..params import ParamSpec
 from . import disturbance as dist
 from . import status as st
+from .covariance import predictability
 from .driver import fit
 from .ekf import FilterPass, ekf
-from .covariance import predictability
 from .estimator import OnOutputError, Problem, Solved
 from .identifiability import per_scale_columns
 from .kernel import PENALTY, Kernel, KernelData, kernel_data
@@ -106,8 +106,8 @@ from .problem import make_batch
 from .result import FitResult
 from .weights import channel_spread, x0_scales
 
-__all__ = ["PredictionError", "PredictionErrorOptions", "disturbance_start", "PREDICTABLE", "PEKernel", "PEData", "FilterPass", "ekf", "fit_prediction_error",
-           "KINEMATIC_STATES"]
+__all__ = ["PredictionError", "PredictionErrorOptions", "disturbance_start", "PREDICTABLE", "SENSOR_SHARE", "PEKernel",
+           "PEData", "FilterPass", "ekf", "fit_prediction_error", "KINEMATIC_STATES"]
 
 #: Process-noise floor relative to its start (:math:`q_f`; module docstring).
 Q_FLOOR = 1e-3
