@@ -120,13 +120,13 @@ def main(argv=None) -> int:
     e = ev["held-out"]
     lines.append(f"| output error | {pm(oe, 'K')} | {pm(oe, 'T1')} | {pm(oe, 'delta0', deg)} | none | "
                  f"{e.rmse['r'] * deg:.3f} °/s, {e.fit_percent['r']:.1f} % | | |")
-    ahead_1, nll, fits = {}, {}, {}
+    ahead_1, nll = {}, {}
     for kind in ("ou", "wave"):
         pe = fit_prediction_error(Nomoto1(), [train], channels=ch, noise=PredictionErrorOptions(disturbance=kind),
                                   throw=False)
         evf = evaluate(pe.model, [val], channels=ch, fitted=pe.channels, scales=pe.channel_scales)
         a = {(s, d): ahead(pe, [val], s, d) for s in (None, 30.0) for d in (True, False)}
-        ahead_1[kind], nll[kind], fits[kind] = a[(None, True)].rmse["r"], neg_log_likelihood(pe, [train]), pe
+        ahead_1[kind], nll[kind] = a[(None, True)].rmse["r"], neg_log_likelihood(pe, [train])
         what = (f"OU τ {pe.info['disturbance_tau']:.3g} s" if kind == "ou" else
                 f"wave {pe.info['wave_period']:.3g} s, ζ {pe.info['wave_damping']:.2g}")
         what += f", sd {pe.info['process_sd']['r']:.3g}; sensor sd {pe.info['measurement_sd']['r'] * deg:.3g} °/s"

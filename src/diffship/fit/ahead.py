@@ -63,8 +63,13 @@ def ahead(result: FitResult, runs: Sequence[Run], seconds: float | None = 30.0,
     (module docstring), with or without the ``disturbance``'s own dynamics in the prediction."""
     if result.method != "prediction_error":
         raise ValueError(f"k-step-ahead prediction needs a prediction-error fit (its noise model), got {result.method}")
+    return _ahead(result, runs, _held_filter(result, runs, keep=True), seconds, disturbance)
+
+
+def _ahead(result: FitResult, runs: Sequence[Run], held, seconds: float | None, disturbance: bool) -> Evaluation:
+    """:func:`ahead` from the fit's filter over ``runs`` (``held``: :func:`_held_filter`, states kept)."""
     model = result.model
-    kernel, data, batch, fp = _held_filter(result, runs, keep=True)
+    kernel, data, batch, fp = held
     f, h, *_ = kernel.system(jnp.zeros(0), data)
     dt = float(np.median(np.concatenate([np.diff(r.time) for r in runs])))
     H = 1 if seconds is None else max(1, int(round(seconds / dt)))
@@ -110,7 +115,12 @@ def neg_log_likelihood(result: FitResult, runs: Sequence[Run]) -> float:
     :math:`\varepsilon` part, about ``N/2`` for any consistent noise level)."""
     if result.method != "prediction_error":
         raise ValueError(f"the filter's likelihood needs a prediction-error fit (its noise model), got {result.method}")
-    _, _, batch, fp = _held_filter(result, runs)
+    return _nll(_held_filter(result, runs))
+
+
+def _nll(held) -> float:
+    """:func:`neg_log_likelihood` from the fit's filter over the runs (``held``: :func:`_held_filter`)."""
+    _, _, batch, fp = held
     mask = np.asarray(batch.mask, dtype=bool)
     eps, logdet = np.asarray(fp.eps)[mask], np.asarray(fp.logdet)[mask]
     n_c = eps.shape[-1]
@@ -122,20 +132,23 @@ def ahead_table(result: FitResult, train: Sequence[Run], val: Sequence[Run] = ()
     """The one-sample and ``seconds``-ahead predictions with and without the disturbance, on the training and the
     held-out runs: ``(text, json, evaluations)`` (``evaluations["val"]``/``["train"]``: the ``seconds``-ahead ones
     with the disturbance, the verdict's)."""
-    rows, doc, evs = [], {}, {}
+    if result.method != "prediction_error":
+        raise ValueError(f"k-step-ahead prediction needs a prediction-error fit (its noise model), got {result.method}")
+    rows, doc, evs, nll = [], {}, {}, {}
     for label, runs in (("held-out", val), ("training", train)):
         if not runs:
             continue
+        held = _held_filter(result, runs, keep=True)  # one filter pass per set of runs, shared by every row
+        nll[label] = _nll(held)
         for s in (None, seconds):
             for d in (True, False):
-                ev = ahead(result, runs, s, d)
+                ev = _ahead(result, runs, held, s, d)
                 key = f"{label} {'1 sample' if s is None else f'{s:g} s'} {'with' if d else 'without'} disturbance"
                 doc[key] = {"rmse": ev.rmse, "fit_percent": ev.fit_percent}
                 rows.append(f"  {key:<44}" + "".join(f"{c} {ev.rmse[c]:.4g} ({ev.fit_percent[c]:.0f} %)  "
                                                       for c in ev.channels))
                 if s is not None and d:
                     evs["val" if label == "held-out" else "train"] = ev
-    nll = {label: neg_log_likelihood(result, runs) for label, runs in (("held-out", val), ("training", train)) if runs}
     doc["neg_log_likelihood_per_sample"] = nll
     rows.append("  negative log-likelihood per sample (the filter's innovations): "
                 + ", ".join(f"{label} {v:.4g}" for label, v in nll.items()))
