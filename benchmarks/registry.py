@@ -42,6 +42,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
                               "independent NumPy generator (74 scenarios)"),
     "withheld_effects": ("benchmarks.withheld_effects", "the diagnosis on data whose effect the model lacks"),
     "withheld_real": ("benchmarks.withheld_real", "the diagnosis on real KVLCC2 logs with injected effects"),
+    "drift_truth": ("benchmarks.drift_truth", "real KVLCC2 logs with an injected drift: the true current against a "
+                    "force fixed to the hull, by the fit's likelihood"),
     "wave_family": ("benchmarks.wave_family", "the wave effect on the generator's wave scenarios"),
     "wave_false_periods": ("benchmarks.wave_false_periods", "does a wave candidate appear without waves (prints)"),
     "discover": ("benchmarks.discover", "structure discovery on a USV with withheld terms"),
