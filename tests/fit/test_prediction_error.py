@@ -164,10 +164,16 @@ def test_cli_prediction_error(tmp_path, capsys):
         run.to_dataframe().to_csv(p, index=False)
         paths.append(str(p))
     assert main([*paths, "--model", "nomoto1", "--method", "prediction-error", "--init", "K=0.1", "T1=12",
-                 "--quiet", "--json", str(tmp_path / "pe.json")]) == 0
+                 "--disturbance", "auto", "--quiet", "--json", str(tmp_path / "pe.json")]) == 0
     text = capsys.readouterr().out
     assert "prediction error" in text and "estimated noise: measurement sd psi" in text
-    assert (tmp_path / "pe.json").exists()
+    # --disturbance auto: both processes fitted, the likelihood's choice said in the report and the JSON
+    assert "chosen by the Akaike criterion of the filter's likelihood" in text
+    import json
+
+    doc = json.loads((tmp_path / "pe.json").read_text())
+    choice = doc["methods"]["prediction_error"]["disturbance_choice"]
+    assert set(choice) == {"ou", "wave"} and all(math.isfinite(v["aic"]) for v in choice.values())
 
 
 def test_cli_equation_error_with_the_kalman_smoother(tmp_path, capsys):

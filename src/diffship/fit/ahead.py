@@ -22,7 +22,8 @@ the verdicts of :mod:`diffship.usability` apply to it unchanged.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -34,7 +35,7 @@ from .output_error import OutputErrorOptions
 from .prediction_error import PredictionErrorOptions, pe_problem
 from .result import FitResult
 
-__all__ = ["ahead", "ahead_table", "neg_log_likelihood"]
+__all__ = ["ahead", "ahead_table", "choose_disturbance", "neg_log_likelihood"]
 
 
 def _noise(result: FitResult) -> PredictionErrorOptions:
@@ -116,6 +117,37 @@ def neg_log_likelihood(result: FitResult, runs: Sequence[Run]) -> float:
     if result.method != "prediction_error":
         raise ValueError(f"the filter's likelihood needs a prediction-error fit (its noise model), got {result.method}")
     return _nll(_held_filter(result, runs))
+
+
+def choose_disturbance(fits: Mapping[str, FitResult], runs: Sequence[Run]) -> FitResult:
+    r"""Of prediction-error fits of one model with different disturbance processes (``{"ou": fit, "wave": fit}``),
+    the one of lowest Akaike criterion on the training ``runs``,
+
+    .. math:: \mathrm{AIC} = 2N\bar\ell + 2k,
+
+    with :math:`N\bar\ell` the filter's negative log-likelihood (:func:`neg_log_likelihood`, log-determinants
+    included: the fits' ``cost`` cannot compare noise models) and :math:`k` the free coefficients plus the noise
+    parameters (a level per channel and per disturbed state, and the process's own: τ for ``ou``; period and
+    damping for ``wave``). A fit that is not usable is chosen only where none is. The chosen fit says in its
+    messages and ``info["disturbance_choice"]`` what it was chosen against and by how much (Akaike 1974)."""
+    if not fits:
+        raise ValueError("choose_disturbance needs at least one fit")
+    own = {"ou": 1, "wave": 2, "walk": 0, "white": 0}
+    score = {}
+    for kind, res in fits.items():
+        n = int(np.sum(np.asarray(_held_filter(res, runs)[2].mask, dtype=bool)))
+        k = len(res.free) + len(res.info.get("measurement_sd", {})) + len(res.info.get("process_sd", {})) + own.get(kind, 0)
+        nll = neg_log_likelihood(res, runs)
+        score[kind] = (not res.usable, 2 * n * nll + 2 * k, nll)
+    best = min(score, key=lambda kd: score[kd][:2])
+    others = "; ".join(f"{kd} {score[kd][1] - score[best][1]:+.1f} (−log L {score[kd][2]:.4f} per sample"
+                       + (", not usable" if score[kd][0] else "") + ")" for kd in score if kd != best)
+    line = (f"disturbance: {best}, chosen by the Akaike criterion of the filter's likelihood on the training runs "
+            f"(−log L {score[best][2]:.4f} per sample; against it: {others})")
+    res = fits[best]
+    return dataclasses.replace(res, messages=(*res.messages, line), info={
+        **res.info, "disturbance_choice": {kd: {"aic": v[1], "neg_log_likelihood_per_sample": v[2], "usable": not v[0]}
+                                           for kd, v in score.items()}})
 
 
 def _nll(held) -> float:

@@ -83,9 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shooting", default="single", metavar="single|multiple[:SEGMENT_S]",
                    help="output error by single shooting (default) or multiple shooting with segments of SEGMENT_S "
                         "seconds (default 20), finished by single shooting")
-    p.add_argument("--disturbance", default="ou", choices=("ou", "wave", "walk", "white"),
+    p.add_argument("--disturbance", default="ou", choices=("ou", "wave", "walk", "white", "auto"),
                    help="prediction-error process noise: Ornstein–Uhlenbeck disturbance (default), a narrow-band wave "
-                        "(period and damping estimated: at sea), a random walk, or white")
+                        "(period and damping estimated: at sea), a random walk, white, or auto (fit ou and wave, keep "
+                        "the lower Akaike criterion of the filter's likelihood; twice the time)")
     return p
 
 

@@ -171,9 +171,13 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
         out["output_error"] = fit_multiple_shooting(model, train, spec=spec, starts=starts, channels=args.channels,
                                                     options=opts, shooting=shooting, progress=say)
     if args.method == "prediction-error":
-        out["prediction_error"] = fit_prediction_error(
-            model, train, spec=spec, starts=starts, channels=args.channels, options=opts,
-            noise=PredictionErrorOptions(disturbance=args.disturbance), progress=say)
+        kinds = ("ou", "wave") if args.disturbance == "auto" else (args.disturbance,)  # auto: the likelihood chooses
+        fits = {k: fit_prediction_error(model, train, spec=spec, starts=starts, channels=args.channels, options=opts,
+                                        noise=PredictionErrorOptions(disturbance=k), progress=say) for k in kinds}
+        if len(fits) > 1:
+            from .ahead import choose_disturbance
+            say((chosen := choose_disturbance(fits, train)).messages[-1])
+        out["prediction_error"] = chosen if len(fits) > 1 else fits[kinds[0]]
     return out
 
 
@@ -189,7 +193,8 @@ def _filters(args):
     initial states and metrics then use the default Butterworth)."""
     if args.filter == "kalman":
         return Filter(), KalmanSmoother(channels=tuple(args.channels) if args.channels else None,
-                                        noise=PredictionErrorOptions(disturbance=args.disturbance),
+                                        noise=PredictionErrorOptions(
+                                            disturbance="ou" if args.disturbance == "auto" else args.disturbance),
                                         options=OutputErrorOptions(integrator=get_integrator(args.solver, hold=args.input_hold)))
     return Filter.parse(args.filter), None
 
