@@ -47,7 +47,8 @@ def _runs(seed: int, case: str):
 
 def one(seed: int, case: str) -> list[dict]:
     from diffship.diagnose import DiagnoseOptions, diagnose
-    from diffship.fit import fit_output_error, fit_prediction_error
+    from diffship.fit import PredictionErrorOptions, fit_output_error, fit_prediction_error
+    from diffship.fit.ahead import choose_disturbance
     from diffship.fit.feedback import loop_evidence
     from diffship.metrics import evaluate
     from diffship.models import Nomoto1
@@ -72,7 +73,15 @@ def one(seed: int, case: str) -> list[dict]:
         closed_loop=loop["closed"], loop_r2=max(t["partial_r2"] for t in loop["tests"]))
     t0 = time.perf_counter()
     pe = fit_prediction_error(Nomoto1(), train, channels=ch, throw=False)
-    row("prediction error (ou)", pe.params, pe.stderr, time.perf_counter() - t0, pe.status, usable=bool(pe.usable))
+    t_ou = time.perf_counter() - t0
+    row("prediction error (ou)", pe.params, pe.stderr, t_ou, pe.status, usable=bool(pe.usable))
+    t0 = time.perf_counter()  # --disturbance auto: the wave fitted too, the lower Akaike criterion kept
+    pw = fit_prediction_error(Nomoto1(), train, channels=ch, noise=PredictionErrorOptions(disturbance="wave"),
+                              throw=False)
+    pa = choose_disturbance({"ou": pe, "wave": pw}, train)
+    aic = {k: v["aic"] for k, v in pa.info["disturbance_choice"].items()}
+    row("prediction error (auto: ou or wave by AIC)", pa.params, pa.stderr, t_ou + time.perf_counter() - t0,
+        pa.status, usable=bool(pa.usable), chosen=pa.info["disturbance"], aic_ou_minus_wave=aic["ou"] - aic["wave"])
     t0 = time.perf_counter()
     d = diagnose(Nomoto1(), train, val, options=DiagnoseOptions(channels=ch, sea_state="always"))
     s = d.sea_state

@@ -112,8 +112,8 @@ def write(rows, a, vc) -> None:
     best = min(rows, key=lambda r: r["rmse"]["psi"])["fit"]
     L += ["", f"Reading ({n} fits): held out, the model with the true current "
           + ("predicts best" if best == true["fit"] else f"does not predict best ({best} does)") + " — heading "
-          f"{math.degrees(true['rmse']['psi']):.2f}° against {math.degrees(cf['rmse']['psi']):.2f}° with the constant "
-          f"force and {math.degrees(free['rmse']['psi']):.2f}° with the current estimated; track east "
+          f"{math.degrees(true['rmse']['psi']):.2f}° against {math.degrees(cf['rmse']['psi']):.2f}° with the "
+          f"constant force and {math.degrees(free['rmse']['psi']):.2f}° with the current estimated; track east "
           f"{true['rmse']['y0']:.2f} m against {cf['rmse']['y0']:.2f} and {free['rmse']['y0']:.2f} m. On the training "
           f"runs the constant force fits better than the current by {free['nll'] - cf['nll']:.3f} in −log L per "
           f"sample, and the current's likelihood barely moves between its estimate (Vcx "

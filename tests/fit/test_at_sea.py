@@ -105,7 +105,8 @@ def test_the_likelihood_chooses_the_wave_over_an_ou_disturbance_in_waves(sea):
     assert chosen.info["disturbance"] == "wave"
     aic = {k: v["aic"] for k, v in chosen.info["disturbance_choice"].items()}
     assert aic["ou"] - aic["wave"] > 10  # decisive, not a coin toss
-    assert chosen.messages[-1].startswith("disturbance: wave, chosen by the Akaike criterion") and "ou +" in chosen.messages[-1]
+    line = chosen.messages[-1]
+    assert line.startswith("disturbance: wave, chosen by the Akaike criterion") and "ou +" in line
     assert abs(chosen.params["T1"] - tv["T1"]) < 3 * chosen.stderr["T1"]
     assert chosen.params == s.fit.params  # the chosen fit itself, with the choice added
 

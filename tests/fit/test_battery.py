@@ -180,12 +180,25 @@ def test_priors_honoured(name):
     assert res.info["prior_source"].startswith("test") or "test" in res.info["prior_note"]
 
 
+def _capped(est, steps: int):
+    """``est`` with its Levenberg–Marquardt steps capped at ``steps`` (where it iterates)."""
+    if hasattr(est, "max_steps"):
+        return dataclasses.replace(est, max_steps=steps)
+    if hasattr(est, "oe"):
+        return dataclasses.replace(est, oe=_capped(est.oe, steps))
+    return est
+
+
 @pytest.mark.parametrize("name", ESTIMATORS)
 def test_bounds_honoured(name):
-    """T2 bounded above below its true value: the estimate stays inside the bound."""
-    spec = _spec().with_bounds("T2", upper=0.8)
-    res = _fit(name, dict(K=0.14, T1=5.6, T2=0.5, delta0=0.0), spec=spec)
-    assert 0.0 < res.params["T2"] < 0.8
+    """T2 bounded above below its true value: the estimate stays inside the bound. The optimum then lies on the
+    bound, at infinity in the fit's unconstrained coordinates (``θ = b − s·exp(z)``), which Levenberg–Marquardt
+    approaches step by step (measured: prediction error 180–200 steps per start); every iterate is inside, so 40
+    steps test the bound as well as 200."""
+    spec = _spec().with_bounds("T2", upper=0.8).with_values(dict(K=0.14, T1=5.6, T2=0.5, delta0=0.0))
+    res = fit(Nomoto2(), RUNS, _capped(ESTIMATORS[name](), 40), spec=spec, n_starts=1, throw=False)
+    assert 0.0 < res.params["T2"] < 0.8, res.status
+    assert res.params["T2"] > 0.7  # pressed against the bound, not stuck at its start
     assert res.params["T1"] > 0.0
 
 

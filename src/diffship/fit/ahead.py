@@ -136,7 +136,8 @@ def choose_disturbance(fits: Mapping[str, FitResult], runs: Sequence[Run]) -> Fi
     score = {}
     for kind, res in fits.items():
         n = int(np.sum(np.asarray(_held_filter(res, runs)[2].mask, dtype=bool)))
-        k = len(res.free) + len(res.info.get("measurement_sd", {})) + len(res.info.get("process_sd", {})) + own.get(kind, 0)
+        info = res.info
+        k = len(res.free) + len(info.get("measurement_sd", {})) + len(info.get("process_sd", {})) + own.get(kind, 0)
         nll = neg_log_likelihood(res, runs)
         score[kind] = (not res.usable, 2 * n * nll + 2 * k, nll)
     best = min(score, key=lambda kd: score[kd][:2])
