@@ -40,6 +40,8 @@ from diffship.metrics import evaluate
 from diffship.models import get_model
 from diffship.models.effects import augment
 
+from benchmarks.common.injections import inject_current
+
 OUT = Path(__file__).resolve().parent / "results"
 TRAIN = ("Z_10_05", "Z_20_05", "Z_35_05", "Z_20_10_S")
 VALIDATE = ("Z_10_10_P", "Z_20_10_P", "Z_15_05")
@@ -65,8 +67,6 @@ def main(argv=None) -> int:
     if a.write_only:
         write(json.loads((OUT / "drift_truth.json").read_text()), a, vc)
         return 0
-    from benchmarks.withheld_real import inject_current
-
     runs = {r.metadata["test"]: r for r in kvlcc2_runs()}
     prep = {k: r.resample(a.dt).slice(None, r.t0 + a.horizon) for k, r in runs.items()}
     train = [inject_current(prep[k], *vc) for k in TRAIN]

@@ -97,6 +97,8 @@ from diffship.data import Run, kvlcc2_runs
 from diffship.diagnose import DiagnoseOptions, diagnose
 from diffship.models import get_model
 
+from benchmarks.common.injections import inject_current
+
 TRAIN = ("Z_10_05", "Z_20_05", "Z_35_05", "Z_20_10_S")
 VALIDATE = ("Z_10_10_P", "Z_20_10_P", "Z_15_05")
 OUT = Path(__file__).resolve().parent / "results"
@@ -156,24 +158,6 @@ def inject(run: Run, scenario: str) -> Run:
     elif kind == "current":
         return inject_current(run, *injected_vector(scenario), label=scenario)
     return Run(run.name, t, ch, {**run.metadata, "injected": scenario})
-
-
-def inject_current(run: Run, vx: float, vy: float, label: str = "water_drift") -> Run:
-    """``run`` in basin water moving at ``(vx, vy)`` m/s (NED) from its first sample: positions + v_c·t,
-    over-ground u, v + Rᵀ(ψ) v_c (exact: a uniform current leaves the hydrodynamics in the water frame
-    unchanged); a new Run."""
-    t = np.asarray(run.time, dtype=float)
-    ch = {c: np.asarray(run[c], dtype=float).copy() for c in run.channels}
-    tt = t - t[0]
-    ch["x0"] = ch["x0"] + vx * tt
-    ch["y0"] = ch["y0"] + vy * tt
-    psi = ch["psi"]
-    ch["u"] = ch["u"] + np.cos(psi) * vx + np.sin(psi) * vy
-    ch["v"] = ch["v"] - np.sin(psi) * vx + np.cos(psi) * vy
-    for c, v in (("x0dot", vx), ("y0dot", vy)):
-        if c in ch:
-            ch[c] = ch[c] + v
-    return Run(run.name, t, ch, {**run.metadata, "injected": label})
 
 
 def estimates(d, model_params) -> dict:

@@ -6,6 +6,7 @@
   dynamics, STLSQ/SINDy);
 * :mod:`.casadi_peer` — diffship's Fossen 3-DOF output-error problem written with CasADi (a standalone
   script too: the timing benchmarks run it as a process);
+* :mod:`.injections` — effects injected exactly into measured runs (a uniform water drift);
 * :mod:`.timing` — machine load, medians, timed processes, the git commit and the environment line of
   a report, the time-bounded scipy peer.
 """
