@@ -21,7 +21,7 @@ Judged by the Gaussian log-likelihood of the training residuals at each fit's ow
 rows: the same data and channels), and by the held-out runs' RMS errors (free simulation from initial states estimated
 by the one initial-state rule, :func:`diffship.metrics.evaluate`), the three zigzags the diagnosis validates on.
 
-Usage: ``python -m benchmarks drift_truth [--drift 0.05]`` (needs ``../shared/data``; ~5 min on 2 cores).
+Usage: ``python -m benchmarks drift_truth [--drift 0.05]`` (needs ``../shared/data``; about 3 min on 2 cores).
 """
 
 from __future__ import annotations
@@ -41,11 +41,9 @@ from diffship.models import get_model
 from diffship.models.effects import augment
 
 from benchmarks.common.injections import inject_current
+from benchmarks.withheld_real import DRIFT_DIR, TRAIN, VALIDATE  # the same runs and drift direction
 
 OUT = Path(__file__).resolve().parent / "results"
-TRAIN = ("Z_10_05", "Z_20_05", "Z_35_05", "Z_20_10_S")
-VALIDATE = ("Z_10_10_P", "Z_20_10_P", "Z_15_05")
-DRIFT_DIR = 0.8  # rad, as withheld_real
 CHANNELS = ("x0", "y0", "psi", "u", "v", "r")
 
 

@@ -21,8 +21,8 @@ the verdicts of :mod:`diffship.usability` apply to it unchanged.
 
 from __future__ import annotations
 
-import math
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 
 import jax
@@ -31,6 +31,7 @@ import numpy as np
 
 from ..data import Run
 from ..metrics import Evaluation, compare
+from . import disturbance as dist
 from .output_error import OutputErrorOptions
 from .prediction_error import PredictionErrorOptions, pe_problem
 from .result import FitResult
@@ -132,13 +133,14 @@ def choose_disturbance(fits: Mapping[str, FitResult], runs: Sequence[Run]) -> Fi
     messages and ``info["disturbance_choice"]`` what it was chosen against and by how much (Akaike 1974)."""
     if not fits:
         raise ValueError("choose_disturbance needs at least one fit")
-    own = {"ou": 1, "wave": 2, "walk": 0, "white": 0}
     score = {}
     for kind, res in fits.items():
-        n = int(np.sum(np.asarray(_held_filter(res, runs)[2].mask, dtype=bool)))
+        if res.method != "prediction_error":
+            raise ValueError(f"choosing a disturbance needs prediction-error fits, got {res.method} for {kind}")
+        held = _held_filter(res, runs)  # one filter pass: the sample count and the likelihood
+        n, nll = int(np.sum(np.asarray(held[2].mask, dtype=bool))), _nll(held)
         info = res.info
-        k = len(res.free) + len(info.get("measurement_sd", {})) + len(info.get("process_sd", {})) + own.get(kind, 0)
-        nll = neg_log_likelihood(res, runs)
+        k = len(res.free) + len(info.get("measurement_sd", {})) + len(info.get("process_sd", {})) + dist.n_hyper(kind)
         score[kind] = (not res.usable, 2 * n * nll + 2 * k, nll)
     best = min(score, key=lambda kd: score[kd][:2])
     others = "; ".join(f"{kd} {score[kd][1] - score[best][1]:+.1f} (−log L {score[kd][2]:.4f} per sample"

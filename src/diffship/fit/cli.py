@@ -174,10 +174,11 @@ def _sea_estimators(args, model, train, spec, init, flt, options, shooting, resu
         kinds = ("ou", "wave") if args.disturbance == "auto" else (args.disturbance,)  # auto: the likelihood chooses
         fits = {k: fit_prediction_error(model, train, spec=spec, starts=starts, channels=args.channels, options=opts,
                                         noise=PredictionErrorOptions(disturbance=k), progress=say) for k in kinds}
+        out["prediction_error"] = fits[kinds[0]]
         if len(fits) > 1:
             from .ahead import choose_disturbance
-            say((chosen := choose_disturbance(fits, train)).messages[-1])
-        out["prediction_error"] = chosen if len(fits) > 1 else fits[kinds[0]]
+            out["prediction_error"] = choose_disturbance(fits, train)
+            say(out["prediction_error"].messages[-1])
     return out
 
 
