@@ -115,6 +115,7 @@ def test_every_bad_input_is_one_clear_line(tmp_path, capsys):
         assert re.search(pattern, err), (label, pattern, err)
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_model_that_diverges_from_every_start(tmp_path, capsys):
     from diffship.synthetic import usv_runs
 
@@ -142,6 +143,7 @@ def test_subprocess_exit_code_and_no_traceback(tmp_path):
 SSPA = str(ROOT / "src" / "diffship" / "examples" / "sspa_zigzag.csv")
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_fit_then_validate_same_file_agree(tmp_path, capsys):
     """Fitting a file and validating on the same file: the fit percentages agree within 1 point
     (before: 98.2 % training vs 81.7 % validation on the SSPA zigzag, different initial states)."""

@@ -187,7 +187,7 @@ def test_diagnose_corrects_the_logs_when_asked():
     from diffship.models import Nomoto1
 
     zz = _nomoto_runs(0.8, n=4)
-    o = DiagnoseOptions(correct_data=True, effects=("input_delay", "actuator_lag"))
+    o = DiagnoseOptions(correct_data=True, effects=("input_delay",))
     d = diagnose(Nomoto1(), zz[:3], zz[3:], options=o)
     assert d.in_data["rudder_timing"].found and any("corrected" in n for n in d.notes)
     assert d.E_before < d.gate.value and not d.selected  # nothing left for the model search

@@ -40,6 +40,7 @@ def test_truths_use_symmetric_library_names_and_one_null():
     assert {"X_v_r", "Y_v_v_r", "N_v_r_r", "N_r_r_r"} <= every
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_every_term_moves_the_held_out_heading_by_several_noise_levels():
     """The weakest truth (the Coriolis-carried monomials): removing any one term changes the noise-free
     held-out heading by at least 3× the heading noise (0.5°) in RMS on some held-out run."""

@@ -46,6 +46,7 @@ def test_a_stand_in_is_swapped_for_the_true_term(usv_nv_ar):
     assert abs(out.values["N_v_ar"] - 3000.0) < 0.2 * 3000.0, out.values
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_a_full_structure_exchanges_a_stand_in_of_another_equation(usv_nv_ar):
     """With one term allowed and a sway term in (Y_v_r_r, the wrong equation), no addition is possible and no swap
     within the sway equation reaches the yaw term: the exchange across equations takes N_v_ar in place of it."""
@@ -56,6 +57,7 @@ def test_a_full_structure_exchanges_a_stand_in_of_another_equation(usv_nv_ar):
     assert abs(out.values["N_v_ar"] - 3000.0) < 0.2 * 3000.0, out.values
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_a_move_short_of_the_margin_is_kept_only_with_the_next(usv_nv_ar):
     """With a margin no pair of moves can reach, the best move (the true term in) is taken only tentatively: the
     round after it finds no move that brings the two to the margin, and the polish goes back to its start."""

@@ -82,6 +82,7 @@ def _stuck_rudder_runs(d):
     return paths
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_the_fit_command_refits_a_fit_that_is_not_usable_with_the_option_its_report_names(tmp_path, capsys):
     """A training run the model follows only up to a time: the first fit is not usable; the command refits the
     part it follows (``--horizon``) and says so on the screen, in the report and the JSON; ``--as-given``

@@ -73,6 +73,7 @@ def test_a_warm_up_horizon_scores_the_same_samples_as_the_sliced_runs():
     np.testing.assert_allclose(full, np.asarray(kernel.residuals(z, data)), rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_a_traced_step_cap_gives_the_static_caps_solves_and_the_start_jacobian():
     """``KernelData.step_cap``: one compiled solve runs any number of steps under its static cap —
     k steps equal a solve compiled with ``max_steps=k`` — and a cap of 1 returns the start itself

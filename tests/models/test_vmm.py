@@ -123,6 +123,7 @@ def _cli(args, cwd):
                           env=env, timeout=900)
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_cli_equation_error_vmm_linear(tmp_path, capsys):
     """``python -m diffship.fit RUN.csv ... --model vmm_linear`` (its entry point ``fit_main``, in-process
     to save the interpreter start; the slow test below runs the real subprocess)."""

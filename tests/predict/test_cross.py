@@ -212,6 +212,7 @@ def test_vmapped_draws_reproduce_the_manoeuvre_builders():
         assert runs[2] is None
 
 
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_a_zigzag_flown_again_by_the_true_model_reproduces_its_overshoots():
     """The replay of a held-out zigzag (closed loop, the measured switch delay) by the model that made it gives
     its measured overshoots, also at a coarse sampling: the measured delay already holds the record's sampling
