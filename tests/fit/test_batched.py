@@ -226,3 +226,37 @@ def test_stall_rule_stops_a_crawl_early_and_leaves_converging_problems_alone(y):
     assert ok.sum() >= 3
     assert np.all(st["status"][ok] == CODES["successful"]) and np.array_equal(st["steps"][ok], full["steps"][ok])
     np.testing.assert_allclose(st["z"][ok], full["z"][ok], atol=1e-12)
+
+
+def _bounded_residuals(z, y):
+    """One decaying exponential whose amplitude is bounded above by 0.8 (``a = 0.8 − e^{z₀}``, the
+    parameter space's upper-bound map) and rate ``z₁``, against data of amplitude 1: the optimum is on the
+    bound."""
+    return ((0.8 - jnp.exp(z[0])) * jnp.exp(-z[1] * T) - y) / SIGMA
+
+
+def test_a_parameter_on_its_bound_stops_the_solve_where_the_others_have_converged():
+    """On its bound a parameter's optimum is at z = −∞ and the Gauss–Newton step in z keeps its length: plain
+    Levenberg–Marquardt crawls there until the cost stalls. With the bounds' kinds (``bounded``) the solve
+    stops as converged once the amplitude is within ``gntol`` standard errors of its bound and the rate's step
+    is short; the rate is then the constrained optimum (the amplitude held on the bound) within 0.05 of its
+    standard error."""
+    rng = np.random.default_rng(1)
+    y = jnp.asarray(np.exp(-0.3 * T) + SIGMA * rng.normal(size=T.size))
+    z0 = np.array([[math.log(0.5), 0.2]])
+
+    def run(**kw):
+        s = jax.jit(lambda z, d, f: lm_start(_bounded_residuals, z, d, f, **TOL, **kw))
+        a = jax.jit(lambda st, d, k: lm_advance(_bounded_residuals, st, d, k, **TOL, **kw))
+        return solve_batch(s, a, z0, y, np.ones(z0.shape, bool), per_problem_data=False, repack=False)
+    crawl, stop = run(), run(bounded=(2, 0))
+    assert stop["status"][0] == CODES["successful"]
+    assert stop["steps"][0] < crawl["steps"][0] / 2, (stop["steps"], crawl["steps"])
+    # the constrained optimum: the rate alone with the amplitude on its bound (a linear-in-nothing 1-D fit)
+    fixed = optx.least_squares(lambda k, yy: (0.8 * jnp.exp(-k * T) - yy) / SIGMA,
+                               optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12), jnp.asarray(0.2), args=y).value
+    J = jax.jacfwd(lambda k: 0.8 * jnp.exp(-k * T) / SIGMA)(fixed)
+    se = math.sqrt(float(2 * 0.5 * jnp.sum(((0.8 * jnp.exp(-fixed * T) - y) / SIGMA) ** 2) / (T.size - 1))
+                   / float(J @ J))
+    assert abs(stop["z"][0, 1] - float(fixed)) < 0.05 * se
+    assert 0.0 < math.exp(stop["z"][0, 0]) < 1e-3  # the amplitude inside its bound, on it to 0.1 % of its value

@@ -318,7 +318,8 @@ class Kernel(eqx.Module):
         return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol),
                     keep_jacobian=bool(jacobian), gntol=float(gntol),
                     variance=None if variance is None else float(variance), gn_params=k,
-                    stall_steps=int(stall_steps), stall_rtol=float(stall_rtol))
+                    stall_steps=int(stall_steps), stall_rtol=float(stall_rtol),
+                    bounded=tuple(int(p.kind) for p in self.spec.params if p.free))
 
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
               ftol: float = 1e-9, jacobian: bool = False, gntol: float = 0.05, variance: float | None = None,
