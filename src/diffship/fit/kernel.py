@@ -315,9 +315,8 @@ class Kernel(eqx.Module):
                    stall_steps: int = 0, stall_rtol: float = 0.0) -> dict:
         """The batched LM's static options from :meth:`solve`'s keywords."""
         k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
-        return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol),
-                    keep_jacobian=bool(jacobian), gntol=float(gntol),
-                    variance=None if variance is None else float(variance), gn_params=k,
+        return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol), gn_params=k,
+                    keep_jacobian=bool(jacobian), gntol=float(gntol), variance=None if variance is None else float(variance),
                     stall_steps=int(stall_steps), stall_rtol=float(stall_rtol),
                     bounded=tuple(int(p.kind) for p in self.spec.params if p.free))
 
