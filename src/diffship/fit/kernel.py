@@ -412,21 +412,21 @@ class Kernel(eqx.Module):
         if data.step_cap is not None:  # the data's step cap (a warm-up round), as :meth:`solve` honours it
             static["max_steps"] = min(static["max_steps"], int(np.min(np.asarray(data.step_cap))))
         free = np.ones(z0s.shape, bool) if free is None else free
-
         def start(z, d, f):
             args = (jnp.asarray(z), d, jnp.asarray(f))
             fn, _ = _compiled(self, "batch_start", args, **static)
             return fn(*args)
-
         def advance(st, d, stop):
             args = (st, d, jnp.asarray(stop))
             fn, _ = _compiled(self, "batch_advance", args, **static)
             return fn(*args)
         if method == "threads":  # free masks: the B = 1 batched programs, one problem per call
             def one(b):
-                d = jax.tree_util.tree_map(lambda a: a[b:b + 1], data) if per_problem else data
-                return solve_batch(start, advance, z0s[b:b + 1], d, free[b:b + 1], per_problem_data=per_problem,
-                                   repack=False)
+                d, t0 = jax.tree_util.tree_map(lambda a: a[b:b + 1], data) if per_problem else data, time.perf_counter()
+                st = solve_batch(start, advance, z0s[b:b + 1], d, free[b:b + 1], per_problem_data=per_problem,
+                                 repack=False)
+                done(b, int(st["steps"][0]), 0.5 * float(np.sum(np.square(st["r"][0]))), time.perf_counter() - t0)
+                return st
             parts = _pool(one, range(z0s.shape[0]), workers)
             st = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
         else:

@@ -374,24 +374,22 @@ class PredictionError(OnOutputError):
         if np.any(p_w):
             data = data.replace(prior_mean=jnp.asarray(p_mean), prior_w=jnp.asarray(p_w))
         n_p, n_noise = len(spec.free_names), kernel.n_noise
-        # The plain step/cost stopping tests, without the Gauss–Newton-step check of output error (gntol):
-        # the noise unknowns have flat, non-quadratic directions where the data carry no disturbance (the
-        # time constant; a process-noise level on its floor) and the Gauss–Newton step along them is
-        # spurious. Measured on the calm-water Nomoto test (tests/fit/test_prediction_error.py): at the
-        # optimum the step predicts a 0.36-standard-error move of K, T1, δ0, while 178 further LM steps
-        # moved them by less than 1e-4 standard errors; the check would hold every such fit to max_steps.
-        lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf"))
+        # The plain step/cost stopping tests, without output error's Gauss–Newton-step check (gntol): the noise
+        # unknowns have flat, non-quadratic directions where the data carry no disturbance (the time constant; a
+        # process-noise level on its floor), along which that step is spurious. On the calm-water Nomoto test
+        # (tests/fit/test_prediction_error.py) it predicted a 0.36-standard-error move of K, T1, δ0 at the optimum,
+        # where 178 further LM steps moved them by under 1e-4 standard errors. The solve keeps its last Jacobian
+        # (the covariance's, :meth:`finish`): no Jacobian program, which compiles as long as the solve.
+        lm = dict(max_steps=o.max_steps, rtol=o.rtol, atol=o.atol, gntol=float("inf"), jacobian=True)
         say(f"prediction error: compiling the Kalman-filter fit of {model.name} ({n_p} parameters, {n_noise} noise "
             f"levels, {len(runs)} runs, {o.integrator.describe()})...")
-        z_shape = np.ones(n_p + n_noise)
-        (res_fn, jac_fn), compile_s = kernel.compiled_many([("residuals", z_shape, data, {}),
-                                                             ("jacobian", z_shape, data, {})])
+        res_fn, compile_s = kernel.compiled("residuals", np.ones(n_p + n_noise), data)
         names = tuple([*(f"process noise on {s_}" for s_ in pstates),
                        *(f"measurement noise on {ch}" for ch in batch.channels),
                        *(dist.LABEL[h] for h in dist.HYPER[po.disturbance])][:n_noise])
         return Problem(model=model, spec=spec, runs=tuple(runs), channels=batch.channels, n_nuisance=n_noise,
                        nuisance_names=names, priors=priors, compile_seconds=compile_s,
-                       state=dict(kernel=kernel, data=data, batch=batch, pstates=pstates, res_fn=res_fn, jac_fn=jac_fn,
+                       state=dict(kernel=kernel, data=data, batch=batch, pstates=pstates, res_fn=res_fn,
                                   lm=lm, n_eps=int(np.prod(data.ys.shape)), nuisance0=np.ones(n_noise),
                                   noise_alt=disturbance_start(model, kernel, data, batch, po),
                                   integrator=o.integrator, n_rows=batch.n_residuals))
@@ -405,20 +403,20 @@ class PredictionError(OnOutputError):
     def _solves(self, problem, z0s, say, label="prediction error", data=None):
         """Solve from each start; the wave's period and damping held at their starts first (narrow band first:
         released while the dynamics and noise levels are still poor, a wave broadens into a white-like disturbance
-        that the steering's response then hides in; measured on an autopilot in waves)."""
+        that the steering's response then hides in; measured on an autopilot in waves). Every solve runs the
+        batched LM's programs with a mask of free unknowns, so that the held and the free solve share one compiled
+        program (:meth:`~diffship.fit.kernel.Kernel.solve_many`). ``(z, cost, steps, result, r, J)`` per start."""
         st_ = problem.state
         kernel, data = st_["kernel"], st_["data"] if data is None else data
         if kernel.disturbance == "wave" and kernel.n_noise:
-            free = np.ones(z0s.shape, bool)
-            free[:, -2:] = False
+            held = np.broadcast_to(np.arange(z0s.shape[1]) < z0s.shape[1] - 2, z0s.shape)  # period, damping last
             z0s = np.stack([np.asarray(o_[0]) for o_ in kernel.solve_many(
-                z0s, data, free=free, progress=say, label=f"{label}, wave held", **st_["lm"])])
-        res = []
-        for z, result, k, r in kernel.solve_many(z0s, data, progress=say, label=label, **st_["lm"]):
-            r = np.asarray(r)
-            c = 0.5 * float(r @ r)
-            bad = not math.isfinite(c) or np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY)
-            res.append((np.asarray(z), math.inf if bad else c, int(k), result, r))
+                z0s, data, free=held, progress=say, label=f"{label}, wave held", **st_["lm"])])
+        res, free = [], np.ones(z0s.shape, bool)
+        for z, result, k, r, J in kernel.solve_many(z0s, data, free=free, progress=say, label=label, **st_["lm"]):
+            r, c = np.asarray(r), 0.5 * float(np.sum(np.square(np.asarray(r))))
+            c = math.inf if not math.isfinite(c) or np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY) else c
+            res.append((np.asarray(z), c, int(k), result, r, np.asarray(J)))
         return res
 
     def first_solves(self, problem, zs, say):
@@ -435,7 +433,7 @@ class PredictionError(OnOutputError):
             k, n_h = st_["kernel"], dist.n_hyper(st_["kernel"].disturbance)
             z_alt = np.concatenate([z0s[b][:k.n_theta], np.ones(len(k.q_idx) + n_c), np.zeros(n_h)])
             o_alt = self._solves(problem, z_alt[None], say, label="prediction error, disturbance start", data=alt)[0]
-            o_alt = (_reparametrised(o_alt[0], k.n_theta, len(k.q_idx), n_c, alt, st_["data"]), *o_alt[1:])
+            o_alt = (_reparametrised(o_alt[0], k.n_theta, len(k.q_idx), n_c, alt, st_["data"]), *o_alt[1:5], None)
             won, d = o_alt[1] < outs[b][1], (o_alt[1] - outs[b][1]) / int(st_["batch"].mask.sum())
             st_["noise_note"] = (
                 f"noise start: {100 * share:.0f} % of the innovations' variance at the first optimum was predictable "
@@ -445,7 +443,7 @@ class PredictionError(OnOutputError):
                 + ("kept" if won else "the first kept; its innovations stay predictable: try another --disturbance"))
             st_["noise_start"], outs[b] = ("disturbance", o_alt) if won else ("sensor", outs[b])
         st_["pe_s"] = time.perf_counter() - t0
-        st_["results"], st_["zs"] = [o_[3] for o_ in outs], [o_[0] for o_ in outs]
+        st_["results"], st_["zs"], st_["jacs"] = [o_[3] for o_ in outs], [o_[0] for o_ in outs], [o_[5] for o_ in outs]
         return [o_[:3] for o_ in outs]
 
     def residuals(self, problem, z) -> np.ndarray:
@@ -462,9 +460,11 @@ class PredictionError(OnOutputError):
         for j, name in enumerate(hyper):
             z[len(z) - len(hyper) + j] = v = float(np.clip(z[len(z) - len(hyper) + j], *dist.CLIP[name]))
             edge += [dist.LABEL[name]] if min(abs(v - b_) for b_ in dist.CLIP[name]) < 1e-6 else []
-        spec = problem.spec
-        r = np.asarray(st_["res_fn"](jnp.asarray(z), data))
-        J_all = np.asarray(st_["jac_fn"](jnp.asarray(z), data)) * per_scale_columns(spec, z, len(z))
+        spec, r = problem.spec, np.asarray(st_["res_fn"](jnp.asarray(z), data))
+        J_all = st_["jacs"][i]  # the solve's, at its last accepted point; elsewhere (a clipped or mapped z) formed here
+        if J_all is None or not np.array_equal(z, st_["zs"][i]) or not np.any(J_all):
+            J_all = np.asarray(kernel.call("jacobian", z, data))
+        J_all = J_all * per_scale_columns(spec, z, len(z))
         J_eps, J_prior, r_eps, r_prior = J_all[:st_["n_eps"]], kernel.split(J_all, data)[1], r[:st_["n_eps"]], \
             kernel.split(r, data)[1]
         q, rv, hyp = (np.asarray(a) for a in kernel.noise(jnp.asarray(z), data))
