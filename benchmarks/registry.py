@@ -21,6 +21,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
                        "(prints)"),
     "fossen3_speed": ("benchmarks.fossen3_speed", "fossen3 3 × 300 s: diffship vs scipy at equal final cost"),
     "fossen3_coverage": ("benchmarks.fossen3_coverage", "standard-error coverage of the fossen3 fit over seeds"),
+    "fossen3_crlb": ("benchmarks.fossen3_crlb", "Cramér–Rao bound of the fossen3 USV truth's coefficients: data limit "
+                     "vs the fit's spread"),
     "at_sea_hakusan": ("benchmarks.at_sea_hakusan", "a real ship at sea under autopilot (HAKUSAN, 1 Hz; --data "
                        "HAKUSAN.txt.gz): output error, prediction error, k-step-ahead predictions"),
     "at_sea_synthetic": ("benchmarks.at_sea_synthetic", "autopilot in narrow-band waves: output error against "

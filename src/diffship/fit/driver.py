@@ -51,6 +51,7 @@ from .covariance import covariance, relabelled
 from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import identifiability
 from .priors import Priors, default_priors, prior_table
+from .problem import unfitted_positions
 from .result import FitResult, StartsReport
 from .starts import named_starts, spread_starts
 from .status import RESULTS, as_diffship, message
@@ -131,7 +132,8 @@ def fit(
 
     # -- candidate starts -----------------------------------------------------------------------
     named = dict(starts.items()) if isinstance(starts, Mapping) else {f"start {i + 1}": s for i, s in enumerate(starts)}
-    messages: list[str] = [prior_note]
+    messages: list[str] = [prior_note] + (unfitted_positions(model, runs, channels)
+                                           if estimator.method != "equation_error" else [])
     for k, v in problem.state.get("extra_starts", {}).items():  # the estimator's own (a linear regression,
         named.setdefault(k, v)                                    # the equation-error estimate)
     messages.extend(problem.state.get("start_notes", ()))
