@@ -414,13 +414,13 @@ class Kernel(eqx.Module):
         free = np.ones(z0s.shape, bool) if free is None else free
         def start(z, d, f):
             args = (jnp.asarray(z), d, jnp.asarray(f))
-            fn, _ = _compiled(self, "batch_start", args, **static)
-            return fn(*args)
+            return _compiled(self, "batch_start", args, **static)[0](*args)
         def advance(st, d, stop):
             args = (st, d, jnp.asarray(stop))
-            fn, _ = _compiled(self, "batch_advance", args, **static)
-            return fn(*args)
-        if method == "threads":  # free masks: the B = 1 batched programs, one problem per call
+            return _compiled(self, "batch_advance", args, **static)[0](*args)
+        if method == "threads":  # free masks: the B = 1 batched programs (compiled first), one problem per call
+            d0 = jax.tree_util.tree_map(lambda a: a[:1], data) if per_problem else data
+            _compiled(self, "batch_advance", (start(z0s[:1], d0, free[:1]), d0, jnp.asarray(np.int32(0))), **static)
             def one(b):
                 d, t0 = jax.tree_util.tree_map(lambda a: a[b:b + 1], data) if per_problem else data, time.perf_counter()
                 st = solve_batch(start, advance, z0s[b:b + 1], d, free[b:b + 1], per_problem_data=per_problem,
