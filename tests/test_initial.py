@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from diffship.data import Run
-from diffship.initial import channel_noise, estimate_starts, noise_floor, start_prior
+from diffship.initial import channel_noise, correlation_time_of, estimate_starts, noise_floor, start_prior
 from diffship.models import Nomoto1
 from diffship.synthetic import nomoto_runs
 
@@ -79,3 +79,26 @@ def test_run_sets_of_one_length_share_one_program_and_the_same_starts(monkeypatc
     whole = estimate_starts(model, runs, ("psi", "r"))
     assert np.array_equal(np.stack(chunked), np.stack(whole))
     assert not np.allclose(chunked[0], chunked[2])  # three different runs, three different starts
+
+
+def test_correlation_time_is_the_integrated_autocorrelation_of_the_pooled_runs():
+    """An AR(1) series x_t = φ x_{t-1} + e_t has the integrated autocorrelation time (1 + φ)/(1 − φ) samples (3 at
+    φ = 0.5); white noise has 1. The FFT sum equals the lag-by-lag sums of its definition."""
+    rng = np.random.default_rng(3)
+
+    def ar1(n, phi):
+        x, e = np.zeros(n), rng.normal(size=n)
+        for t in range(1, n):
+            x[t] = phi * x[t - 1] + e[t]
+        return x
+
+    runs = [ar1(20000, 0.5), ar1(15000, 0.5)]
+    assert abs(correlation_time_of(runs) - 3.0) < 0.15
+    assert correlation_time_of([rng.normal(size=20000)]) < 1.1
+    short = [ar1(n, 0.8) for n in (400, 333)]
+    K = min(400, 333 // 4)
+    num = sum(np.array([(x - x.mean())[:-k] @ (x - x.mean())[k:] for k in range(1, K + 1)]) for x in short)
+    rho = num / sum(float((x - x.mean()) @ (x - x.mean())) for x in short)
+    neg = np.flatnonzero(rho < 0)
+    direct = 1.0 + 2.0 * float(np.sum(rho[: neg[0]] if neg.size else rho))
+    assert math.isclose(correlation_time_of(short), max(1.0, direct), rel_tol=1e-12)
