@@ -414,9 +414,9 @@ class PredictionError(OnOutputError):
                 z0s, data, free=held, progress=say, label=f"{label}, wave held", **st_["lm"])])
         res, free = [], np.ones(z0s.shape, bool)
         for z, result, k, r, J in kernel.solve_many(z0s, data, free=free, progress=say, label=label, **st_["lm"]):
-            r, c = np.asarray(r), 0.5 * float(np.sum(np.square(np.asarray(r))))
-            c = math.inf if not math.isfinite(c) or np.any(np.abs(r[:st_["n_eps"]]) >= PENALTY) else c
-            res.append((np.asarray(z), c, int(k), result, r, np.asarray(J)))
+            r = np.asarray(r)
+            c = 0.5 * float(r @ r) if np.all(np.abs(r[:st_["n_eps"]]) < PENALTY) else math.inf  # NaN, blow-up: inf
+            res.append((np.asarray(z), c if math.isfinite(c) else math.inf, int(k), result, r, np.asarray(J)))
         return res
 
     def first_solves(self, problem, zs, say):
