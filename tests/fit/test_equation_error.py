@@ -143,3 +143,33 @@ def test_linear_and_bounded_spaces_are_data_of_one_program():
     bounded, linear = (_Space.of(sp) for sp in spaces)
     assert not np.array_equal(np.asarray(bounded.kind), np.asarray(linear.kind))
     assert eqx.partition(bounded, eqx.is_array)[1] == eqx.partition(linear, eqx.is_array)[1]
+
+
+def test_equation_error_programs_are_exported_and_reload_to_the_same_answer(tmp_path, monkeypatch):
+    """The equation-error solve (the output-error fit's start) is a program :mod:`diffship.compiled` exports: its
+    arguments are arrays, its outputs plain arrays (the result as an integer code), its code diffship's; a new
+    process deserialises it instead of tracing optimistix's loop again. The reloaded program reaches the same
+    estimate, to the bit."""
+    import jax
+    import jax.numpy as jnp
+
+    from diffship import cache, compiled
+    from diffship.fit import EquationError, fit
+    from diffship.fit.equation_error import _Programs
+
+    monkeypatch.setattr(cache, "cache_dir", lambda: tmp_path)
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=1, duration=40.0, dt=0.1, noise="none")
+    problem = EquationError(flt=Filter("none")).prepare(Nomoto1(), runs, Nomoto1().spec(), None, None, print)
+    w, pm, pw, model, samples, space = EquationError()._args(problem, np.ones(1))
+    args = (jnp.zeros(3), w, pm, pw, model, samples, (space.kind, space.lo, space.hi, space.s))
+    owner = _Programs(space.idx, space.n)
+    saved = compiled.exported()["saved"]
+    exp = compiled._exported(owner, "solve", owner.solve, args, {"max_steps": 50})
+    assert exp is not None and compiled.exported()["saved"] == saved + 1
+    assert len(list((tmp_path / "exported").iterdir())) == 1
+    z_direct = np.asarray(owner.solve(*args, max_steps=50)[0])
+    z_loaded = np.asarray(exp.call(*jax.tree_util.tree_leaves(args))[0])
+    np.testing.assert_array_equal(z_loaded, z_direct)
+    res = fit(Nomoto1(), runs, EquationError(flt=Filter("none")), n_starts=1)
+    assert res.params["K"] == pytest.approx(0.2, rel=2e-3)

@@ -55,6 +55,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
+from ..compiled import compiled
 from ..data import Run
 from ..errors import DiffshipError, FitError, ModelError
 from ..models import AbstractModel
@@ -238,10 +239,6 @@ def _ee_residuals(z, w, prior_mean, prior_w, model, samples, space: _Space):
     return e
 
 
-_ee_residuals_jit = eqx.filter_jit(_ee_residuals)
-
-
-@eqx.filter_jit
 def _ee_solve(z0, w, prior_mean, prior_w, model, samples, space, max_steps):
     """The one Levenberg–Marquardt (:class:`~diffship.fit._lm.MaterialisedLM`) on the equation residuals."""
     solver = MaterialisedLM(rtol=1e-8, atol=1e-10, norm=rms_norm, ftol=1e-10, gntol=float("inf"))
@@ -251,9 +248,44 @@ def _ee_solve(z0, w, prior_mean, prior_w, model, samples, space, max_steps):
                                                                         samples, space)
 
 
-@eqx.filter_jit
-def _ee_jacobian(z, w, prior_mean, prior_w, model, samples, space):
-    return jax.jacfwd(_ee_residuals)(z, w, prior_mean, prior_w, model, samples, space)
+class _Programs(eqx.Module):
+    """The equation-error programs (solve, residuals, Jacobian) as :mod:`diffship.compiled` keys them: the free
+    set's positions are static, everything else is an argument. Compiled once per structure and, with the
+    persistent cache on, exported between processes: the output-error fit's equation-error start then loads its
+    solve instead of tracing it again (0.9 s of a warm 3-DOF USV fit's Python, beside its own compile)."""
+
+    idx: tuple[int, ...] = eqx.field(static=True)
+    n: int = eqx.field(static=True)
+
+    def _space(self, arrays) -> _Space:
+        return _Space(self.idx, self.n, *arrays)
+
+    def solve(self, z0, w, prior_mean, prior_w, model, samples, arrays, *, max_steps: int):
+        """:func:`_ee_solve` with the optimistix result as its integer code (plain arrays out: exportable)."""
+        z, result, *rest = _ee_solve(z0, w, prior_mean, prior_w, model, samples, self._space(arrays), max_steps)
+        return z, jax.tree_util.tree_leaves(result)[0], *rest
+
+    def residuals(self, z, w, prior_mean, prior_w, model, samples, arrays):
+        return _ee_residuals(z, w, prior_mean, prior_w, model, samples, self._space(arrays))
+
+    def jacobian(self, z, w, prior_mean, prior_w, model, samples, arrays):
+        return jax.jacfwd(_ee_residuals)(z, w, prior_mean, prior_w, model, samples, self._space(arrays))
+
+
+def _program(name: str, z, w, prior_mean, prior_w, model, samples, space: _Space, **static):
+    """Run the compiled ``name`` of :class:`_Programs` at these arguments (``space`` split into its static
+    positions and its arrays)."""
+    args = (jnp.asarray(z, dtype=jnp.float64), w, prior_mean, prior_w, model, samples,
+            (space.kind, space.lo, space.hi, space.s))
+    fn, _ = compiled(_Programs(space.idx, space.n), name, args, **static)
+    out = fn(*args)
+    if name == "solve":  # the result's integer code back to an optimistix result
+        z, code, *rest = out
+        return z, jax.tree_util.tree_unflatten(_RESULT_TREE, [code]), *rest
+    return out
+
+
+_RESULT_TREE = jax.tree_util.tree_structure(optx.RESULTS.successful)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -336,12 +368,12 @@ class EquationError(AbstractEstimator):
         free = spec.free_names
         theta = {n: float(v) for n, v in zip(free, np.asarray(spec.from_z(jnp.asarray(z))))}
         zl = s["spec_lin"].to_z(theta)
-        zl, result, k, r = _ee_solve(jnp.asarray(zl), *self._args(problem, w, "spec_lin"), self.max_steps)
+        zl, result, k, r = _program("solve", zl, *self._args(problem, w, "spec_lin"), max_steps=self.max_steps)
         th = np.asarray(s["spec_lin"].from_z(zl))
         if np.all(np.isfinite(th)) and all(spec[n].lower < v < spec[n].upper for n, v in zip(free, th)):
             return np.asarray(zl), result, int(k), np.asarray(r), "spec_lin"
         inside, _ = spec.nudged({**spec.values(), **{n: float(v) for n, v in zip(free, th) if np.isfinite(v)}})
-        zb, result, k2, r = _ee_solve(jnp.asarray(spec.to_z(inside)), *self._args(problem, w), self.max_steps)
+        zb, result, k2, r = _program("solve", spec.to_z(inside), *self._args(problem, w), max_steps=self.max_steps)
         return np.asarray(zb), result, int(k) + int(k2), np.asarray(r), "spec_s"
 
     @staticmethod
@@ -352,7 +384,7 @@ class EquationError(AbstractEstimator):
         return problem.spec.to_z(dict(zip(problem.spec.free_names, (float(v) for v in th))))
 
     def start_cost(self, problem, z) -> float:
-        r = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, np.ones(problem.state["n_eq"]))))
+        r = np.asarray(_program("residuals", z, *self._args(problem, np.ones(problem.state["n_eq"]))))
         c = 0.5 * float(r @ r)
         return c if math.isfinite(c) else math.inf
 
@@ -370,7 +402,7 @@ class EquationError(AbstractEstimator):
 
     def residuals(self, problem, z) -> np.ndarray:
         s = problem.state
-        r = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, s.get("w", np.ones(s["n_eq"])))))
+        r = np.asarray(_program("residuals", z, *self._args(problem, s.get("w", np.ones(s["n_eq"])))))
         return r[: s["samples"].z.shape[0] * s["n_eq"]]
 
     def finish(self, problem, z, steps, say) -> Solved:
@@ -378,7 +410,7 @@ class EquationError(AbstractEstimator):
         model, spec = problem.model, problem.spec
         n_eq, n_p = s["n_eq"], problem.n_params
         t0 = time.perf_counter()
-        r0 = np.asarray(_ee_residuals_jit(jnp.asarray(z), *self._args(problem, np.ones(n_eq))))
+        r0 = np.asarray(_program("residuals", z, *self._args(problem, np.ones(n_eq))))
         # feasible GLS: each equation weighted by its residual RMS from the unweighted pass
         e = r0[: s["samples"].z.shape[0] * n_eq].reshape(-1, n_eq)
         w = np.sqrt(np.mean(e * e, axis=0)) + 1e-300
@@ -388,7 +420,7 @@ class EquationError(AbstractEstimator):
             raise FitError(f"equation error for {model.name} produced non-finite parameters on runs "
                            f"{', '.join(r_.name for r_ in problem.runs)}; check the inputs and the filter")
         # the Jacobian in θ/scale units (the linear space is that already)
-        J = np.asarray(_ee_jacobian(jnp.asarray(zs_), *self._args(problem, w, space))) * per_scale_columns(
+        J = np.asarray(_program("jacobian", zs_, *self._args(problem, w, space))) * per_scale_columns(
             s[space], zs_, n_p)
         zf = self._to_spec_z(problem, zs_, space)
         n_data = s["samples"].z.shape[0] * n_eq
