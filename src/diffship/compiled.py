@@ -260,8 +260,8 @@ def compiler_options() -> dict[str, Any]:
     results identical), the diagnosis workspace's solve program (11 effects, 3 runs × 240 s)
     11–16 % (results equal to 2·10⁻¹⁰ after six LM steps), the KVLCC2 MMG Jacobian 7–10 %
     (equal to 4·10⁻¹⁶); compile times equal within noise. Level 2 is about level 1; level 0 is
-    ten to twenty times slower. ``jax.jit`` programs outside this module (compiled once, e.g. the
-    equation-error start) keep XLA's default.
+    ten to twenty times slower. ``jax.jit`` programs built outside this module keep XLA's default
+    (the equation-error solve is this module's: it runs at level 1 too).
     ``$DIFFSHIP_XLA_OPT_LEVEL`` overrides the level (``default``: XLA's own); other backends
     (GPU) keep XLA's defaults.
     """
