@@ -2,8 +2,8 @@ r"""Cramér–Rao lower bound of the fossen3 USV truth's coefficients: a limit o
 
 Problem: the data of :mod:`benchmarks.fossen3_coverage` (the 3-DOF water-jet USV of
 :func:`benchmarks.independent.robust_truths.usv_runs`: per noise seed two runs × 300 s at 10 Hz of open-loop jet
-commands, white noise of std σ_c on all six outputs x0, y0, ψ, u, v, r, exact inputs, m and I_z known). There the
-default diffship fit misses ``Xu`` by 4.3 % RMS over 50 seeds. Is that spread what any unbiased estimator would
+commands, white noise of std σ_c on all six outputs x0, y0, ψ, u, v, r, exact inputs, m and I_z known). There
+the diffship fit without the positions misses ``Xu`` by 4.3 % RMS over 50 seeds. Is that spread what any unbiased estimator would
 have on these data (the CRLB), or a weakness of the estimator? This module answers without importing diffship
 (NumPy and :mod:`benchmarks.independent` only).
 
@@ -19,9 +19,10 @@ runs; x_r(0)/σ for the 6 initial states of each run r, free nuisance parameters
     \mathrm{se}(\theta_i)/|\theta_i| \ge \sqrt{(F^{-1})_{ii}}
 
 over the 10 + 6 × 2 parameters (initial states free) and over the 10 × 10 coefficient block (initial states
-known), from all six channels and from ψ, u, v, r alone (the channels diffship fits by default). Beside it,
-from ``results/fossen3_coverage.csv`` (methods ``default`` and ``with positions``): diffship's RMS relative
-error over all its seeds and its median reported stderr/|truth|.
+known), from all six channels and from ψ, u, v, r alone (the channels diffship fits first, and alone where the
+positions disagree with them: :mod:`diffship.fit.positions`). Beside it, from ``results/fossen3_coverage.csv``
+(methods ``positions off`` and ``default``): diffship's RMS relative error over all its seeds and its median reported
+stderr/|truth|.
 
     python -m benchmarks fossen3_crlb [--seeds 5] [--out benchmarks/results]
 """
@@ -46,7 +47,7 @@ from benchmarks.independent.vessels import USV, simulate, usv_commands  # noqa: 
 CH = USV.outputs  # x0, y0, psi, u, v, r (= the states)
 SIG = np.array([NOISE[c] for c in CH])
 REL_STEP = 1e-5  # relative step on each coefficient
-#: The channels diffship fits by default (positions are fitted on request: ``--channels``).
+#: The channels diffship fits first (the positions join them where a Hausman test finds they agree).
 FIT_CHANNELS = ("psi", "u", "v", "r")
 X0_STEP = np.array([1e-3, 1e-3, 1e-5, 1e-5, 1e-5, 1e-6])  # absolute steps on x0, y0 [m], ψ [rad], u, v [m/s], r
 
@@ -212,7 +213,7 @@ def main(argv=None) -> int:
               f"{max(rhs_errs[-2:]):.2e}, cond(F) {cond:.2e}, CRLB Xu {f[USV_FREE.index('Xu')]:.2%} "
               f"({time.perf_counter() - t_start:.1f} s)", flush=True)
     free, known, fitch = np.array(free), np.array(known), np.array(fitch)
-    fits = {m: _coverage(Path(args.coverage_csv), m) for m in ("default", "with positions")}
+    fits = {m: _coverage(Path(args.coverage_csv), m) for m in ("positions off", "default")}
     secs = time.perf_counter() - t_start
     med, med_fit = np.median(free, axis=0), np.median(fitch, axis=0)
     na = "—"
@@ -224,15 +225,17 @@ def main(argv=None) -> int:
              "sensitivities by central finite differences of an RK4 re-simulation of the truth; Fisher information "
              "F = Σ_runs Σ_samples Σ_channels s sᵀ/σ_c² over the 10 coefficients and the 6 initial states of each run; "
              "CRLB relative SE = √diag(F⁻¹) of θ/|θ|, with the initial states free (as the fit estimates them) and "
-             "known, from all six channels and from ψ, u, v, r alone (the channels diffship fits by default: "
-             f"positions on request). Re-simulation vs `simulate(...)[\"clean\"]`: largest |difference| "
+             "known, from all six channels and from ψ, u, v, r alone (the channels diffship fits first; the "
+             "positions join them where a Hausman test finds they agree). Re-simulation "
+             "vs `simulate(...)[\"clean\"]`: largest |difference| "
              f"{max(checks):.1e} of a channel's range; finite-difference steps × 10 change the CRLB by at most "
              f"{step_dev:.1e} (relative).", "",
              "diffship columns: `results/fossen3_coverage.csv` (`python -m benchmarks fossen3_coverage --seeds 50 "
-             "--no-data-x0 --positions`): RMS relative error over its seeds / median reported stderr/|θ|, for the "
-             "default fit (ψ, u, v, r) and the fit with the positions as channels too.", "",
+             "--no-data-x0 --positions --no-positions`): RMS relative error over its seeds / median reported "
+             "stderr/|θ|, for the fit without the positions (ψ, u, v, r, `--positions off`) and the default fit (the "
+             "positions kept on every seed by its Hausman test).", "",
              "| coefficient | CRLB, six channels, x(0) free: median [min, max] | same, x(0) known | CRLB, ψ u v r | "
-             "diffship default: RMS / se | diffship with positions: RMS / se | P(5 seeds within 5 %) at the bound "
+             "diffship, positions off: RMS / se | diffship default: RMS / se | P(5 seeds within 5 %) at the bound "
              "(six channels) |", "|---|---|---|---|---|---|---|"]
     p5 = {}
     for j, n in enumerate(USV_FREE):
@@ -246,12 +249,12 @@ def main(argv=None) -> int:
               f"(six channels, x(0) free). All 10 coefficients within 5 % on all 5 seeds (product over coefficients, "
               f"approximate: the estimates are correlated): {p_all:.3f}; at the ψ, u, v, r bound: "
               f"{float(np.prod([_p_within(v) ** 5 for v in med_fit])):.3f}.", "", "## Finding", ""]
-    for m, bound, what in (("default", med_fit, "ψ, u, v, r"), ("with positions", med, "all six channels")):
+    for m, bound, what in (("positions off", med_fit, "ψ, u, v, r"), ("default", med, "all six channels")):
         if fits[m]:
             ratio = np.array([fits[m][n][0] / bound[j] for j, n in enumerate(USV_FREE)])
             nseed = max(v[2] for v in fits[m].values())
             per = np.array([[fits[m][n][3].get(k, np.nan) / b[j] for j, n in enumerate(USV_FREE)]
-                            for k, b in enumerate(free if m == "with positions" else fitch)])
+                            for k, b in enumerate(free if m == "default" else fitch)])
             lines.append(f"- **{m}**: Xu's RMS relative error {fits[m]['Xu'][0]:.2%} over {nseed} seeds against the "
                          f"bound of {what}, {bound[jx]:.2%} (median over {args.seeds} seeds): ratio {ratio[jx]:.2f}, "
                          f"{ratio.min():.2f}–{ratio.max():.2f} over the 10 coefficients. Seed by seed (the same data), "
@@ -260,7 +263,8 @@ def main(argv=None) -> int:
                          "(1: the fit extracts all the information of its channels).")
     lines.append(f"- The bound of Xu is {med[jx]:.2%} from all six channels and {med_fit[jx]:.2%} without the positions "
                  f"({np.median(known[:, jx]):.2%} if the initial states were known): the GNSS positions carry the "
-                 "information the default fit leaves out. An unbiased estimator at the six-channel bound has Xu within "
+                 "information a fit of ψ, u, v, r leaves out. An unbiased estimator at the six-channel bound has Xu "
+                 "within "
                  f"5 % on 5 independent seeds with probability {p5['Xu']:.2f}; at the ψ, u, v, r bound "
                  f"{_p_within(med_fit[jx]) ** 5:.2f}.")
     text = "\n".join(lines)

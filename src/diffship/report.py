@@ -414,7 +414,7 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "admissibility": r.info.get("admissibility"),
             "cross_manoeuvre": r.info.get("cross_manoeuvre"),
             "fixed": r.info.get("fixed"),
-            **({"disturbance_choice": r.info["disturbance_choice"]} if "disturbance_choice" in r.info else {}),
+            **{k: r.info[k] for k in ("disturbance_choice", "positions_test") if k in r.info},
             **dict((per_method or {}).get(m, {})),
         }
     doc = {"model": model_name, "units": "SI, angles in rad", "metrics_horizon": HORIZON_NOTE, "methods": methods}

@@ -30,7 +30,8 @@ def usv_nv_ar():
             for i, k in enumerate(["steps", "sines", "chirp", "zigzag"])]
     base = Fossen3()
     spec = base.spec()
-    res0 = fit(base, runs, OutputError(integrator=get_integrator("rk4"), reference_priors=False), spec=spec)
+    res0 = fit(base, runs, OutputError(integrator=get_integrator("rk4"), reference_priors=False, positions="off"),
+               spec=spec)  # as discovery's base fit: the default channels, no positions test
     return runs, spec, res0
 
 

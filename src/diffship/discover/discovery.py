@@ -184,8 +184,8 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         library: a library name or term names/expressions (:func:`~diffship.models.terms.library_terms`).
         max_terms: the most terms a candidate has (≥ 1); max_candidates: the most structures refitted.
         criterion: ``"bic"`` or ``"aic"``.
-        options: the output-error estimator (priors, integrator, ...).
-        n_boot: resamples of the equation-error screen; n_boot_rank: of the ranking (inclusion
+        options: the output-error estimator (priors, integrator, ...; ``positions`` off: structures are ranked on the
+            default channels). n_boot: resamples of the equation-error screen; n_boot_rank: of the ranking (inclusion
             probabilities); block_s: the bootstrap block length [s] (residuals are coloured).
         x0: ``"estimate"`` (default): every fit estimates each run's initial state of the fitted channels'
             states within their noise (:attr:`~diffship.fit.OutputError.x0_prior`), unless ``options``
@@ -214,7 +214,7 @@ def discover(base: AbstractModel, train: Sequence[Run], validate: Sequence[Run] 
         raise DiffshipError(f"x0 {x0!r}: use estimate or data")
     terms = library_terms(library)
     spec = spec or base.spec()
-    options = dataclasses.replace(options, ee_start=False)
+    options = dataclasses.replace(options, ee_start=False, positions="off")
     if x0 == "data":  # the first samples taken as exact starts (the default is the one rule, diffship.initial)
         options = dataclasses.replace(options, estimate_x0=())
     # every structure under the base's priors (a model with terms has no reference set of its own)

@@ -52,6 +52,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "and held-out runs use the same rule with the parameters held (diffship.initial); data: "
                         "the filtered first sample taken as exact (a noisy first sample biases every estimate; the "
                         "report says what it costs)")
+    p.add_argument("--positions", default="test", choices=("test", "off"),
+                   help="measured positions (x0, y0) with the channels left at their default: test (default): the "
+                        "fit without them is refitted with them, and the refit kept where a Hausman test finds the "
+                        "two agree (where the model misses, a position's drift decides the fit); off: not fitted "
+                        "(one fit, faster). --channels naming them fits them anyway")
     p.add_argument("--as-given", action="store_true",
                    help="fit with the options as given; without it a fit that is not usable is refitted with the "
                         "first option its report names (--free-hydrodynamic, then --horizon S), each step said and "

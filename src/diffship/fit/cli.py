@@ -240,7 +240,8 @@ def _fit(args, say) -> int:
         check_yaw_direction(train + list(val))
     methods = {"both": ("equation_error", "output_error"), "output-error": ("output_error",),
                "equation-error": ("equation_error",), "prediction-error": ()}[args.method]
-    options = OutputErrorOptions(integrator=get_integrator(args.solver, hold=args.input_hold), weights=args.weights, **_prior_options(args),
+    options = OutputErrorOptions(integrator=get_integrator(args.solver, hold=args.input_hold), weights=args.weights,
+                                 positions=args.positions, **_prior_options(args),
                                  **({"max_steps": args.max_steps} if args.max_steps else {}))
     fit_runs = train
     if args.horizon:  # fit the first seconds only; metrics, verdicts and the fit file's data use whole runs

@@ -28,6 +28,8 @@ Every estimator (:mod:`diffship.fit.estimator`) runs through :func:`fit`, which 
   whose parameters the data do not identify is ``not_identifiable``; one whose simulation blows up
   at the optimum is ``simulation_blew_up``) and the :class:`~diffship.fit.FitResult` — typed,
   complete, not edited afterwards.
+* **positions** — output error with the default channels, where every run logs positions, refits from its optimum
+  with them and answers with the refit where a Hausman test finds the two agree (:mod:`diffship.fit.positions`).
 
 ``throw=True`` (default) raises :class:`~diffship.errors.FitError` where no start can be used;
 ``throw=False`` returns a result whose ``result`` says so (``all_starts_blew_up``).
@@ -51,7 +53,7 @@ from .covariance import covariance, relabelled
 from .estimator import AbstractEstimator, Problem, Solved
 from .identifiability import identifiability
 from .priors import Priors, default_priors, prior_table
-from .problem import unfitted_positions
+from .problem import NOT_FITTED_BY_DEFAULT, unfitted_positions
 from .result import FitResult, StartsReport
 from .starts import named_starts, spread_starts
 from .status import RESULTS, as_diffship, message
@@ -213,7 +215,63 @@ def fit(
     res = _assemble(model, spec, estimator, problem, solved, priors, prior_note, messages, report, start_vals, label)
     say(f"{estimator.describe()}: {res.status} after {res.iterations} steps in {res.fit_seconds:.2f} s "
         f"(compile {res.compile_seconds:.2f} s; {time.perf_counter() - t_all:.1f} s in all)")
+    if channels is None and getattr(estimator, "positions", "off") == "test" and unfitted_positions(model, runs, None):
+        res = _positions_tested(model, runs, estimator, spec, res, progress)
     return res
+
+
+def _positions_tested(model, runs, estimator, spec, res: FitResult, progress) -> FitResult:
+    """The fit without positions, or its refit with them where a Hausman test finds the two agree
+    (:mod:`diffship.fit.positions`); either way the report and ``info["positions_test"]`` say which and why."""
+    from .positions import SCREEN, PositionsTest, hausman, misfit
+
+    say = progress or (lambda s: None)
+    every = tuple(c for c in model.output_names if all(r.has(c) for r in runs))
+    left = tuple(c for c in NOT_FITTED_BY_DEFAULT if c in every)
+    drop = [m for m in res.messages if not m.startswith("channels: ")]
+    ratios = misfit(runs, {c: res.noise_std[c] for c in res.channels if c in res.noise_std}, model.angle_outputs)
+    worst = max(ratios, key=ratios.get) if ratios else None
+    if not res.converged:
+        test = PositionsTest(left, math.nan, 0, math.nan, 0, False, "the fit without them did not converge")
+    elif worst is not None and ratios[worst] > SCREEN:
+        test = PositionsTest(left, math.nan, 0, math.nan, 0, False, (
+            f"the fit misses its own channels ({worst}: residual {ratios[worst]:.3g} times its sample-to-sample "
+            f"noise; where the model misses, a position's drift decides the fit), so no refit with them"))
+    else:
+        say(f"refitting with the positions ({', '.join(left)}) from this optimum, to test whether they agree...")
+        refit = dataclasses.replace(estimator, positions="off", warmup=0.0, adaptive=False, ee_start=False)
+        if isinstance(refit.estimate_x0, tuple) and refit.estimate_x0:  # named states: the positions' own too
+            named = set(refit.estimate_x0) | set(model.states_for_channels(left))
+            refit = dataclasses.replace(refit, estimate_x0=tuple(s for s in model.state_names if s in named))
+        start = spec.with_values({n: res.params[n] for n in spec.free_names})
+        try:
+            alt = fit(model, runs, refit, spec=start, n_starts=1, channels=every, progress=progress, throw=False)
+        except Exception as exc:  # a refit that cannot start: the fit without positions stands
+            alt, reason = None, f"the refit with them failed ({exc})"
+        else:
+            reason = "" if alt.converged else f"the refit with them did not converge ({alt.status})"
+        if alt is None or not alt.converged:
+            test = PositionsTest(left, math.nan, 0, math.nan, 0, False, reason)
+        else:
+            names = list(spec.free_names)
+            test = hausman(names, [res.params[n] for n in names], res.covariance, [alt.params[n] for n in names],
+                           alt.covariance, channels=left)
+            if test.kept:  # the refit's answer, with the search's starts (the refit had one: this optimum)
+                say(test.describe())
+                own = ("started from ", "starts: ", "start '", "search: ")
+                msgs = [m for m in alt.messages if not m.startswith(own)]
+                msgs[1:1] = [m for m in res.messages if m.startswith(own)]
+                return dataclasses.replace(
+                    alt, estimator=estimator, fit_seconds=alt.fit_seconds + res.fit_seconds, starts=res.starts,
+                    compile_seconds=alt.compile_seconds + res.compile_seconds, messages=(*msgs, test.describe()),
+                    info={**alt.info, **{k: res.info[k] for k in ("starts", "candidates") if k in res.info},
+                          "positions_test": {**test.as_json(), "misfit": ratios},
+                          "without_positions": {"params": {n: res.params[n] for n in names},
+                                                "stderr": dict(res.stderr), "cost": res.cost,
+                                                "covariance": np.asarray(res.covariance).tolist()}})
+    say(test.describe())
+    return dataclasses.replace(res, messages=tuple(drop) + (test.describe(),),
+                               info={**res.info, "positions_test": {**test.as_json(), "misfit": ratios}})
 
 
 def _assemble(model, spec, estimator, problem: Problem, s: Solved, priors, prior_note, messages, report,

@@ -125,6 +125,8 @@ class OutputError(AbstractEstimator):
             sensor noise (:func:`diffship.initial.start_prior`); states no channel measures are free.
             ``False``: every estimated state free (it then soaks up model error: on the SSPA zigzag a
             yaw-rate offset of −0.46°/s, 2.7 noise standard deviations).
+        positions: ``"test"`` (default): with the default channels, positions the runs measure are added where a
+            Hausman test finds the fit with them agrees with the fit without (:mod:`diffship.fit.positions`); ``"off"``.
     """
 
     method = "output_error"
@@ -150,6 +152,7 @@ class OutputError(AbstractEstimator):
     stall_ends_fit: bool = False
     warmup_round: int = 30
     adaptive: bool = True
+    positions: str = "test"
 
     def __post_init__(self):
         if self.estimate_x0 != "auto":
@@ -162,8 +165,9 @@ class OutputError(AbstractEstimator):
             raise FitError(f"gntol must be a positive number of standard errors, got {self.gntol!r}")
         if not (int(self.warmup_round) == self.warmup_round and self.warmup_round >= 1):
             raise FitError(f"warmup_round must be a positive number of steps, got {self.warmup_round!r}")
-        if self.choose not in ("best", "first"):
-            raise FitError(f"choose must be 'best' or 'first', got {self.choose!r}")
+        for name, allowed in (("positions", ("test", "off")), ("choose", ("best", "first"))):
+            if getattr(self, name) not in allowed:
+                raise FitError(f"{name} must be {' or '.join(map(repr, allowed))}, got {getattr(self, name)!r}")
         if self.stall is not None:
             w, rho = self.stall
             if not (int(w) == w and w >= 2 and 0 < rho < 1):
@@ -511,7 +515,6 @@ def fit_output_error(
     n_starts: int | None = None,
     throw: bool = True,
 ) -> FitResult:
-    """Fit ``model`` to ``runs`` by output error: :func:`diffship.fit.fit` with ``options`` as the
-    estimator (see there for ``starts``, ``init``, ``n_starts``, ``throw``)."""
+    """Fit ``model`` to ``runs`` by output error: :func:`diffship.fit.fit` with ``options`` as the estimator."""
     return fit(model, runs, options, spec=spec, init=init, starts=starts, n_starts=n_starts, channels=channels,
                progress=progress, throw=throw)

@@ -22,8 +22,9 @@ from ..simulate import initial_state, model_inputs
 
 __all__ = ["Batch", "make_batch", "default_channels", "bucket_length", "unfitted_positions"]
 
-#: Channels not fitted by default: absolute positions drift over long runs and put LM in
-#: local minima from poor starts (fit velocities and heading; positions on request).
+#: Channels left out of the default channels: absolute positions drift over long runs where the model misses and put
+#: LM in local minima from poor starts. Output error fits the rest first and adds them where a Hausman test finds they
+#: agree (:mod:`diffship.fit.positions`); ``--channels`` names them outright.
 NOT_FITTED_BY_DEFAULT = ("x0", "y0")
 
 
@@ -52,7 +53,9 @@ def bucket_length(n: int) -> int:
 
 
 def unfitted_positions(model: AbstractModel, runs: Sequence[Run], channels: Sequence[str] | None) -> list[str]:
-    """A note where every run measures positions that the default channels leave out (:data:`NOT_FITTED_BY_DEFAULT`).
+    """A note where every run measures positions that the default channels leave out (:data:`NOT_FITTED_BY_DEFAULT`):
+    multiple shooting, prediction error, and output error with ``positions="off"`` (by default output error tests them,
+    :mod:`diffship.fit.positions`).
 
     Where the model is right they carry information the other channels do not: on the independent USV truth of
     ``benchmarks/fossen3_crlb.py`` (GNSS 0.5 m) Xu's Cramér–Rao bound is 2.9 % with them and 3.8 % without, and
@@ -61,8 +64,9 @@ def unfitted_positions(model: AbstractModel, runs: Sequence[Run], channels: Sequ
     left = [c for c in NOT_FITTED_BY_DEFAULT if c in model.output_names and all(r.has(c) for r in runs)]
     if channels is not None or not left:
         return []
-    return [f"channels: {', '.join(left)} in every run but not fitted (the default: where the model misses, a "
-            f"position's drift decides the fit); where it is right they narrow the intervals: --channels "
+    return [f"channels: {', '.join(left)} in every run but not fitted (where the model misses, a position's drift "
+            f"decides the fit; single-shooting output error adds them where they agree: --positions test); where it "
+            f"is right they narrow the intervals: --channels "
             f"{' '.join(c for c in model.output_names if all(r.has(c) for r in runs))}"]
 
 
