@@ -92,7 +92,7 @@ def test_misfit_reads_the_noise_from_second_differences():
 
 
 def test_report_and_json_say_what_was_decided():
-    t = PositionsTest(("x0", "y0"), 6.4, 10, 0.78, 0, True, worst=("Nr", 1.0), widening=0.97)
+    t = PositionsTest(("x0", "y0"), True, statistic=6.4, dof=10, p_value=0.78, worst=("Nr", 1.0), widening=0.97)
     assert "fitted" in t.describe() and "p = 0.78" in t.describe() and "--positions off" in t.describe()
     js = t.as_json()
     assert js["kept"] is True and js["dof"] == 10 and js["worst"] == {"param": "Nr", "se": 1.0}

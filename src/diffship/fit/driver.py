@@ -232,9 +232,9 @@ def _positions_tested(model, runs, estimator, spec, res: FitResult, progress) ->
     ratios = misfit(runs, {c: res.noise_std[c] for c in res.channels if c in res.noise_std}, model.angle_outputs)
     worst = max(ratios, key=ratios.get) if ratios else None
     if not res.converged:
-        test = PositionsTest(left, math.nan, 0, math.nan, 0, False, "the fit without them did not converge")
+        test = PositionsTest(left, False, "the fit without them did not converge")
     elif worst is not None and ratios[worst] > SCREEN:
-        test = PositionsTest(left, math.nan, 0, math.nan, 0, False, (
+        test = PositionsTest(left, False, (
             f"the fit misses its own channels ({worst}: residual {ratios[worst]:.3g} times its sample-to-sample "
             f"noise; where the model misses, a position's drift decides the fit), so no refit with them"))
     else:
@@ -251,7 +251,7 @@ def _positions_tested(model, runs, estimator, spec, res: FitResult, progress) ->
         else:
             reason = "" if alt.converged else f"the refit with them did not converge ({alt.status})"
         if alt is None or not alt.converged:
-            test = PositionsTest(left, math.nan, 0, math.nan, 0, False, reason)
+            test = PositionsTest(left, False, reason)
         else:
             names = list(spec.free_names)
             test = hausman(names, [res.params[n] for n in names], res.covariance, [alt.params[n] for n in names],

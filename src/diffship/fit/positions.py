@@ -28,7 +28,7 @@ fitting them would cost precision for nothing.
 **A screen before the refit.** Where the fit misses the channels it fits by far more than their noise, a position —
 which integrates those misses — will not agree, and the refit (as long as the fit itself) is skipped. Each fitted
 channel's residual RMS is compared with its sample-to-sample noise, :math:`\hat\sigma_c = 1.4826\,\mathrm{MAD}
-(\Delta^2 y_c)/\sqrt6` (white noise of variance σ² gives second differences of variance 6σ²; a track smooth at the
+(\Delta^2 y_c)/\sqrt6` per run (:func:`diffship.initial.noise_floor`; white noise of variance σ² gives second differences of variance 6σ²; a track smooth at the
 sample rate adds little, and the median ignores the rare steps of a command); the refit runs only where every ratio is
 at most :data:`SCREEN`. Measured: 0.96–1.10 on the independent USV runs and the USV of :mod:`diffship.synthetic`
 (the model right), 34–8750 for the MMG on the HSVA KVLCC2 zigzags (5 and 20 Hz). A sensor whose output is smoothed
@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -58,6 +57,7 @@ from numpy.typing import ArrayLike
 from scipy import special
 
 from ..data import Run
+from ..initial import noise_floor
 
 __all__ = ["ALPHA", "EIG_RTOL", "MAX_WIDENING", "SCREEN", "PositionsTest", "hausman", "misfit"]
 
@@ -77,23 +77,23 @@ class PositionsTest:
 
     Attributes:
         channels: the position channels tested (``("x0", "y0")``).
-        statistic: H (module docstring); ``nan`` where it could not be formed.
+        kept: whether the fit with positions is the answer.
+        reason: why not, where it is not (the screen, the refit failed, a covariance is infinite, the test rejects).
+        statistic: H (module docstring); ``nan`` where it was not formed.
         dof: k, the rank of the positive part of V_d − V_p.
         p_value: P(χ²_k > H).
         negative: how many directions the fit with positions is less certain in (negative eigenvalues).
-        widening: μ, the largest ratio of a combination's variance with the positions over without (module docstring).
-        kept: whether the fit with positions is the answer.
-        reason: why not, where it is not (the refit failed, a covariance is infinite, the test rejects).
         worst: the coefficient that moved most, in standard errors of the difference, and by how many.
+        widening: μ, the largest ratio of a combination's variance with the positions over without (module docstring).
     """
 
     channels: tuple[str, ...]
-    statistic: float
-    dof: int
-    p_value: float
-    negative: int
     kept: bool
     reason: str = ""
+    statistic: float = math.nan
+    dof: int = 0
+    p_value: float = math.nan
+    negative: int = 0
     worst: tuple[str, float] | None = None
     widening: float = math.nan
 
@@ -137,15 +137,14 @@ def hausman(names: Sequence[str], theta_d: ArrayLike, cov_d: ArrayLike, theta_p:
     V = np.asarray(cov_d, dtype=np.float64) - np.asarray(cov_p, dtype=np.float64)
     chans = tuple(channels)
     if not (np.all(np.isfinite(d)) and np.all(np.isfinite(V))):
-        return PositionsTest(chans, math.nan, 0, math.nan, 0, False,
-                             "a standard error of one of the two fits is infinite (not identifiable)")
+        return PositionsTest(chans, False, "a standard error of one of the two fits is infinite (not identifiable)")
     mu = _widening(np.asarray(cov_d, dtype=np.float64), np.asarray(cov_p, dtype=np.float64))
     w, U = np.linalg.eigh(0.5 * (V + V.T))
     top = float(np.max(np.abs(w))) if w.size else 0.0
     pos = w > EIG_RTOL * top
     neg = int(np.sum(w < -EIG_RTOL * top))
     if top == 0.0 or not pos.any():
-        return PositionsTest(chans, math.nan, 0, math.nan, neg, False, widening=mu, reason=(
+        return PositionsTest(chans, False, negative=neg, widening=mu, reason=(
             f"with them no combination of the coefficients is more certain (widest variance ratio {mu:.2f})"))
     q = U[:, pos].T @ d
     H = float(np.sum(q ** 2 / w[pos]))
@@ -163,7 +162,8 @@ def hausman(names: Sequence[str], theta_d: ArrayLike, cov_d: ArrayLike, theta_p:
                   f"residuals are not noise about the model's track")
     else:
         reason = ""
-    return PositionsTest(chans, H, k, p, neg, not reason, reason=reason, worst=worst, widening=mu)
+    return PositionsTest(chans, not reason, reason, statistic=H, dof=k, p_value=p, negative=neg, worst=worst,
+                         widening=mu)
 
 
 def _widening(cov_d: np.ndarray, cov_p: np.ndarray) -> float:
@@ -183,15 +183,10 @@ def misfit(runs: Sequence[Run], residual_rms: Mapping[str, float], angles: Seque
     reads as zero (constant, or quantised coarser than its changes) is left out."""
     out = {}
     for c, rms in residual_rms.items():
-        d = []
-        for r in runs:
-            y = np.asarray(r[c], dtype=np.float64)
-            y = np.unwrap(y) if c in angles else y
-            d.append(y[2:] - 2.0 * y[1:-1] + y[:-2])
-        d = np.concatenate(d) if d else np.zeros(0)
-        if d.size < 8:
-            continue
-        sigma = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(6.0)
+        # each run's noise (diffship.initial.noise_floor: the robust second-difference estimate), pooled by length
+        ys = [np.unwrap(np.asarray(r[c], dtype=np.float64)) if c in angles else r[c] for r in runs]
+        n = sum(len(y) for y in ys)
+        sigma = math.sqrt(sum(noise_floor(y) ** 2 * len(y) for y in ys) / max(n, 1))
         if sigma > 0 and math.isfinite(rms):
             out[c] = float(rms) / sigma
     return out
