@@ -54,6 +54,35 @@ def test_a_line_the_steering_shares_counts_only_when_the_steering_is_not_asked_a
     assert periodic_residual(runs, res, None, ["r"], cycles=10.0) is None
 
 
+def _zigzag_rudder(t, rudder_deg, switch_deg, K=0.06, T=12.0, rate_deg=15.8):
+    """The rudder of a zigzag flown by its switching rule on a first-order Nomoto ship [rad]."""
+    dt, psi, r, d, target, out = t[1] - t[0], 0.0, 0.0, 0.0, np.radians(rudder_deg), []
+    for _ in t:
+        if (psi > np.radians(switch_deg) and target > 0) or (psi < -np.radians(switch_deg) and target < 0):
+            target = -target
+        d += np.clip(target - d, -np.radians(rate_deg) * dt, np.radians(rate_deg) * dt)
+        r += dt * (K * d - r) / T
+        psi += dt * r
+        out.append(d)
+    return np.array(out)
+
+
+def test_a_line_at_the_zigzags_harmonics_is_driven_though_each_zigzag_has_its_own_period():
+    """Basin zigzags 10/5, 20/5, 35/5 and 20/10 (100 s at 0.2 s): each rudder has a line near 20 s (a harmonic of its
+    own period), in neighbouring Fourier bins. A model error there is the answer to the rudder: no wave. (Averaged
+    over the runs before the test, the lines fell below the threshold and started a sea-state check.)"""
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 100.2, 0.2)
+    runs, res, steer = [], {}, {}
+    for i, (rudder, switch) in enumerate(((10, 5), (20, 5), (35, 5), (20, 10))):
+        name = f"z{i}"
+        e = 0.05 * np.sin(2 * np.pi * t / 20.04 + i) + 0.01 * rng.standard_normal(t.size)
+        runs.append(Run(name, t, {"r": e}, {}, check_units=False))
+        res[name], steer[name] = {"r": e}, _zigzag_rudder(t, rudder, switch)
+    assert periodic_residual(runs, res, None, ["r"])["period_s"] == pytest.approx(20.0, rel=0.05)  # a line
+    assert periodic_residual(runs, res, steer, ["r"]) is None  # every run's rudder has it
+
+
 def test_white_residuals_give_no_period():
     hits = 0
     for seed in range(10):

@@ -7,9 +7,11 @@ sum, averaged over runs) are tested with **Fisher's g** (Fisher 1929): with
 :math:`g = \max_k P_k / \sum_k P_k` over the :math:`n` Fourier frequencies, the probability of a
 larger g from noise alone is :math:`p \approx n (1 - g)^{n - 1}`. A peak counts when
 :math:`p < 10^{-3}`, its period lies between 2 s and a third of the shortest run (so several
-cycles are in every run), and the steering input has no clear line there (at most ten times
-its average share of power within a bin: a residual at the zigzag period or its low harmonics
-is the model's response to the rudder, not a disturbance). Fisher's test assumes white
+cycles are in every run), and the steering input of no run has a clear line there (at most ten
+times its average share of power within a bin: a residual at a zigzag's period or its harmonics
+is the model's response to the rudder, not a disturbance; runs are checked one by one, since
+zigzags of different periods put their harmonics in different bins and a mean over runs would
+dilute each run's line below the threshold). Fisher's test assumes white
 residuals; structural residuals are coloured, so the p-value is a screening number, not a
 calibrated one.
 
@@ -64,7 +66,7 @@ def periodic_residual(runs: Sequence, residuals: dict, steer: dict | None, chann
     band = (f > 0) & (1.0 / np.maximum(f, 1e-300) >= min_period) & (1.0 / np.maximum(f, 1e-300) <= n * dt / cycles)
     if not np.any(band):
         return None
-    P_in = np.mean([_periodogram(np.asarray(steer[r.name])[:n]) for r in runs], axis=0) if steer else None
+    P_ins = [_periodogram(np.asarray(steer[r.name])[:n]) for r in runs] if steer else []
     best = None
     hits = []
     for c in channels:
@@ -74,7 +76,9 @@ def periodic_residual(runs: Sequence, residuals: dict, steer: dict | None, chann
         g = float(Pb[k] / max(P.sum(), 1e-300))
         m = P.size
         p = float(min(1.0, m * (1.0 - g) ** (m - 1)))
-        driven = P_in is not None and P_in[max(k - 1, 0):k + 2].max() > 10.0 / P_in.size  # a line of the input
+        # a line of any run's input: the residual periodogram is a mean over runs, and zigzags of different periods
+        # put their harmonics in different bins, so one run's response to its own rudder is matched with that run
+        driven = any(P_in[max(k - 1, 0):k + 2].max() > 10.0 / P_in.size for P_in in P_ins)
         if p < p_max and not driven:
             hits.append((c, float(1.0 / f[k]), p))
     if not hits:

@@ -108,7 +108,7 @@ def sea_state(base_fit: FitResult, train: Sequence[Run], val: Sequence[Run], cha
                               options=OutputErrorOptions(integrator=base_fit.integrator),
                               starts={"the base fit's values": {n: base_fit.params[n] for n in base_fit.free}},
                               n_starts=2,  # and the model's own values: a base fit biased by the sea state is a poor start
-                              noise=PredictionErrorOptions(disturbance="wave"), throw=False)
+                              noise=PredictionErrorOptions(disturbance="wave"), progress=say, throw=False)
     if not pe.usable:
         return SeaState(False, math.nan, math.nan, {}, {}, {}, f"the prediction-error fit did not converge: {pe.status}",
                         time.perf_counter() - t0, pe)
