@@ -36,11 +36,13 @@ def _given(**kw):
 
 
 def fit_oe(model, runs, *, spec=_UNSET, estimate_x0=_UNSET, weights=_UNSET, flt=_UNSET, channels=_UNSET,
-           starts=_UNSET, max_steps=_UNSET, rtol=_UNSET, atol=_UNSET, reference_priors=_UNSET, x0_prior=_UNSET):
+           starts=_UNSET, max_steps=_UNSET, rtol=_UNSET, atol=_UNSET, reference_priors=_UNSET, x0_prior=_UNSET,
+           adaptive=_UNSET, effective_samples=_UNSET):
     """``diffship.fit.fit_output_error(model, runs, spec=..., channels=..., starts=..., options=...)``."""
     options = OutputErrorOptions(**_given(estimate_x0=estimate_x0, weights=weights, flt=flt, max_steps=max_steps,
                                           rtol=rtol, atol=atol, reference_priors=reference_priors,
-                                          x0_prior=x0_prior))
+                                          x0_prior=x0_prior, adaptive=adaptive,
+                                          effective_samples=effective_samples))
     return fit_output_error(model, runs, options=options, **_given(spec=spec, channels=channels, starts=starts))
 
 
