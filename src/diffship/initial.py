@@ -59,7 +59,7 @@ from .models import AbstractModel
 from .preprocess import Filter, smooth_and_derivative
 from .simulate import initial_state, model_inputs, simulate, simulate_run
 
-__all__ = ["NOISE_FLOOR_SHARE", "StartPrior", "channel_noise", "noise_floor", "rate_channel", "start_prior",
+__all__ = ["NOISE_FLOOR_SHARE", "StartPrior", "channel_noise", "noise_floor", "pooled_noise_floor", "rate_channel", "start_prior",
            "estimate_starts", "start_request", "estimated_states", "state_scales"]
 
 #: The sensor-noise estimate of a channel is at least this share of its spread (noise-free data:
@@ -79,20 +79,26 @@ def noise_floor(y: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def pooled_noise_floor(series: Sequence[np.ndarray]) -> float:
+    """One channel's sensor noise pooled over runs: :func:`noise_floor` of each run's samples, root mean square
+    over the runs weighted by their lengths."""
+    var, n = 0.0, 0
+    for y in series:
+        y = np.asarray(y, dtype=np.float64)
+        var += noise_floor(y) ** 2 * y.size
+        n += y.size
+    return math.sqrt(var / max(n, 1))
+
+
 def channel_noise(ys: Float[np.ndarray, "R N C"], mask: Bool[np.ndarray, "R N"]) -> np.ndarray:
-    """Sensor noise of each channel ``(C,)``, pooled over the runs (:func:`noise_floor` of every run's
-    samples, root mean square over runs weighted by their lengths), at least :data:`NOISE_FLOOR_SHARE`
-    of the channel's spread."""
+    """Sensor noise of each channel ``(C,)``, pooled over the runs (:func:`pooled_noise_floor`), at least
+    :data:`NOISE_FLOOR_SHARE` of the channel's spread."""
     ys, mask = np.asarray(ys, dtype=np.float64), np.asarray(mask, dtype=bool)
     out = []
     for c in range(ys.shape[-1]):
-        var, n = 0.0, 0
-        for i in range(ys.shape[0]):
-            y = ys[i, mask[i], c]
-            var += noise_floor(y) ** 2 * y.size
-            n += y.size
+        pooled = pooled_noise_floor([ys[i, mask[i], c] for i in range(ys.shape[0])])
         spread = float(np.std(ys[..., c][mask])) if np.any(mask) else 0.0
-        out.append(max(math.sqrt(var / max(n, 1)), NOISE_FLOOR_SHARE * spread, 1e-12))
+        out.append(max(pooled, NOISE_FLOOR_SHARE * spread, 1e-12))
     return np.asarray(out)
 
 

@@ -57,7 +57,7 @@ from numpy.typing import ArrayLike
 from scipy import special
 
 from ..data import Run
-from ..initial import noise_floor
+from ..initial import pooled_noise_floor
 
 __all__ = ["ALPHA", "EIG_RTOL", "MAX_WIDENING", "SCREEN", "PositionsTest", "hausman", "misfit"]
 
@@ -183,10 +183,8 @@ def misfit(runs: Sequence[Run], residual_rms: Mapping[str, float], angles: Seque
     reads as zero (constant, or quantised coarser than its changes) is left out."""
     out = {}
     for c, rms in residual_rms.items():
-        # each run's noise (diffship.initial.noise_floor: the robust second-difference estimate), pooled by length
-        ys = [np.unwrap(np.asarray(r[c], dtype=np.float64)) if c in angles else r[c] for r in runs]
-        n = sum(len(y) for y in ys)
-        sigma = math.sqrt(sum(noise_floor(y) ** 2 * len(y) for y in ys) / max(n, 1))
+        sigma = pooled_noise_floor([np.unwrap(np.asarray(r[c], dtype=np.float64)) if c in angles else r[c]
+                                    for r in runs])
         if sigma > 0 and math.isfinite(rms):
             out[c] = float(rms) / sigma
     return out
