@@ -63,9 +63,11 @@ def test_an_effect_recovered_exactly_is_accepted_on_held_out_runs(effect):
         else:
             prior_base_E = base.E
     # the prior alone (the default rule, no box) also keeps the base model from hiding the effect in its start: the
-    # gap it shows is as clear as with the box (a free start hid part of a current's drift in the start)
+    # gap it shows stays clear (a free start hid part of a current's drift in the start). With the box the base
+    # scores E 5.8 here; with the prior alone 4.2 (its start is set at the fit's weights where it drifts: the
+    # re-weighting may only sharpen, see the test below), 7.3 when it could also loosen them
     assert prior_base_E > 1.5
-    assert prior_base_E > 0.8 * Validation(ws, val, floor, CHANNELS, StartRule(bound=3.0)).base().E
+    assert prior_base_E > 0.6 * Validation(ws, val, floor, CHANNELS, StartRule(bound=3.0)).base().E
 
 
 def test_projected_lm_solves_a_bounded_least_squares_problem():
@@ -79,3 +81,22 @@ def test_projected_lm_solves_a_bounded_least_squares_problem():
     d = bounded_offsets(lambda d: (A @ d - y, A), 2, lo, hi, max_steps=200, tol=1e-14)
     ref = lsq_linear(A, y, bounds=(np.tile(lo, 2), np.tile(hi, 2))).x
     assert np.allclose(d, ref, atol=1e-6)
+
+
+def test_a_model_that_misses_more_keeps_the_base_fits_weights():
+    """The held-out starts' re-weighting only sharpens. The base model missing the current drifts in its track on
+    the held-out runs far above the fit's channel scales: its start keeps the fit's weights there (uncapped, its own
+    drifting scales loosened the data tenfold and more, and the prior held its start at the log: a larger error that
+    came from the start rule, not from the model). The exact model's residuals are white at the noise, and its
+    weights are its own, never looser than the fit's."""
+    ws, val, floor, gate = _case("current", CASES["current"])
+    fit_scales = dict(zip(ws.channels, ws.scales))
+    v = Validation(ws, val, floor, CHANNELS, StartRule())
+    exact = RefitResult(("current",), dict(CASES["current"]), {"Vcx": 1e-4, "Vcy": 1e-4}, {}, 1.0, 1, 0.0, True)
+    base, cand = v.base(), v.refit(exact)
+    assert base.E > 1.5 and cand.E < gate + 0.05
+    for score in (base, cand):
+        assert set(score.start.scales) == set(CHANNELS)
+        assert all(score.start.scales[c] <= fit_scales[c] * (1 + 1e-12) for c in CHANNELS), score.start.scales
+    # the track is where the missing current shows: there the base keeps the fit's weight exactly
+    assert all(base.start.scales[c] == pytest.approx(fit_scales[c], rel=1e-12) for c in ("x0", "y0"))
