@@ -59,8 +59,8 @@ from .models import AbstractModel
 from .preprocess import Filter, smooth_and_derivative
 from .simulate import initial_state, model_inputs, simulate, simulate_run
 
-__all__ = ["NOISE_FLOOR_SHARE", "StartPrior", "channel_noise", "noise_floor", "pooled_noise_floor", "rate_channel", "start_prior",
-           "estimate_starts", "start_request", "estimated_states", "state_scales"]
+__all__ = ["NOISE_FLOOR_SHARE", "StartPrior", "channel_noise", "noise_floor", "pooled_noise_floor", "rate_channel",
+           "start_prior", "estimate_starts", "start_request", "estimated_states", "state_scales"]
 
 #: The sensor-noise estimate of a channel is at least this share of its spread (noise-free data:
 #: the start is then pinned to the measured value, as it should be).
