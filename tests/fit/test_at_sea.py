@@ -117,6 +117,7 @@ def test_no_sea_state_in_calm_water():
     s = sea_state(oe, train, val, CH)
     assert not s.found and "none found" in s.line()
     assert max(s.share.values()) < 0.05
+    assert "the full fit was not made" in s.why and not s.K_T  # the screen ended the check
 
 
 def test_a_wave_logged_slowly_is_found_from_the_disturbance_dominated_start():
@@ -139,3 +140,20 @@ def test_a_wave_logged_slowly_is_found_from_the_disturbance_dominated_start():
     assert abs(pe.info["process_sd"]["r"] / tv["wave_sd"] - 1) < 0.3
     for n in ("K", "T1"):
         assert abs(pe.params[n] - tv[n]) < 3 * pe.stderr[n], (n, pe.params[n], pe.stderr[n])
+
+
+def test_the_screen_keeps_a_wave_logged_slowly_and_rules_out_calm_water():
+    """The sea-state check's short screen (:data:`~diffship.diagnose.sea_state.SCREEN_STEPS` steps) must not rule
+    out a sea state that the full fit finds only from its disturbance-dominated noise start (the heavy sea logged at
+    1 Hz above); in calm water it ends the check (:func:`test_no_sea_state_in_calm_water`)."""
+    from benchmarks.independent.autopilot_waves import WaveShip
+    from diffship.diagnose.sea_state import SHARE_MIN
+
+    g = autopilot_runs(1, n_runs=3, duration=300.0, dt=1.0, ship=WaveShip(wave_sd=0.02))
+    runs = [Run(x["name"], x["time"], x["channels"], {"source": "independent"}) for x in g]
+    oe = fit_output_error(Nomoto1(), runs[:2], channels=("r",))
+    lines = []
+    s = sea_state(oe, runs[:2], runs[2:], ("r",), lines.append)
+    assert s.found and s.share["r"] >= SHARE_MIN, s.line()
+    assert any("screen's share" in m for m in lines) and any("fitting the base model" in m for m in lines)
+    assert abs(s.period_s / g[0]["truth"]["wave_period"] - 1) < 0.1
