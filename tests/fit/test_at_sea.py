@@ -142,7 +142,7 @@ def test_a_wave_logged_slowly_is_found_from_the_disturbance_dominated_start():
         assert abs(pe.params[n] - tv[n]) < 3 * pe.stderr[n], (n, pe.params[n], pe.stderr[n])
 
 
-def test_the_screen_keeps_a_wave_logged_slowly_and_rules_out_calm_water():
+def test_the_screen_keeps_a_wave_logged_slowly():
     """The sea-state check's short screen (:data:`~diffship.diagnose.sea_state.SCREEN_STEPS` steps) must not rule
     out a sea state that the full fit finds only from its disturbance-dominated noise start (the heavy sea logged at
     1 Hz above); in calm water it ends the check (:func:`test_no_sea_state_in_calm_water`)."""

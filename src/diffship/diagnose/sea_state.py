@@ -134,11 +134,8 @@ def sea_state(base_fit: FitResult, train: Sequence[Run], val: Sequence[Run], cha
     runs = list(val) or list(train)
     say(f"sea state: screening with a {SCREEN_STEPS}-step prediction-error fit with a narrow-band wave disturbance...")
     pe = _pe_fit(base_fit, train, channels, say, 1, SCREEN_STEPS)
-    try:
-        share = _shares(pe, runs) if math.isfinite(pe.cost) else {}
-    except Exception:  # noqa: BLE001 - only a screen: the full fit below decides, and reports what fails
-        share = {}
-    share = share if all(math.isfinite(v) for v in share.values()) else {}
+    share = _shares(pe, runs) if math.isfinite(pe.cost) else {}
+    share = share if all(math.isfinite(v) for v in share.values()) else {}  # no verdict: the full fit decides
     if share:
         say("sea state: the screen's share of the one-sample prediction error: "
             + ", ".join(f"{c} {100 * v:.1f} %" for c, v in share.items()))
