@@ -36,6 +36,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "estimators_hsva": ("benchmarks.estimators_hsva", "the estimators on the real HSVA KVLCC2 zigzags"),
     "kvlcc2_second_minimum": ("benchmarks.kvlcc2_second_minimum", "a KVLCC2 fit point: early stop or second "
                               "minimum (prints)"),
+    "kvlcc2_rudder_offset": ("benchmarks.kvlcc2_rudder_offset", "the rudder offset each HSVA zigzag asks of a "
+                             "fitted MMG (its asymmetry, run by run)"),
     "shipmmg_peer": ("benchmarks.shipmmg_peer", "diffship's MMG fitted on another MMG implementation's zigzags"),
     "fleet": ("benchmarks.fleet", "python -m diffship.fleet vs a shell loop of python -m diffship.fit"),
     "diagnose_current_case": ("benchmarks.diagnose_current_case", "the whole diagnosis of a USV in a current"),

@@ -72,3 +72,24 @@ def test_every_benchmark_is_registered_and_importable_by_name():
         sys.path.remove(str(ROOT))
     proc = subprocess.run([sys.executable, "-m", "benchmarks"], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert proc.returncode == 0 and all(n in proc.stdout for n in BENCHMARKS), proc.stdout + proc.stderr
+
+
+def test_the_rudder_offset_a_zigzag_asks_is_the_one_it_was_made_with():
+    """``benchmarks/kvlcc2_rudder_offset.py`` finds the rudder offset a zigzag asks of a model: a 20°/5° zigzag
+    flown by the KVLCC2 MMG with a 1° offset asks +1° of the same model without it, and then simulates its heading
+    to a small fraction of a degree."""
+    import math
+
+    from diffship.manoeuvres import zigzag
+    from diffship.models.mmg import kvlcc2_mmg
+
+    sys.path.insert(0, str(ROOT))
+    try:
+        from benchmarks.kvlcc2_rudder_offset import best_offset
+    finally:
+        sys.path.remove(str(ROOT))
+    run = zigzag(kvlcc2_mmg(delta0=math.radians(1.0)), {"u": 1.179}, rudder_deg=20.0, switch_deg=5.0, duration=80.0,
+                 dt=0.2, inputs={"n": 10.23}, rudder_rate_deg_s=15.8)
+    d, rmse, base = best_offset(kvlcc2_mmg(), run)
+    assert abs(math.degrees(d) - 1.0) < 0.05, math.degrees(d)
+    assert math.degrees(rmse) < 0.2 < math.degrees(base), (math.degrees(rmse), math.degrees(base))

@@ -20,9 +20,9 @@ is not followed from t = 66 s; with ``--free-hydrodynamic --horizon 60`` it is u
 not usable is refitted with the first option its report names that it has not taken yet, at most
 :data:`MAX_STEPS` times, each step said in one line and listed in the report and the JSON (``steps_taken``);
 ``--as-given`` fits with the options as given. A usable fit is never refitted, so the answer changes only where
-the options given led to no usable fit. The plain KVLCC2 command above takes both steps (5.9 min on 2 cores) and
+the options given led to no usable fit. The plain KVLCC2 command above takes both steps (87 s on 2 cores) and
 is usable: held-out first overshoots 9.78° and 11.67° against 9.67° and 11.95° measured, and the 35° turn's
-tactical diameters 3.04 and 3.07 L (HSVA measured 3.1–3.3 L; 3.33 and 3.07 L for the two sides in the data).
+tactical diameters 3.04 and 3.07 L (HSVA measured 3.1–3.3 L: 3.33 L starboard, 3.07 L port).
 """
 
 from __future__ import annotations
