@@ -72,9 +72,7 @@ def loading(model: MMG, run) -> tuple[float, float]:
     """``(propeller loading, speed [m/s])`` at the second half's mean state (module docstring)."""
     half = slice(len(run.time) // 2, None)
     u, v, r, n = (float(np.mean(np.asarray(run[c])[half])) for c in ("u", "v", "r", "n"))
-    _, _, _, u_p, kt, nd = model._propeller(u, v, r, n)
-    slip = math.sqrt(float(u_p) ** 2 + 8.0 * float(kt) * float(nd) ** 2 / math.pi)
-    return slip / float(u_p) - 1.0, math.hypot(u, v)
+    return float(model.propeller_loading(u, v, r, n)), math.hypot(u, v)
 
 
 def main(argv=None) -> int:

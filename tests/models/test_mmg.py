@@ -56,6 +56,18 @@ def test_hull_force_nondimensionalisation():
     assert float(N) == pytest.approx(q * 7.0 * (-0.137 * vp - 0.030 * vp**3), rel=1e-9)
 
 
+def test_propeller_loading_at_the_approach_speed():
+    """Straight ahead at U0 and 10.23 rps: J_P = u(1 − w_P0)/(nD_P) = 0.320, K_T = k0 + k1 J + k2 J² = 0.191, and
+    the loading √(1 + 8K_T/(πJ_P²)) − 1 = 1.40; it grows as the ship slows at the same rate (heavier loading)."""
+    m = kvlcc2_mmg()
+    J = U0 * (1 - 0.40) / (N_RPS * 0.216)
+    kt = 0.2931 - 0.2753 * J - 0.1385 * J**2
+    expected = math.sqrt(1 + 8 * kt / (math.pi * J**2)) - 1
+    assert float(m.propeller_loading(U0, 0.0, 0.0, N_RPS)) == pytest.approx(expected, rel=1e-9)
+    assert float(m.propeller_loading(U0, 0.0, 0.0, N_RPS)) == pytest.approx(1.40, abs=0.01)
+    assert float(m.propeller_loading(0.7, 0.0, 0.0, N_RPS)) > float(m.propeller_loading(U0, 0.0, 0.0, N_RPS))
+
+
 def test_starboard_rudder_turns_to_starboard_and_straight_run_is_symmetric():
     m = kvlcc2_mmg()
     x = jnp.array([0.0, 0.0, 0.0, U0, 0.0, 0.0])

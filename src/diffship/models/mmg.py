@@ -224,6 +224,17 @@ class MMG(AbstractShip3):
         kt = self.k0 + self.k1 * J + self.k2 * J * J
         return U, beta, rp, u_p, kt, nd
 
+    @staticmethod
+    def _slipstream(u_p, kt, nd):
+        """Far-slipstream axial speed :math:`\sqrt{u_P^2 + 8K_T(nD_P)^2/\pi}` (momentum theory)."""
+        return jnp.sqrt(jnp.maximum(u_p * u_p + 8.0 * kt * nd * nd / math.pi, 1e-12))
+
+    def propeller_loading(self, u, v, r, n):
+        """Propeller loading :math:`\sqrt{1 + 8K_T/(\pi J_P^2)} - 1` [-], the slipstream's speed-up of the
+        propeller inflow (the factor κ scales in the rudder inflow :math:`u_R`)."""
+        _, _, _, u_p, kt, nd = self._propeller(u, v, r, n)
+        return self._slipstream(u_p, kt, nd) / u_p - 1.0
+
     def propeller_thrust(self, u, v, r, n):
         """Surge force of the propeller X_P [N]."""
         _, _, _, _, kt, nd = self._propeller(u, v, r, n)
@@ -233,7 +244,7 @@ class MMG(AbstractShip3):
         """Rudder forces (X_R, Y_R, N_R) including the hull interaction (t_R, a_H, x_H)."""
         U, beta, rp, u_p, kt, nd = self._propeller(u, v, r, n)
         eta = self.DP / self.HR
-        slip = jnp.sqrt(jnp.maximum(u_p * u_p + 8.0 * kt * nd * nd / math.pi, 1e-12))
+        slip = self._slipstream(u_p, kt, nd)
         ur = self.eps * jnp.sqrt(eta * (u_p + self.kappa * (slip - u_p)) ** 2 + (1.0 - eta) * u_p * u_p + 1e-12)
         beta_r = beta - self.lR * rp
         gamma = jnp.where(beta_r < 0.0, self.gammaR_minus, self.gammaR_plus)
