@@ -130,7 +130,7 @@ def test_errors_name_what_to_fix(nomoto_zz):
 
 
 def test_mmg_kvlcc2_turning_circle_both_sides():
-    """35° turns of the MMG KVLCC2 (n = 10.23 rps, helm 15.8 °/s) vs HSVA: advance 3.0–3.1 L,
+    """35° turns of the MMG KVLCC2 (n = 10.23 rps, helm 15.8 °/s) vs the free-running turns: advance 3.0–3.1 L,
     tactical diameter 3.1–3.3 L, each within 10 %; port and starboard within 5 % of each other."""
     kw = dict(rudder_deg=35.0, inputs={"n": 10.23}, duration=120.0, dt=0.2, t_execute=1.0, rudder_rate_deg_s=15.8,
               integrator=RK4(substeps=1))

@@ -22,7 +22,8 @@ not usable is refitted with the first option its report names that it has not ta
 ``--as-given`` fits with the options as given. A usable fit is never refitted, so the answer changes only where
 the options given led to no usable fit. The plain KVLCC2 command above takes both steps (87 s on 2 cores) and
 is usable: held-out first overshoots 9.78° and 11.67° against 9.67° and 11.95° measured, and the 35° turn's
-tactical diameters 3.04 and 3.07 L (HSVA measured 3.1–3.3 L: 3.33 L starboard, 3.07 L port).
+tactical diameters 3.04 and 3.07 L (free-running turning tests: 3.33 L starboard, 3.07 L port;
+not HSVA's, whose report lists zigzags only).
 """
 
 from __future__ import annotations
