@@ -260,3 +260,21 @@ def test_a_parameter_on_its_bound_stops_the_solve_where_the_others_have_converge
                    / float(J @ J))
     assert abs(stop["z"][0, 1] - float(fixed)) < 0.05 * se
     assert 0.0 < math.exp(stop["z"][0, 0]) < 1e-3  # the amplitude inside its bound, on it to 0.1 % of its value
+
+
+def test_a_solve_ends_where_an_unknown_reaches_its_absorbing_bound(y):
+    """``stop_above`` (item 7): the rate of the first exponential clipped at e^{-2} inside the residuals, while the
+    data ask e^{-1.2}; the solve that ends on the bound holds the rate where the full solve leaves it (beyond the
+    clip its Jacobian column is zero, so the rest of the full solve never moves it), stopped as not converged."""
+    hi = -2.0
+
+    def res(z, yy):
+        return (jnp.exp(z[0] - jnp.exp(jnp.clip(z[1], -10.0, hi)) * T) - yy) / SIGMA
+
+    z0, free = jnp.asarray([[0.0, -3.0]]), jnp.ones((1, 2), bool)
+    full = jax.jit(lambda s, d, k: lm_advance(res, s, d, k, **TOL))(lm_start(res, z0, y, free, **TOL), y, 0)
+    early = jax.jit(lambda s, d, k: lm_advance(res, s, d, k, stop_above=((1, hi),), **TOL))(
+        lm_start(res, z0, y, free, **TOL), y, 0)
+    assert float(full["z"][0, 1]) >= hi and float(early["z"][0, 1]) == float(full["z"][0, 1])
+    assert int(early["status"][0]) == CODES["max_steps"] and int(early["steps"][0]) < int(full["steps"][0])
+    assert float(early["cost"][0]) >= float(full["cost"][0])  # the other unknown not yet at its optimum

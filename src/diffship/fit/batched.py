@@ -42,7 +42,11 @@ axis so that a batch advances in lockstep *without* evaluating both branches of 
    Gauss–Newton step stays long. It fires only while the Gauss–Newton model still promises
    more than that, :math:`\tfrac12 r^\top J (J^\top J)^{+} J^\top r > \rho\,c_k` (the last
    steps of a convergence, where the promise is small too, go on to the ordinary tests). A
-   caller tells such a stop from the step cap by its step count.
+   caller tells such a stop from the step cap by its step count;
+7. optionally (``stop_above``, pairs ``(i, v)``) an **end at a bound**: a problem stops, not converged, once
+   its unknown ``z_i`` reaches ``v``. For an unknown clipped at ``v`` inside the residuals (a disturbance's
+   damping, :data:`diffship.fit.disturbance.CLIP`) that point is absorbing: beyond the clip its Jacobian
+   column is zero, so no later step moves it back (the caller decides what such an end means).
 
 Finished problems (converged, failed, out of steps) are frozen by masks: their trial point is
 their current point and nothing of theirs changes. On a CPU a frozen problem still costs its share
@@ -232,12 +236,12 @@ def _finish_step(st, converged, diverged, *, penalty, max_steps, stalled=None):
 def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=None, keep_jacobian: bool = False,
                penalty: float | None = None, rtol, atol, ftol, gntol, variance, gn_params, max_steps,
                stall_steps: int = 0, stall_rtol: float = 0.0, jac: Callable | None = None,
-               bounded: tuple[int, ...] = ()) -> dict:
+               bounded: tuple[int, ...] = (), stop_above: tuple[tuple[int, float], ...] = ()) -> dict:
     """Advance every unfinished problem until all are done or no more than ``stop_below`` remain
     unfinished (a dynamic scalar: the host repacks then; ``0`` runs to the end); with
     ``stall_steps`` > 0 a problem whose cost falls by less than ``stall_rtol``·cost over that many
     steps stops, not converged (module docstring, item 6). ``bounded``: the kinds of the first unknowns'
-    bounds (:func:`_pinned`; module docstring, item 5)."""
+    bounds (:func:`_pinned`; module docstring, item 5); ``stop_above``: item 7."""
     tol = dict(rtol=rtol, atol=atol, gntol=gntol, variance=variance, gn_params=gn_params)
 
     def body(st):
@@ -305,6 +309,8 @@ def lm_advance(res: Callable, st: dict, data, stop_below: Array, *, data_axis=No
                 & (promise > stall_rtol * new["cost"])
             new["win_cost"] = jnp.where(full | first, new["cost"], new["win_cost"])
             new["win_steps"] = jnp.where(full, 0, win)
+        for i, v in stop_above:  # item 7: past an absorbing bound
+            crawl = (new["z"][:, i] >= v) if crawl is None else crawl | (new["z"][:, i] >= v)
         diverged = active & first & ~jnp.isfinite(cost_eval)  # a start whose cost is not finite
         return _finish_step(new, converged, diverged, penalty=penalty,
                             max_steps=max_steps, stalled=crawl)

@@ -1,8 +1,7 @@
 r"""The output-error kernel: one residual, one Jacobian, one solver for every simulation fit.
 
-Fitting (:mod:`diffship.fit.output_error`), the diagnosis screen and refits
-(:mod:`diffship.diagnose.screen`) and the estimation of initial states for evaluation all call
-this module; nothing else in diffship writes an output-error residual.
+Fitting (:mod:`diffship.fit.output_error`), the diagnosis screen and refits (:mod:`diffship.diagnose.screen`)
+and the estimation of initial states for evaluation all call this module; nothing else writes an output-error residual.
 
 **Unknowns.** One flat vector :math:`z = (z_\theta, w, d)`:
 
@@ -312,13 +311,14 @@ class Kernel(eqx.Module):
 
     def _lm_static(self, *, max_steps: int, rtol: float, atol: float, ftol: float = 1e-9, jacobian: bool = False,
                    gntol: float = 0.05, variance: float | None = None, gn_params: int | None = -1,
-                   stall_steps: int = 0, stall_rtol: float = 0.0) -> dict:
-        """The batched LM's static options from :meth:`solve`'s keywords."""
+                   stall_steps: int = 0, stall_rtol: float = 0.0, stop_above=()) -> dict:
+        """The batched LM's static options from :meth:`solve`'s keywords (``stop_above``: only where given)."""
         k = self.n_theta + self.n_extra if gn_params == -1 else gn_params
         return dict(max_steps=int(max_steps), rtol=float(rtol), atol=float(atol), ftol=float(ftol), gn_params=k,
                     keep_jacobian=bool(jacobian), gntol=float(gntol), variance=None if variance is None else float(variance),
                     stall_steps=int(stall_steps), stall_rtol=float(stall_rtol),
-                    bounded=tuple(int(p.kind) for p in self.spec.params if p.free))
+                    bounded=tuple(int(p.kind) for p in self.spec.params if p.free),
+                    **({"stop_above": tuple((int(i), float(v)) for i, v in stop_above)} if stop_above else {}))
 
     def solve(self, z0: Float[Array, " n_z"], data: KernelData, *, max_steps: int, rtol: float, atol: float,
               ftol: float = 1e-9, jacobian: bool = False, gntol: float = 0.05, variance: float | None = None,

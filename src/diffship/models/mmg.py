@@ -226,11 +226,11 @@ class MMG(AbstractShip3):
 
     @staticmethod
     def _slipstream(u_p, kt, nd):
-        """Far-slipstream axial speed :math:`\sqrt{u_P^2 + 8K_T(nD_P)^2/\pi}` (momentum theory)."""
+        r"""Far-slipstream axial speed :math:`\sqrt{u_P^2 + 8K_T(nD_P)^2/\pi}` (momentum theory)."""
         return jnp.sqrt(jnp.maximum(u_p * u_p + 8.0 * kt * nd * nd / math.pi, 1e-12))
 
     def propeller_loading(self, u, v, r, n):
-        """Propeller loading :math:`\sqrt{1 + 8K_T/(\pi J_P^2)} - 1` [-], the slipstream's speed-up of the
+        r"""Propeller loading :math:`\sqrt{1 + 8K_T/(\pi J_P^2)} - 1` [-], the slipstream's speed-up of the
         propeller inflow (the factor κ scales in the rudder inflow :math:`u_R`)."""
         _, _, _, u_p, kt, nd = self._propeller(u, v, r, n)
         return self._slipstream(u_p, kt, nd) / u_p - 1.0
