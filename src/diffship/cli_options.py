@@ -16,7 +16,8 @@ runs at the ordinary exit).
 
 Rules: a list option may be repeated and its items accumulate (``--fix A=1 --fix B=2``
 fixes both: ``action="extend"``); a malformed item (``--fix A``, ``--fix A=x``, ``--columns psi``,
-an unknown channel) stops the command at once with argparse's one-line message and exit status 2,
+an unknown channel, a file name where ``--degrees`` or ``--free`` expects a name: the option took the
+run files after it) stops the command at once with argparse's one-line message and exit status 2,
 before JAX or NumPy is imported. This module imports only the standard library and the plain-Python
 tables (:mod:`diffship.particulars`, :mod:`diffship.channels`); a test checks it.
 """
@@ -43,8 +44,10 @@ __all__ = [
     "add_vessel_option",
     "exit_now",
     "assignment",
+    "DATA_FILE_SUFFIXES",
     "channel_name",
     "column_mapping",
+    "column_name",
     "helm_rate",
     "names_of",
     "parameter_name",
@@ -60,6 +63,18 @@ INTEGRATOR_NAMES = ("diffrax-rk4", "diffrax-tsit5", "rk4", "tsit5")
 
 #: Rudder sign conventions of the files (``--rudder-sign``).
 RUDDER_SIGNS = ("starboard", "port")
+
+#: Endings of the files a command reads (CSV runs, logs: :data:`diffship.logs.LOG_SUFFIXES`, vessel and prior JSON,
+#: channel maps): a list option's item ending so is a file the option took from the words after it.
+DATA_FILE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".json", ".toml", ".db3", ".mcap", ".bin", ".tlog", ".ulg",
+                      ".parquet")
+
+
+def _file_name(item: str, what: str) -> None:
+    """Stop on a list option's item that is a file name (an existing file, or a run's or log's ending)."""
+    if item.lower().endswith(DATA_FILE_SUFFIXES) or os.path.isfile(item):
+        raise argparse.ArgumentTypeError(f"{item!r} is a file name, not {what}: the option takes every word after it; "
+                                         "put the run files first, before the option (or after --)")
 
 
 # -- item types: each returns the item unchanged (or converted) or raises argparse's error ------------------
@@ -93,6 +108,12 @@ def prior_item(item: str) -> str:
     return item
 
 
+def column_name(item: str) -> str:
+    """A column name (``--degrees``), not a file name; returned as given."""
+    _file_name(item, "a column")
+    return item
+
+
 def channel_name(item: str) -> str:
     """A channel name of :data:`diffship.channels.CHANNEL_NAMES` (``--channels``)."""
     if item not in CHANNEL_NAMES:
@@ -104,6 +125,7 @@ def parameter_name(item: str) -> str:
     """A parameter name (``--free``): a name, no ``=``."""
     if not item.strip() or "=" in item:
         raise argparse.ArgumentTypeError(f"{item!r}: expected a parameter name (NAME, no value), e.g. Xu")
+    _file_name(item.strip(), "a parameter")
     return item.strip()
 
 
@@ -150,7 +172,7 @@ def add_data_options(p: argparse.ArgumentParser, *, validate: bool = True, valid
           help="map diffship channel names to file columns, e.g. psi=heading. Channel names: "
                + ", ".join(f"{c} [{u}]" for c, u in CHANNEL_NAMES.items())
                + "; columns with other names are kept under their own names")
-    _list(g, "--degrees", type=str, metavar="COLUMN", help="columns given in degrees (deg/s)")
+    _list(g, "--degrees", type=column_name, metavar="COLUMN", help="columns given in degrees (deg/s)")
     g.add_argument("--time-unit", default="s", choices=("s", "ms", "us"),
                    help="unit of a numeric time column: s (default), ms or us (converted to seconds); date-time "
                         "stamps are read as seconds from the first")

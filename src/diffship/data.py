@@ -36,8 +36,8 @@ from .units import TIME_UNITS, UnitsError, psi_unwrap
 from .units import check_units as check_column_units
 
 __all__ = [
-    "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "CHANNEL_UNITS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run",
-    "TIME_UNITS", "UnitsError", "example_path", "example_runs", "kvlcc2_runs", "load_runs", "shared_data_dir",
+    "ANGLE_CHANNELS", "CANONICAL_COLUMNS", "CHANNEL_UNITS", "MIN_SAMPLES", "RUDDER_CHANNELS", "Run", "TIME_UNITS",
+    "UnitsError", "example_path", "example_runs", "kvlcc2_runs", "load_runs", "resample_runs", "shared_data_dir",
 ]
 
 CANONICAL_COLUMNS = ("time", "x0", "y0", "psi", "u", "v", "r", "delta", "tau_x", "tau_y", "tau_z")
@@ -166,7 +166,7 @@ class Run:
                                 f"at row {i} (t={t[i]:.6g} s); drop or fill these rows before loading.")
             chans[c] = a
         if self.check_units:
-            check_column_units(where, t, chans)
+            check_column_units(where, t, chans, str(meta.get("time_unit_in_source", "s")))
         for a in (t, *chans.values()):
             a.flags.writeable = False
         object.__setattr__(self, "time", t)
@@ -438,6 +438,17 @@ def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel
                          + " | ".join(e.detail.split("; pass ")[0] for e in units)
                          + f"; pass {' and '.join(fixes)} (Python: degrees=..., time_unit=...)", degs, tu)
     return runs
+
+
+def resample_runs(runs: Sequence[Run], dt: float, option: str = "--resample") -> list[Run]:
+    """Every run resampled to the step ``dt`` [s]; a run left with fewer than ``MIN_SAMPLES`` stops with ``option``,
+    the run's length and the longest step that keeps every run."""
+    for r in runs:
+        if (k := int(np.floor(r.duration / dt + 1e-9)) + 1) < MIN_SAMPLES:
+            most = 0.995 * min(q.duration for q in runs) / (MIN_SAMPLES - 1)
+            raise DataError(f"{option} {dt:g}: run '{r.name}' lasts {r.duration:.4g} s, so a step of {dt:g} s leaves "
+                            f"{k} sample(s) (at least {MIN_SAMPLES} needed); give a step of at most {most:.3g} s")
+    return [r.resample(dt) for r in runs]
 
 
 def example_path(name: str) -> Path:

@@ -431,4 +431,5 @@ def write_json(doc: dict, path: str | Path) -> None:
             return o.tolist()
         return str(o)
 
+    Path(path).parent.mkdir(parents=True, exist_ok=True)  # as the fit file and the HTML report do
     Path(path).write_text(json.dumps(doc, indent=2, default=default, allow_nan=True))

@@ -12,7 +12,7 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["TIME_UNITS", "UnitsError", "check_units", "psi_unwrap"]
+__all__ = ["MAX_LOG_RATE_HZ", "TIME_UNITS", "UnitsError", "check_units", "psi_unwrap"]
 
 
 def psi_unwrap(psi: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -35,6 +35,28 @@ class UnitsError(DataError):
 
 #: Time units ``Run.from_dataframe(time_unit=...)`` / ``--time-unit`` converts to seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+
+
+#: The fastest sampling taken for a ship's log [Hz]: time stamps stated in ms or µs that give a faster one are in a
+#: larger unit (seconds given as ms read a 50 Hz log as 50 kHz).
+MAX_LOG_RATE_HZ = 1000.0
+_UNIT_WORDS = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "µs": "microseconds"}
+
+
+def _stated_unit_problem(time: np.ndarray, time_unit: str) -> tuple[str, str] | None:
+    """``(unit, words)`` when the time stamps, converted from the stated ``time_unit`` (ms, µs), are sampled
+    faster than :data:`MAX_LOG_RATE_HZ`: ``unit`` the next larger one that gives that rate or slower (else s)."""
+    if TIME_UNITS.get(time_unit, 1.0) >= 1.0 or time.size < 2:
+        return None
+    dt = float(np.median(np.diff(time)))
+    if not (dt > 0 and dt * MAX_LOG_RATE_HZ < 1.0):
+        return None
+    step = dt / TIME_UNITS[time_unit]  # in the column's own numbers
+    unit = next((u for u in ("ms", "s") if TIME_UNITS[u] > TIME_UNITS[time_unit]
+                 and step * TIME_UNITS[u] * MAX_LOG_RATE_HZ >= 1.0), "s")
+    return unit, (f"read as {_UNIT_WORDS[time_unit]} (time unit {time_unit}), the time stamps' median step "
+                  f"{step:.6g} is {dt:.3g} s, a sampling rate of {1.0 / dt:.6g} Hz; a ship's log is sampled at "
+                  f"{MAX_LOG_RATE_HZ:g} Hz or slower, so the time column looks like {_UNIT_WORDS[unit]}")
 
 
 def _time_unit_problem(time: np.ndarray, ch: Mapping[str, np.ndarray]) -> str | None:
@@ -67,12 +89,16 @@ def _time_unit_problem(time: np.ndarray, ch: Mapping[str, np.ndarray]) -> str | 
     return None
 
 
-def check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> None:
-    """Conservative heuristics that catch degrees passed as radians and time stamps in ms or µs;
+def check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray], time_unit: str = "s") -> None:
+    """Conservative heuristics that catch degrees passed as radians, time stamps in ms or µs, and time stamps
+    stated in a unit too small (``time_unit``, the unit they were converted from: seconds stated as ms);
     every problem of the run in one error (:class:`UnitsError`)."""
     problems: list[tuple[str, str]] = []  # (channel, what)
-    tunit = _time_unit_problem(time, ch)
-    if tunit is not None:
+    stated = _stated_unit_problem(time, time_unit)
+    tunit = stated[0] if stated is not None else _time_unit_problem(time, ch)
+    if stated is not None:
+        problems.append(("time", stated[1]))
+    elif tunit is not None:
         dt = float(np.median(np.diff(time)))
         problems.append(("time", f"the time stamps look like {'milliseconds' if tunit == 'ms' else 'microseconds'} "
                                  f"(median step {dt:.6g}; heading rate against yaw rate, or track against speed, "
@@ -108,7 +134,7 @@ def check_units(where: str, time: np.ndarray, ch: Mapping[str, np.ndarray]) -> N
         if degs:
             fixes.append(f"degrees=[{', '.join(repr(c) for c in degs)}] (CLI: --degrees {' '.join(degs)})")
         if tunit is not None:
-            fixes.append(f"time_unit={tunit!r} (CLI: --time-unit {tunit})")
+            fixes.append(f"time_unit={tunit!r} (CLI: --time-unit {tunit}{', the default' if tunit == 's' else ''})")
         detail = "; ".join(w for _, w in problems)
         raise UnitsError(f"{where}: {detail}; pass " + " and ".join(fixes)
                          + ", or check_units=False if the values really are SI (s, rad).",

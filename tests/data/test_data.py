@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from diffship.data import Run, example_path, example_runs, kvlcc2_runs, load_runs, shared_data_dir
+from diffship.data import Run, example_path, example_runs, kvlcc2_runs, load_runs, resample_runs, shared_data_dir
 from diffship.errors import DataError
 
 
@@ -104,6 +104,31 @@ def test_resample_uniform_grid_and_values():
     assert res.metadata["resampled_dt"] == 0.25
     assert run.resample(0.3).time[-1] == pytest.approx(9.9)
     raises("dt", run.resample, 0.0)
+
+
+def test_resample_step_longer_than_a_run_names_the_option_and_the_length():
+    runs = [Run("long", np.arange(100) * 0.5, {"psi": np.zeros(100)}), Run("short", np.arange(50) * 0.2,
+                                                                            {"psi": np.zeros(50)})]
+    msg = raises("--resample 2: run 'short' lasts 9.8 s|leaves 5 sample(s)|at least 10|at most 1.08 s",
+                 resample_runs, runs, 2.0)
+    assert "'long'" not in msg
+    assert [r.n for r in resample_runs(runs, 1.08)] == [46, 10]
+
+
+def test_time_unit_that_makes_the_log_faster_than_a_ship_log_is_named():
+    """Seconds stated as ms (a 10 Hz log read as 10 kHz) and ms stated as µs: one UnitsError with the rate and
+    the unit that gives a ship's rate; milliseconds stated as ms load."""
+    from diffship.data import UnitsError
+
+    with pytest.raises(UnitsError) as e:
+        Run.from_dataframe(make_df(), time_unit="ms")
+    assert e.value.time_unit == "s" and "10000 Hz" in str(e.value) and "--time-unit s" in str(e.value), e.value
+    ms = make_df().assign(time=lambda d: d["time"] * 1000.0)
+    with pytest.raises(UnitsError) as e:
+        Run.from_dataframe(ms, time_unit="us")
+    assert e.value.time_unit == "ms" and "--time-unit ms" in str(e.value), e.value
+    assert Run.from_dataframe(ms, time_unit="ms").dt == pytest.approx(0.1)
+    assert Run.from_dataframe(make_df(), time_unit="ms", check_units=False).dt == pytest.approx(1e-4)
 
 
 def test_slice_and_with_channels():

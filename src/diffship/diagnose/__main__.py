@@ -121,11 +121,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _load(args, paths):
-    from ..data import load_runs
+    from ..data import load_runs, resample_runs
 
     runs = load_runs(paths, columns=dict(c.split("=", 1) for c in args.columns) or None, degrees=args.degrees,
                      rudder_sign=args.rudder_sign, time_unit=args.time_unit, **log_kwargs(args))
-    return [r.resample(args.resample) for r in runs] if args.resample else runs
+    return resample_runs(runs, args.resample) if args.resample else runs
 
 
 def _diagnose(args, say):

@@ -63,7 +63,7 @@ def _run(args) -> int:
     from ..models.terms import library_terms
 
     library_terms(args.library)  # unknown names fail here, before JAX work
-    from ..data import load_runs
+    from ..data import load_runs, resample_runs
     from ..fit import OutputError
     from ..fitfile import save_fit
     from ..integrators import get_integrator
@@ -86,7 +86,7 @@ def _run(args) -> int:
     train = load_runs(args.runs, **kw)
     val = load_runs(args.validate, **kw) if args.validate else []
     if args.resample:
-        train, val = [r.resample(args.resample) for r in train], [r.resample(args.resample) for r in val]
+        train, val = resample_runs(train, args.resample), resample_runs(val, args.resample)
     opts = OutputError(integrator=get_integrator(args.solver, hold=args.input_hold), reference_priors=not args.no_prior,
                        prior_rel_sd=args.prior_sd, **({"max_steps": args.max_steps} if args.max_steps else {}))
     flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()

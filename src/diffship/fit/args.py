@@ -4,9 +4,11 @@
 JAX or NumPy is imported, the checks a user most often fails: a model that needs the vessel's
 particulars (mass, inertia, dimensions, ...) given neither ``--vessel`` nor ``--fix`` for them stops
 here, in a fraction of a second, with the same one line the full command prints
-(:func:`diffship.particulars.missing_message`). Everything else is checked by :mod:`diffship.fit.cli`.
-This module imports only the standard library and the plain-Python tables
-(:mod:`diffship.particulars`, :mod:`diffship.channels`); ``tests/fit/test_args.py`` checks that.
+(:func:`diffship.particulars.missing_message`); so do held-out runs without a training run, options that
+contradict each other and outputs that would overwrite an input (:mod:`diffship.fit.inputs`). Everything
+else is checked by :mod:`diffship.fit.cli`. This module imports only the standard library and the
+plain-Python tables (:mod:`diffship.particulars`, :mod:`diffship.channels`) and checks
+(:mod:`diffship.fit.inputs`); ``tests/fit/test_args.py`` checks that.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from ..cli_options import (
 )
 from ..log_options import add_log_options
 from ..particulars import MODEL_PARTICULARS, missing_message, missing_particulars
+from .inputs import input_problem
 
 __all__ = ["INTEGRATOR_NAMES", "build_parser", "precheck"]
 
@@ -126,12 +129,15 @@ def precheck(argv: Sequence[str] | None = None) -> str | None:
     """The error line for a fit that cannot start, found without JAX; ``None`` when the full command
     must decide. Argument errors exit here as in the full command (argparse, status 2).
 
-    Covers the common case: a model that needs particulars, given no vessel, and ``--fix`` /
-    ``--free`` not covering them. With ``--vessel`` (whose file must be read), ``--rigid-body-cg``, a
-    malformed ``--fix``/``--init``, or the bundled fossen3 example (which brings its own vessel), the
-    full command checks as before.
+    Covers :func:`diffship.fit.inputs.input_problem` (held-out runs without a training run, contradictory
+    options, outputs that would overwrite an input or cannot be written) and the common case: a model that
+    needs particulars, given no vessel, and ``--fix`` / ``--free`` not covering them. With ``--vessel``
+    (whose file must be read), ``--rigid-body-cg``, a malformed ``--fix``/``--init``, or the bundled fossen3
+    example (which brings its own vessel), the full command checks as before.
     """
     args = build_parser().parse_args(argv)
+    if (problem := input_problem(args)) is not None:  # contradictory options, outputs over inputs
+        return problem
     needs = MODEL_PARTICULARS[args.model]
     if args.vessel is not None or args.rigid_body_cg or not needs.particulars:
         return None

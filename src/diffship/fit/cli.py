@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from ..checks import check_channels, check_rudder_sign, check_yaw_direction  # noqa: F401 (also this module's names)
-from ..data import example_runs, load_runs
+from ..data import example_runs, load_runs, resample_runs
 from ..errors import DiffshipError
 from ..integrators import get_integrator
 from ..metrics import evaluate
@@ -49,15 +49,13 @@ from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .hints import NextStep, next_step, next_steps
+from .inputs import DEFAULT_OUT, input_problem
 from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
 from .smoother import KalmanSmoother
 
 __all__ = ["DEFAULT_OUT", "main", "build_parser"]
-
-#: Where the bundled example's fit writes its report, figure, JSON and fit file when ``--out`` is not given.
-DEFAULT_OUT = "diffship_fit"
 
 
 def _prior_options(args) -> dict:
@@ -120,9 +118,7 @@ def _columns(args) -> dict[str, str]:
 def _load(args, paths):
     runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
                      time_unit=args.time_unit, **log_kwargs(args))
-    if args.resample:
-        runs = [r.resample(args.resample) for r in runs]
-    return runs
+    return resample_runs(runs, args.resample) if args.resample else runs
 
 
 def _example(model_name: str, say):
@@ -149,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     say = _progress(args.quiet)
     try:
+        if (problem := input_problem(args)) is not None:  # contradictions, outputs over inputs: before any file is read
+            raise DiffshipError(problem)
         return _fit(args, say)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -228,9 +226,7 @@ def _fit(args, say) -> int:
         train = _load(args, args.runs)
         val = _load(args, args.validate) if args.validate else []
     else:
-        train, val = _example(args.model, say)
-        if args.validate:
-            val = _load(args, args.validate)
+        train, val = _example(args.model, say)  # no file given (held-out runs need a training run: input_problem)
         if args.out is None:  # the main job shows its figure: written where the report says
             args.out = DEFAULT_OUT
     _vessel_checks(args, model, vessel, train + val, say)
