@@ -84,6 +84,8 @@ def _bad_inputs(tmp_path):
     text.loc[9, "delta"] = "port"
     deg = df.copy()
     deg["delta"] = 20.0
+    moving = df.assign(delta=0.1 * np.sin(df["time"]))
+    still = moving.assign(psi=0.0, r=0.0)
     empty = tmp_path / "empty.csv"
     empty.write_text("")
     garbage = tmp_path / "garbage.csv"
@@ -100,6 +102,13 @@ def _bad_inputs(tmp_path):
         "garbage": ([str(garbage)], "garbage.csv"),
         "too_short": ([_write(tmp_path, "short.csv", df.iloc[:5])], "too few samples"),
         "degrees": ([_write(tmp_path, "deg.csv", deg)], "degrees"),
+        "repeated_column": ([_write(tmp_path, "dup.csv", moving[["time", "psi", "r", "psi"]])], "'psi' appears 2"),
+        "capital_column": ([_write(tmp_path, "cap.csv", moving.rename(columns={"psi": "Psi "}))],
+                           "cap.csv.*column 'Psi'.*did you mean 'psi'.*--columns psi=Psi"),
+        "gap": ([_write(tmp_path, "gap.csv", _good_df(200).drop(index=range(50, 100)))], "'gap': no samples for 5.1 s"),
+        "still_rudder": ([_write(tmp_path, "helm.csv", df)], r"no excitation for delta: .*helm.csv \(run 'helm'\)"),
+        "still_motion": ([_write(tmp_path, "still.csv", still)], r"still.csv \(run 'still'\): psi = 0, r = 0"),
+        "no_inputs": ([_write(tmp_path, "noin.csv", df.drop(columns=["delta"]))], r"its columns: time, psi, r\)"),
         "bad_fix": ([_write(tmp_path, "ok.csv", df), "--fix", "T9=1"], "unknown parameter 'T9'"),
     }
 

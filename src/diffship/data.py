@@ -14,7 +14,7 @@ Conventions used everywhere inside diffship
   (``delta *= -1``) and the declaration is kept in ``Run.metadata``.
 
 A :class:`Run` is immutable: its arrays are private read-only float64 copies, checked
-on construction (ordering, NaN/inf, lengths and - conservatively - units).
+on construction (ordering, gaps, NaN/inf, lengths and - conservatively - units).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import dataclasses
 import io
 import os
 import re
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,9 @@ import pandas as pd
 
 from diffship.errors import DataError
 
+from .channels import check_header, check_near_misses
+from .frozen import FrozenDict as _FrozenDict
+from .gaps import check_gaps
 from .units import TIME_UNITS, UnitsError, psi_unwrap
 from .units import check_units as check_column_units
 
@@ -65,27 +68,6 @@ _EXAMPLES = {
 }
 
 
-class _FrozenDict(Mapping):
-    """A small read-only, picklable mapping."""
-
-    __slots__ = ("_d",)
-
-    def __init__(self, d: Mapping[str, Any]) -> None:
-        self._d = dict(d)
-
-    def __getitem__(self, key: str) -> Any:
-        return self._d[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._d)
-
-    def __len__(self) -> int:
-        return len(self._d)
-
-    def __repr__(self) -> str:
-        return repr(self._d)
-
-
 def _where(name: str, source: Any) -> str:
     return f"{source}, run '{name}'" if source else f"run '{name}'"
 
@@ -108,7 +90,8 @@ class Run:
     name : str
         Run name, used in messages and reports.
     time : array_like, shape (N,)
-        Time [s], finite and strictly increasing, at least ``MIN_SAMPLES`` samples.
+        Time [s], finite and strictly increasing, at least ``MIN_SAMPLES`` samples, without gaps
+        (:mod:`diffship.gaps`: no step over 5 median steps and over 1 s).
     channels : Mapping[str, array_like]
         Channel name -> values, shape (N,), SI units and radians, starboard-positive rudder.
     metadata : Mapping[str, Any]
@@ -167,6 +150,7 @@ class Run:
             chans[c] = a
         if self.check_units:
             check_column_units(where, t, chans, str(meta.get("time_unit_in_source", "s")))
+        check_gaps(where, t)
         for a in (t, *chans.values()):
             a.flags.writeable = False
         object.__setattr__(self, "time", t)
@@ -308,6 +292,9 @@ class Run:
             raise DataError(f"{where}: duplicate column name(s) {list(dup)}; rename them.")
         cmap = {str(k): str(v).strip() for k, v in (columns or {}).items()}
         cmap.setdefault("time", str(time_column).strip())
+        mapped = set(cmap.values())
+        present = {ch for ch, col in cmap.items() if col in df.columns} | set(df.columns) - mapped
+        check_near_misses(where, [c for c in df.columns if c not in mapped], present)
         for ch, col in cmap.items():
             if col in df.columns:
                 continue
@@ -316,7 +303,6 @@ class Run:
                                 "Map it with columns={'time': '<column>'} (CLI: --columns time=<column>).")
             raise DataError(f"{where}: column '{col}' (for channel '{ch}') not found; "
                             f"available columns: {list(df.columns)}.")
-        mapped = set(cmap.values())
         ignored = [c for c in df.columns if c not in mapped and c in cmap]
         cmap.update({c: c for c in df.columns if c not in mapped and c not in cmap})
         arrays: dict[str, np.ndarray] = {}
@@ -396,6 +382,8 @@ class Run:
                 raise DataError(f"{where}: cannot parse as CSV ({str(exc).strip()}).") from None
 
         df = read(".")
+        head = pd.read_csv(io.StringIO(text), sep=sep, header=None, nrows=1, dtype=str, skipinitialspace=True)
+        check_header(where, head.iloc[0].fillna("").tolist())  # the names as written: pandas renames copies
         comma = re.compile(r"^\s*[-+]?\d*,\d+([eE][-+]?\d+)?\s*$")
         text_cols = [df[c].dropna().astype(str) for c in df.columns
                      if not pd.api.types.is_numeric_dtype(df[c]) and df[c].notna().any()]

@@ -233,3 +233,48 @@ def test_kvlcc2_loads_without_false_alarms():
     i = int(np.argmax(np.abs(s["delta"]) > 0.1))
     assert s["delta"][i] > 0 and s["r"][i + 100] > 0  # starboard rudder first, starboard turn
     raises("KVLCC2|no HSVA", kvlcc2_runs, shared / "sspa_zigzag")
+
+
+# --- column names and time gaps ---------------------------------------------------------
+def test_repeated_header_name_stops_at_the_raw_header(tmp_path):
+    df = make_df()[["time", "delta", "psi", "r", "psi"]]  # pandas would read the copy as 'psi.1'
+    msg = raises("dup.csv|run 'dup'|column 'psi' appears 2 times|columns 3 and 5", Run.from_csv,
+                 write(tmp_path, df, "dup.csv", sep=";"))
+    assert msg.count("\n") == 0
+    (tmp_path / "spaced.csv").write_text(write(tmp_path, df, "x.csv").read_text().replace(",psi\n", ", psi \n", 1))
+    raises("spaced.csv|column 'psi' appears 2 times", Run.from_csv, tmp_path / "spaced.csv")
+
+
+@pytest.mark.parametrize("col", ["Psi", "Psi ", "PSI"])
+def test_channel_name_in_other_case_is_named_not_skipped(tmp_path, col):
+    df = make_df().rename(columns={"psi": col})
+    raises("near.csv|run 'near'|column 'Psi'|did you mean 'psi'|--columns psi=Psi".replace("Psi", col.strip()),
+           Run.from_csv, write(tmp_path, df, "near.csv"))
+    run = Run.from_csv(tmp_path / "near.csv", columns={"psi": col.strip()})  # mapped: read as psi
+    np.testing.assert_array_equal(run["psi"], make_df()["psi"])
+    raises("DataFrame|did you mean 'psi'", Run.from_dataframe, df)  # the library the same
+    raises("column 'Time'|did you mean 'time'", Run.from_dataframe, make_df().rename(columns={"time": "Time"}))
+
+
+def test_other_names_in_other_case_load_as_before():
+    both = Run.from_dataframe(make_df().assign(Psi=0.0))  # 'psi' is there: 'Psi' is a column of its own
+    assert both.has("psi", "Psi")
+    ship = Run.from_dataframe(make_df().rename(columns={"u": "U"}).assign(N=1.0))  # ship notation: U, N
+    assert ship.has("U", "N") and not ship.has("u")
+
+
+def test_gap_in_time_names_run_time_and_split(tmp_path):
+    df = make_df(200).drop(index=range(50, 100))  # 5 s missing at 10 Hz
+    msg = raises("gap.csv|run 'gap'|no samples for 5.1 s between t=4.9 s and t=10 s|split the run there",
+                 Run.from_csv, write(tmp_path, df, "gap.csv"))
+    assert "rows 49 and 50" in msg and msg.count("\n") == 0
+
+
+def test_jitter_and_short_dropouts_are_not_gaps():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.7, 1.3, 300))  # a 1 Hz log with jitter and one missed 4 s
+    t[150:] += 3.0
+    assert Run("sea", t, {"psi": np.zeros(t.size)}).n == 300
+    t = np.delete(np.arange(500) * 0.02, range(100, 140))  # 50 Hz, 0.82 s without samples: under 1 s
+    assert Run("tank", t, {"psi": np.zeros(t.size)}).n == 460
+    raises("run 'sea'|no samples for 6", Run, "sea", np.r_[np.arange(20.0), 25.0 + np.arange(20.0)], {})

@@ -130,7 +130,7 @@ def _load(args, paths):
 
 def _diagnose(args, say):
     """``(diagnosis, base fit)``, or ``(None, reason)`` when the base fit is not usable."""
-    from ..checks import check_channels, check_rudder_sign, check_yaw_direction
+    from ..checks import check_rudder_sign, check_runs, check_yaw_direction
     from ..errors import DataError
     from ..fit import OutputErrorOptions, fit_output_error
     from ..fit.priors import load_priors, parse_priors
@@ -158,7 +158,7 @@ def _diagnose(args, say):
     train, val = _load(args, args.runs), _load(args, args.validate)
     if args.horizon:  # the first seconds of each training run (held-out runs whole)
         train = [r.slice(None, r.time[0] + args.horizon) for r in train]
-    check_channels(model, train + val, args.channels)
+    check_runs(model, train, val, args.channels)
     if not args.skip_sign_check:
         check_rudder_sign(train + val, args.rudder_sign)
         check_yaw_direction(train + val)

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..checks import check_channels, check_rudder_sign, check_yaw_direction  # noqa: F401 (also this module's names)
+from ..checks import check_channels, check_rudder_sign, check_runs, check_yaw_direction  # noqa: F401 (also this module's)
 from ..data import example_runs, load_runs, resample_runs
 from ..errors import DiffshipError
 from ..integrators import get_integrator
@@ -230,7 +230,7 @@ def _fit(args, say) -> int:
         if args.out is None:  # the main job shows its figure: written where the report says
             args.out = DEFAULT_OUT
     _vessel_checks(args, model, vessel, train + val, say)
-    check_channels(model, train + list(val), args.channels)
+    check_runs(model, train, val, args.channels)
     if not args.skip_sign_check:
         check_rudder_sign(train + list(val), args.rudder_sign)
         check_yaw_direction(train + list(val))
