@@ -78,6 +78,29 @@ def test_bad_files_are_named(tmp_path):
         diffship.load_fit(tmp_path / "x.json")
 
 
+def test_parameter_values_are_checked_on_load(fitted, tmp_path):
+    """A fit file without values, with a value that is not a finite number or without a parameter of its
+    model stops with one line naming the file and the parameter (no model defaults filled in)."""
+    doc = json.loads(fitted[3].read_text())
+
+    def bad(name, **change):
+        f = tmp_path / f"{name}.json"
+        f.write_text(json.dumps({**doc, **change}))
+        return f
+
+    cases = [(bad("noparams", params=None), r"noparams.json: no parameter values"),
+             (bad("str", params={**doc["params"], "K": "abc"}), r"str.json: parameter K = 'abc' is not a finite"),
+             (bad("nan", params={**doc["params"], "T1": float("nan")}), r"nan.json: parameter T1 = nan"),
+             (bad("noT1", params={k: v for k, v in doc["params"].items() if k != "T1"}),
+              r"noT1.json: parameter\(s\) T1 of model nomoto1 missing"),
+             (bad("relabelled", model={**doc["model"], "name": "nomoto2", "registry": "nomoto2"}),
+              r"relabelled.json: parameter\(s\) T2, T3 of model nomoto2 missing"),
+             (bad("cov", covariance={"names": ["K"], "matrix": "x"}), r"cov.json: 'covariance' must be null")]
+    for path, message in cases:
+        with pytest.raises(DataError, match=message):
+            diffship.load_fit(path)
+
+
 def test_priors_are_carried(fitted, tmp_path):
     import dataclasses
 

@@ -28,6 +28,7 @@ import argparse
 import math
 import os
 import sys
+from pathlib import Path
 from typing import NoReturn
 
 from .channels import CHANNEL_NAMES
@@ -50,6 +51,8 @@ __all__ = [
     "column_name",
     "helm_rate",
     "names_of",
+    "non_negative_int",
+    "out_folder_problem",
     "parameter_name",
     "positive_float",
     "positive_int",
@@ -147,6 +150,25 @@ def positive_int(text: str) -> int:
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r}: must be at least 1")
     return v
+
+
+def non_negative_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 0 or more")
+    return v
+
+
+def out_folder_problem(path: str, option: str = "--out") -> str | None:
+    """Why ``path`` cannot be the output folder (a file is in its place or above it), or ``None``."""
+    for p in (Path(path), *Path(path).parents):
+        if p.exists():
+            return None if p.is_dir() else (f"{option} {path}: {p} is a file, not a folder; give a folder (it is "
+                                              "created where missing) or move the file")
+    return None
 
 
 def helm_rate(text: str) -> float:

@@ -300,11 +300,52 @@ def read_document(path: str | Path) -> dict[str, Any]:
     return doc
 
 
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_params(path: Path, doc: dict[str, Any], model: AbstractModel) -> None:
+    """``params`` holds a finite number for every parameter of ``model`` and nothing else; ``free`` and the
+    covariance name parameters of it (a :class:`DataError` naming the file and the parameter otherwise)."""
+    params = doc.get("params")
+    if not isinstance(params, dict):
+        raise DataError(f"{path}: no parameter values ('params': {{name: value}}); the file is not a complete fit "
+                        "file: write it again with python -m diffship.fit ... --out DIR or --save FILE")
+    unknown = sorted(set(params) - set(model.param_names))
+    if unknown:
+        raise DataError(f"{path}: parameter(s) {', '.join(unknown)} are not parameters of model {model.name}")
+    for name, value in params.items():
+        if not _number(value):
+            raise DataError(f"{path}: parameter {name} = {value!r} is not a finite number; correct it in 'params' "
+                            "or fit again")
+    missing = [n for n in model.param_names if n not in params]
+    if missing:
+        raise DataError(f"{path}: parameter(s) {', '.join(missing)} of model {model.name} missing from 'params' "
+                        f"(a fit file holds every parameter of its model): is {model.name} the model these values "
+                        "are for? Fit again, or give the missing values")
+    cov = doc.get("covariance")
+    names = [*doc.get("free", ()), *(cov.get("names", ()) if isinstance(cov, dict) else ())]
+    if (bad := [n for n in names if n not in params]):
+        raise DataError(f"{path}: free parameter {bad[0]!r} has no value in 'params' (model {model.name})")
+    if cov is not None:
+        k = len(cov.get("names", ())) if isinstance(cov, dict) else -1
+        try:
+            ok = np.asarray(cov["matrix"], dtype=np.float64).shape == (k, k)
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise DataError(f"{path}: 'covariance' must be null or {{\"names\": [...], \"matrix\": a square "
+                            "matrix of numbers, one row per name}; correct it or fit again")
+
+
 def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
     """Read a fit file; the model is rebuilt from the registry (or from ``model``, a template of
     the same structure) with the fitted parameter values."""
     path = Path(path)
     doc = read_document(path)
+    if not isinstance(doc.get("model"), dict):
+        raise DataError(f"{path}: no 'model' entry ({{\"name\", \"registry\", ...}}); write fit files with "
+                        "python -m diffship.fit ... --out DIR (DIR/fit.json) or --save FILE")
     key = doc["model"].get("registry")
     if model is None:
         if key not in MODELS:
@@ -316,9 +357,7 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
     if inputs is not None and tuple(inputs) != tuple(model.input_names):
         raise DataError(f"{path}: the fitted model has inputs {tuple(inputs)}, model {model.name} here has "
                         f"{model.input_names}; pass a model of the same structure: load_fit(path, model=...)")
-    unknown = sorted(set(doc["params"]) - set(model.param_names))
-    if unknown:
-        raise DataError(f"{path}: parameter(s) {', '.join(unknown)} are not parameters of model {model.name}")
+    _check_params(path, doc, model)
     model = model.with_params(doc["params"])
     cov = doc.get("covariance")
     integ = doc.get("integrator") or {}

@@ -123,6 +123,23 @@ def test_cli_contract_and_bad_input(tmp_path, capsys):
         main(paths[:1] + ["--model", "nomoto1"])  # --validate is required
 
 
+def test_from_fit_of_another_model_is_refused(tmp_path, capsys):
+    """--from-fit's values start the --model's base fit: a fit file of another model stops before any data is read."""
+    from diffship.fit import FitResult
+    from diffship.fitfile import save_fit
+    from diffship.models import Nomoto2
+
+    n2 = Nomoto2()
+    res = FitResult(method="output_error", model=n2, params=n2.param_values(), stderr={}, free=(), converged=True,
+                    status="converged", iterations=0, cost=0.0, fit_seconds=0.0, compile_seconds=0.0)
+    path = save_fit(res, tmp_path / "n2.json")
+    runs = [str(tmp_path / "a.csv"), "--validate", str(tmp_path / "b.csv")]
+    assert main(runs + ["--model", "nomoto1", "--from-fit", str(path), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --from-fit {path}: holds a fit of model nomoto2, not of --model nomoto1; "
+                          "give --model nomoto2"), err
+
+
 def test_force_residuals_say_when_smoothing_falls_back():
     """A run the filter cannot smooth (non-uniform time stamps) is still used, and the notes say
     how (the old code fell back silently on any exception)."""

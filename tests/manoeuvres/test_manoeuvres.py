@@ -129,6 +129,22 @@ def test_errors_name_what_to_fix(nomoto_zz):
         M.zigzag_metrics(nomoto_zz.__class__(nomoto_zz.name, nomoto_zz.time, dict(nomoto_zz.channels), {}))
 
 
+def test_a_constant_heading_gives_no_zigzag_metrics():
+    """Zigzag rudder orders with the heading never changing: no execute is found and the metrics are NaN,
+    and a switch angle of 0 (which every sample reaches) is refused, instead of searching one sample forever."""
+    from diffship.data import Run
+
+    t = np.arange(0.0, 40.0, 0.1)
+    delta = np.radians(np.select([t < 2, t < 12, t < 22, t < 32], [0.0, 10.0, -10.0, 10.0], -10.0))
+    run = Run("still", t, {"delta": delta, "psi": np.zeros_like(t), "r": np.zeros_like(t)}, {}, check_units=False)
+    zm = M.zigzag_metrics(run, switch_deg=10.0)
+    assert zm.execute_times == () and zm.overshoots_deg == ()
+    assert math.isnan(zm.first_overshoot) and math.isnan(zm.initial_turning_time)
+    for switch in (0.0, -5.0, math.nan):
+        with pytest.raises(DataError, match="switch angle"):
+            M.zigzag_metrics(run, switch_deg=switch)
+
+
 def test_mmg_kvlcc2_turning_circle_both_sides():
     """35° turns of the MMG KVLCC2 (n = 10.23 rps, helm 15.8 °/s) vs the free-running turns: advance 3.0–3.1 L,
     tactical diameter 3.1–3.3 L, each within 10 %; port and starboard within 5 % of each other."""

@@ -83,6 +83,20 @@ def test_classify_reads_the_manoeuvre_from_the_inputs(runs):
     assert classify_run(Run("random", t, {"delta": rnd}, {}, check_units=False)).kind == "other"
 
 
+def test_zigzag_rudder_with_a_constant_heading_is_not_a_zigzag():
+    """Rudder orders alternating like a zigzag's while the heading stays put: 'other' (not a zigzag), so the fit
+    file carries no zigzag metrics or switch delay for it."""
+    from diffship.predict.cross import train_types_json
+
+    t = np.arange(0.0, 40.0, 0.1)
+    delta = np.radians(np.select([t < 2, t < 12, t < 22, t < 32], [0.0, 10.0, -10.0, 10.0], -10.0))
+    run = Run("still", t, {"delta": delta, "psi": np.zeros_like(t), "r": np.zeros_like(t)}, {}, check_units=False)
+    rt = classify_run(run)
+    assert rt.kind == "other" and "not a zigzag" in rt.reason, rt
+    (doc,) = train_types_json([run])
+    assert doc["kind"] == "other" and "measured" not in doc and "switch_delay_s" not in doc
+
+
 def test_right_model_predicts_the_turn_wrong_one_is_flagged(runs, fits, tmp_path):
     train, held = runs
     right = cross_validate(fits["right"], train, held, samples=60)

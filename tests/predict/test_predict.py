@@ -39,9 +39,24 @@ def test_parse_manoeuvre_both_side_conventions():
     p = parse_manoeuvre("turning:35:port")
     assert p.kind == "turning_circle" and p.side == -1.0 and p == parse_manoeuvre("turning:35:-1")
     assert parse_manoeuvre("pullout").rudder_deg == 20.0
-    for bad in ("spiral:5", "zigzag:ten", "turning:35/5", "turning:60"):
+    for bad in ("spiral:5", "zigzag:ten", "turning:35/5", "turning:60", "turning:.", "zigzag:10/0"):
         with pytest.raises(DataError, match="--manoeuvre"):
             parse_manoeuvre(bad)
+    # a negative angle is not a side; a bad side is named with the whole item
+    with pytest.raises(DataError, match=r"'turning:-35': a negative angle is not allowed.*turning:35:port"):
+        parse_manoeuvre("turning:-35")
+    with pytest.raises(DataError, match=r"'zigzag:-10/10': a negative angle.*zigzag:10/10:port"):
+        parse_manoeuvre("zigzag:-10/10")
+    with pytest.raises(DataError, match=r"--manoeuvre 'turning:35:up': side 'up'"):
+        parse_manoeuvre("turning:35:up")
+
+
+def test_a_criterion_without_limit_prints_no_number():
+    from diffship.predict.criteria import check_criteria
+
+    rows = [c.row() for c in check_criteria({"zigzag_10_10": {"first_overshoot": 8.0}}, None)]
+    assert not any("nan" in r for r in rows), rows
+    assert any("need L and V" in r and "—" in r for r in rows)
 
 
 def _kinematic_track(run, speed):
@@ -116,6 +131,21 @@ def test_command_line_errors_are_one_line(tmp_path, capsys):
     assert "--helm-rate" in capsys.readouterr().err
     assert predict_main([str(tmp_path / "missing.json")]) == 2
     assert "fit file not found" in capsys.readouterr().err
+    # checked before anything is flown: --out a file, a rudder or a missing input held constant
+    (tmp_path / "a_file").write_text("")
+    for out in ("a_file", "a_file/sub"):
+        assert predict_main([str(path), "--speed", "1", "--out", str(tmp_path / out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: --out {tmp_path / out}: ") and "is a file, not a folder" in err, err
+    assert predict_main([str(path), "--speed", "1", "--input", "delta=0.1"]) == 2
+    assert capsys.readouterr().err.startswith("error: --input delta: the rudder angle is set by each manoeuvre")
+    assert predict_main([str(path), "--speed", "1", "--input", "n=3"]) == 2
+    assert capsys.readouterr().err.startswith("error: --input n: model nomoto1 has no input 'n'")
+    assert predict_main([str(path), "--rps", "3"]) == 2
+    assert capsys.readouterr().err.startswith("error: --rps: model nomoto1 has no propeller-rate input n")
+    with pytest.raises(SystemExit) as exc:
+        predict_main([str(path), "--samples", "-5"])
+    assert exc.value.code == 2 and "--samples: '-5': must be 0 or more" in capsys.readouterr().err
 
 
 def test_readme_sspa_fit_predicts_its_own_zigzag_from_what_was_measured(tmp_path, capsys):

@@ -150,6 +150,7 @@ def _diagnose(args, say):
     model, spec, fix, init = model_spec(args.model, args.vessel, args.fix, args.init, args.free)
     if args.from_fit:
         loaded = load_fit(args.from_fit)
+        _same_model(args, loaded, model)
         for w in fit_warnings(loaded):
             print(w, file=sys.stderr, flush=True)
         init = {**{n: v for n, v in loaded.params.items() if n in spec and n not in fix}, **init}
@@ -199,6 +200,20 @@ def _diagnose(args, say):
         print(f"warning (base fit):{line[1:]}", file=sys.stderr)
     d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say, checked=checked)
     return d, fit
+
+
+def _same_model(args, loaded, model) -> None:
+    """``--from-fit`` must hold a fit of the ``--model`` (its values are the base fit's start)."""
+    from ..errors import DataError
+    from ..models.terms import base_of
+
+    key, base = loaded.document["model"].get("registry"), base_of(loaded.model)
+    same = key == args.model or (type(base) is type(model) and base.param_names == model.param_names
+                                 and base.input_names == model.input_names)
+    if not same:
+        raise DataError(f"--from-fit {args.from_fit}: holds a fit of model {key or loaded.model.name}, not of "
+                        f"--model {args.model}; give --model {key or loaded.model.name} to start from it, or a fit "
+                        f"file of {args.model}")
 
 
 if __name__ == "__main__":

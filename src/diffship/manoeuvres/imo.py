@@ -196,7 +196,8 @@ def zigzag_metrics(run: Run, *, switch_deg: float | None = None, rudder_deg: flo
 
     ``switch_deg`` (heading change at which the rudder is reversed) defaults to the run's
     metadata ``switch_heading_deg``; ``rudder_deg`` to ``rudder_angle_deg`` or the largest
-    rudder angle in the record.
+    rudder angle in the record. A switch angle must be positive (:class:`DataError` otherwise); a run whose
+    heading never reaches it (no heading change) has no executes and NaN metrics.
     """
     run.require(("psi", "delta"), "zigzag metrics")
     switch_deg = switch_deg if switch_deg is not None else run.metadata.get("switch_heading_deg")
@@ -205,15 +206,18 @@ def zigzag_metrics(run: Run, *, switch_deg: float | None = None, rudder_deg: flo
                         "it is not in the run's metadata")
     if rudder_deg is None:
         rudder_deg = run.metadata.get("rudder_angle_deg", float(np.degrees(np.max(np.abs(run["delta"])))))
+    s = float(switch_deg)
+    if not (math.isfinite(s) and s > 0):
+        raise DataError(f"run '{run.name}': switch angle {s:g}° is not a zigzag's; give switch_deg > 0 (the heading "
+                        "change at which the rudder is reversed)")
     t = np.asarray(run.time, dtype=np.float64)
     i0, side = first_execute(run)
     psi = _smooth(np.unwrap(np.asarray(run["psi"], dtype=np.float64)), run.dt, smooth_s)
     psi0 = float(psi[i0])
     h = np.degrees(side * (psi - psi0))
-    s = float(switch_deg)
     executes, crossing_idx = [], []
     sign, i = 1.0, i0
-    while True:  # hysteresis: look for +s, then −s, then +s, ...
+    while i < len(h):  # hysteresis: look for +s, then −s, then +s, ...
         hit = np.nonzero(sign * h[i:] >= s)[0]
         if not hit.size:
             break
@@ -221,6 +225,7 @@ def zigzag_metrics(run: Run, *, switch_deg: float | None = None, rudder_deg: flo
         executes.append(_crossing_time(t, sign * h, i, s))
         crossing_idx.append(i)
         sign = -sign
+        i += 1  # the next threshold is the other one (s > 0): never the same sample again
     overshoots, peaks = [], []
     for k, i_start in enumerate(crossing_idx):
         sgn = 1.0 if k % 2 == 0 else -1.0

@@ -8,9 +8,17 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli_options import add_data_options, add_output_options, assignment, helm_rate, positive_float
+from ..cli_options import (
+    add_data_options,
+    add_output_options,
+    assignment,
+    helm_rate,
+    non_negative_int,
+    out_folder_problem,
+    positive_float,
+)
 from ..data import load_runs
-from ..errors import DiffshipError
+from ..errors import DataError, DiffshipError
 from ..log_options import add_log_options, log_kwargs
 from .cross import RunType, cross_validate
 from .cross_report import cross_json, cross_text, plot_cross
@@ -37,7 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rps", type=positive_float, default=None, metavar="REV/S",
                    help="propeller rate [rev/s] (input n); alone: the speed from trim")
     p.add_argument("--input", nargs="+", action="extend", type=assignment, default=[], metavar="NAME=VALUE",
-                   help="other constant inputs (repeatable; items accumulate)")
+                   help="the model's other constant inputs, e.g. n=10 (not delta: each manoeuvre sets the rudder; "
+                        "repeatable; items accumulate)")
     p.add_argument("--scale", type=positive_float, default=None, metavar="LAMBDA",
                    help="length ratio L_full/L_model for full-scale values and criteria (default: the fit file's, "
                         "from the training data or the vessel file)")
@@ -49,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--delay", type=float, default=None, metavar="S",
                    help="zigzag autopilot delay [s] (default: the delay measured in the training zigzags, else 0)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="S", help="simulated time per manoeuvre [s]")
-    p.add_argument("--samples", type=int, default=40, help="parameter draws for the 95 %% intervals (0: none)")
+    p.add_argument("--samples", type=non_negative_int, default=40,
+                   help="parameter draws for the 95 %% intervals (0: none)")
     p.add_argument("--no-compare", action="store_true",
                    help="skip the first table (the training manoeuvres flown again beside their measured metrics)")
     p.add_argument("--measured", nargs="+", action="extend", default=[], metavar="RUN.csv",
@@ -66,16 +76,24 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     t0 = time.perf_counter()
+    problem = args.out and out_folder_problem(args.out)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     try:
         from ..fitfile import load_fit
         from ..params import parse_assignments
         from .compare import compare_text, compare_training
-        from .core import predict
+        from .core import check_inputs, predict
         from .report import prediction_text
 
         fit = load_fit(args.fit)
         inputs = parse_assignments(args.input, "--input")
+        check_inputs(fit.model, inputs)
         if args.rps is not None:
+            if "n" not in fit.model.input_names:
+                raise DataError(f"--rps: model {fit.model.name} has no propeller-rate input n (its inputs: "
+                                f"{', '.join(fit.model.input_names)}); give the approach speed with --speed")
             inputs["n"] = args.rps
         cond = dict(speed=args.speed, inputs=inputs or None, scale=args.scale, length=args.length,
                     helm_rate_deg_s=args.helm_rate, duration=args.duration)

@@ -63,6 +63,7 @@ __all__ = [
     "ManoeuvreSpec",
     "Prediction",
     "approach",
+    "check_inputs",
     "parse_manoeuvre",
     "predict",
 ]
@@ -117,10 +118,17 @@ def parse_manoeuvre(text: str) -> ManoeuvreSpec:
              "turning:35 zigzag:10/10 zigzag:20/20:port pullout")
     if kind is None or len(parts) > 3:
         raise DataError(f"--manoeuvre {text!r}: {usage}")
-    side = side_sign(parts[2]) if len(parts) == 3 else 1.0
+    try:
+        side = side_sign(parts[2]) if len(parts) == 3 else 1.0
+    except DataError:
+        raise DataError(f"--manoeuvre {text!r}: side {parts[2]!r} is not starboard, port, +1 or -1; {usage}") from None
     default = {"turning_circle": "35", "zigzag": "10/10", "pull_out": "20"}[kind]
     arg = parts[1] if len(parts) > 1 and parts[1] else default
-    m = re.fullmatch(r"([0-9.]+)(?:/([0-9.]+))?", arg)
+    num = r"(\d+(?:\.\d*)?|\.\d+)"
+    m = re.fullmatch(rf"{num}(?:/{num})?", arg)
+    if not m and re.fullmatch(rf"-?{num}(?:/-?{num})?", arg):
+        raise DataError(f"--manoeuvre {text!r}: a negative angle is not allowed: angles are sizes, and the side of "
+                        f"the first rudder order is given after them, e.g. {parts[0]}:{arg.replace('-', '')}:port")
     if not m:
         raise DataError(f"--manoeuvre {text!r}: angle {arg!r} is not a number; {usage}")
     rudder = float(m.group(1))
@@ -129,6 +137,8 @@ def parse_manoeuvre(text: str) -> ManoeuvreSpec:
     switch = float(m.group(2)) if m.group(2) else (rudder if kind == "zigzag" else None)
     if kind != "zigzag" and m.group(2):
         raise DataError(f"--manoeuvre {text!r}: only a zigzag has a switch heading; {usage}")
+    if switch is not None and not 0 < switch <= 90:
+        raise DataError(f"--manoeuvre {text!r}: switch heading {switch:g}° outside (0, 90]")
     return ManoeuvreSpec(kind, rudder, switch, side)
 
 
@@ -242,11 +252,25 @@ def manoeuvre_metrics(spec: ManoeuvreSpec, run: Run, length: float | None) -> di
     return {"r_turn": math.degrees(pm["r_turn"]), "r_residual": math.degrees(pm["r_residual"])}
 
 
+def check_inputs(model, inputs: Mapping[str, float], option: str = "--input") -> None:
+    """Constant inputs must be the model's, other than the rudder (each manoeuvre sets it): a :class:`DataError`
+    naming the first that is not."""
+    others = [n for n in model.input_names if n != "delta"]
+    have = f"its constant inputs: {', '.join(others)}" if others else f"model {model.name} has no constant input"
+    for k in inputs:
+        if k == "delta":
+            raise DataError(f"{option} delta: the rudder angle is set by each manoeuvre (--manoeuvre), not held "
+                            f"constant; {option} is for the model's other inputs ({have})")
+        if k not in model.input_names:
+            raise DataError(f"{option} {k}: model {model.name} has no input {k!r} ({have})")
+
+
 def approach(fit: LoadedFit, *, speed: float | None = None, inputs: Mapping[str, float] | None = None
              ) -> tuple[float | None, dict[str, float], str]:
     """Approach speed and constant inputs (model scale) and a sentence saying where they come from."""
     model = fit.model
     inputs = {k: float(v) for k, v in (inputs or {}).items()}
+    check_inputs(model, inputs)
     others = [n for n in model.input_names if n != "delta"]
     op = fit.operating_point
     if "u" not in model.state_names:

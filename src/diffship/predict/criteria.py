@@ -38,7 +38,8 @@ class Criterion:
     def row(self) -> str:
         verdict = {True: "pass", False: "FAIL", None: "n/a"}[self.passed]
         val = "—" if math.isnan(self.value) else f"{self.value:.3g}"
-        return f"{self.clause:<8} {self.text:<46} {val:>8} ≤ {self.limit:<6.3g} {self.unit:<5} {verdict}"
+        limit = f"≤ {self.limit:<6.3g}" if math.isfinite(self.limit) else f"{'—':<8}"  # no limit: no number
+        return f"{self.clause:<8} {self.text:<46} {val:>8} {limit} {self.unit:<5} {verdict}"
 
 
 def overshoot_limits(l_over_v: float) -> tuple[float, float]:

@@ -8,13 +8,12 @@ A fit reproduces its training runs; what it is for is predicting manoeuvres it n
    cut into *plateaus* (stretches of at least ``hold_s`` seconds within ``tol`` of one level,
    :math:`\text{tol} = \max(1°, 0.1\,|\delta|_{\max})`) and the sequence of levels decides
 
-   * **zigzag**: ≥ 2 non-zero plateaus alternating in sign with equal magnitudes (±20 %); the
-     rudder angle is their median magnitude, the switch heading the median heading change
-     (since the first rudder order) at which the rudder left each plateau; both snapped to the
-     standard angles (rudder 5, 10, ..., 35° within max(1°, 10 %); switch: the largest of 1, 5,
-     10, ..., 35° not above the observed heading change, within 2.5°, since the heading is read a
-     sample or an autopilot delay late), else rounded to 0.5°; the side from the first execute
-     (:func:`diffship.manoeuvres.first_execute`);
+   * **zigzag**: ≥ 2 non-zero plateaus alternating in sign with equal magnitudes (±20 %), reversed at one heading
+     change of 0.5° or more; the rudder angle is their median magnitude, the switch heading the median heading
+     change (since the first rudder order) at which the rudder left each plateau; both snapped to the standard
+     angles (rudder 5, 10, ..., 35° within max(1°, 10 %); switch: the largest of 1, 5, 10, ..., 35° not above the
+     observed heading change, within 2.5°, since the heading is read a sample or an autopilot delay late), else
+     rounded to 0.5°; the side from the first execute (:func:`diffship.manoeuvres.first_execute`);
    * **turning circle**: one non-zero level held to the end of the record;
    * **pull-out**: one non-zero level, then back to zero for the rest of the record;
    * **spiral**: ≥ 3 distinct non-zero levels, each held at least ``spiral_hold_s``, in a
@@ -158,9 +157,9 @@ def _ramp_start(raw: np.ndarray, a: int, b: int, level: float) -> int:
 _RUDDERS = (5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
 _SWITCHES = (1.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0)
 #: A run of alternating rudder plateaus is a zigzag only where its reversals come at one heading change: their
-#: spread (largest minus smallest) at most this [deg] or this share of their median, whichever is larger.
-ZIGZAG_SPREAD_DEG = 3.0
-ZIGZAG_SPREAD_REL = 0.3
+#: spread (largest minus smallest) at most this [deg] or this share of their median, whichever is larger; and
+#: that change (their median) at least ZIGZAG_MIN_SWITCH_DEG (the smallest standard switch angle is 1°).
+ZIGZAG_SPREAD_DEG, ZIGZAG_SPREAD_REL, ZIGZAG_MIN_SWITCH_DEG = 3.0, 0.3, 0.5
 
 
 def _standard(x: float, values: tuple[float, ...], rel: float) -> float:
@@ -213,12 +212,13 @@ def classify_run(run: Run, *, hold_s: float = 3.0, spiral_hold_s: float = 30.0) 
         psi = np.unwrap(np.asarray(run["psi"], dtype=np.float64))
         h = np.abs(np.degrees(psi[[_ramp_start(raw, a, b, lv + base) for a, b, lv in nz[:-1]]] - psi[i0]))
         rudder, sw = _standard(float(np.median(mags)), _RUDDERS, 0.1), float(np.median(h))
-        if len(h) >= 2 and float(np.ptp(h)) > max(ZIGZAG_SPREAD_DEG, ZIGZAG_SPREAD_REL * sw):
-            # a zigzag reverses its rudder at one heading change; reversals at different ones follow a clock or
-            # an operator, and flying the run again by the heading would not be the same manoeuvre
+        if sw < ZIGZAG_MIN_SWITCH_DEG or (len(h) >= 2 and float(np.ptp(h)) > max(ZIGZAG_SPREAD_DEG,
+                                                                                ZIGZAG_SPREAD_REL * sw)):
+            # reversals at different heading changes (or none) follow a clock or an operator, not the heading
             return RunType("other", math.nan, math.nan, side, levels,
-                           f"alternating rudder of equal magnitude, but reversed at heading changes "
-                           f"{np.min(h):.3g}–{np.max(h):.3g}° (a zigzag reverses at one): not a zigzag")
+                           f"alternating rudder of equal magnitude, but reversed at heading changes {np.min(h):.3g}–"
+                           f"{np.max(h):.3g}° (a zigzag reverses at one, of {ZIGZAG_MIN_SWITCH_DEG:g}° or more): "
+                           "not a zigzag")
         # the heading is read when the rudder leaves its plateau, a sample or an autopilot delay
         # after the switch: the largest standard switch angle not above it, within 2.5°
         std = [a for a in _SWITCHES if a <= sw + 0.3 and sw - a <= 2.5]
