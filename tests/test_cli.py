@@ -518,3 +518,13 @@ def test_exit_now_flushes_and_keeps_the_status():
     profiled = "import sys; sys.setprofile(lambda *a: None)\n" + fast.replace("exit_now(3)", "exit_now(4)")
     p = subprocess.run([sys.executable, "-c", profiled], capture_output=True, text=True, timeout=120)
     assert p.returncode == 4 and p.stdout == "x" * 100001 + "atexit ran\n", (len(p.stdout), p.stderr[-500:])
+
+
+def test_the_bundled_example_takes_the_resample_step():
+    """With no run file, ``--resample`` sets the bundled example's step (10 Hz without it), as it does for files."""
+    from diffship.fit.cli import _example
+
+    lines = []
+    for dt, hz in ((None, "10 Hz"), (0.05, "20 Hz")):
+        train, val = _example("nomoto2", lines.append, dt)
+        assert train[0].dt == pytest.approx(dt or 0.1) and not val and hz in lines[-1]

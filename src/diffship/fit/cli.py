@@ -121,13 +121,15 @@ def _load(args, paths):
     return resample_runs(runs, args.resample) if args.resample else runs
 
 
-def _example(model_name: str, say):
+def _example(model_name: str, say, dt: float | None = None):
+    """The bundled example runs (``dt``: the user's ``--resample`` step, else the example's 10 Hz)."""
     if model_name == "fossen3":
         from ..synthetic import usv_runs  # only for the bundled fossen3 example
 
         say("no runs given: generating the bundled fossen3 example (the water-jet USV truth with added mass, "
             "4 runs × 120 s at 10 Hz, realistic GNSS/heading/gyro noise; run usv_3 held out)")
         runs = usv_runs(4, 120.0, 0.1, noise="realistic", seed=7)
+        runs = resample_runs(runs, dt) if dt else runs
         return runs[:3], runs[3:]
     if model_name not in ("nomoto1", "nomoto2"):
         raise DiffshipError(
@@ -135,8 +137,8 @@ def _example(model_name: str, say):
             "give RUN.csv files, e.g. the KVLCC2 zigzags in ../shared/data/kvlcc2_hsva for mmg or vmm_*"
         )
     say("no runs given: fitting the bundled SSPA zigzag 20/20 (model test, 50 Hz; Apache-2.0, see "
-        "src/diffship/examples/README.md), resampled to 10 Hz")
-    runs = [r.resample(0.1) for r in example_runs("sspa_zigzag")]
+        f"src/diffship/examples/README.md), resampled to {1 / (dt or 0.1):.3g} Hz")
+    runs = resample_runs(example_runs("sspa_zigzag"), dt or 0.1)
     return runs, []
 
 
@@ -226,7 +228,7 @@ def _fit(args, say) -> int:
         train = _load(args, args.runs)
         val = _load(args, args.validate) if args.validate else []
     else:
-        train, val = _example(args.model, say)  # no file given (held-out runs need a training run: input_problem)
+        train, val = _example(args.model, say, args.resample)  # no file given (held-out runs need a training run: input_problem)
         if args.out is None:  # the main job shows its figure: written where the report says
             args.out = DEFAULT_OUT
     _vessel_checks(args, model, vessel, train + val, say)
