@@ -148,6 +148,21 @@ def test_command_line_errors_are_one_line(tmp_path, capsys):
     assert exc.value.code == 2 and "--samples: '-5': must be 0 or more" in capsys.readouterr().err
 
 
+def test_a_measured_run_that_cannot_be_flown_stops_before_anything_is_predicted(tmp_path, capsys):
+    """``--measured`` runs are read and checked first: one without the model's input stops with its columns named,
+    and nothing is flown or printed before."""
+    path = _fit_file(tmp_path / "f.json")
+    doc = json.loads(path.read_text())
+    path.write_text(json.dumps({**doc, "training_manoeuvres": []}))
+    t = np.arange(0.0, 20.0, 0.1)
+    (tmp_path / "m.csv").write_text("time,psi,r\n" + "".join(f"{x:.1f},{0.01 * x:.4f},0.01\n" for x in t))
+    assert predict_main([str(path), "--speed", "1", "--length", "4", "--helm-rate", "5",
+                         "--measured", str(tmp_path / "m.csv")]) == 2
+    cap = capsys.readouterr()
+    assert cap.err.startswith(f"error: --measured {tmp_path / 'm.csv'}: no delta (its columns: psi, r)"), cap.err
+    assert cap.out == ""
+
+
 def test_readme_sspa_fit_predicts_its_own_zigzag_from_what_was_measured(tmp_path, capsys):
     """The README's fit (``python -m diffship.fit --out DIR``: nomoto2 on the bundled SSPA 20/20 zigzag),
     then ``python -m diffship.predict DIR/fit.json --manoeuvre zigzag:20/20`` with no helm rate and no speed:

@@ -88,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         from .report import prediction_text
 
         fit = load_fit(args.fit)
+        measured = _measured_runs(args, fit)  # before anything is flown: a bad file stops here
         inputs = parse_assignments(args.input, "--input")
         check_inputs(fit.model, inputs)
         if args.rps is not None:
@@ -109,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         print(compare_text(compare) + "\n")
     print(prediction_text(pred))
     try:
-        cross = _cross(args, pred)
+        cross = _cross(args, pred, measured)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -143,15 +144,11 @@ def _fit_warnings(fit) -> list[str]:
     return fit_warnings(fit)
 
 
-def _cross(args, pred):
-    """Cross-manoeuvre validation on ``--measured`` runs; training types from the fit file."""
+def _measured_runs(args, fit):
+    """The ``--measured`` runs, loaded and checked (rudder sign, the model's inputs), or ``None``."""
     if not args.measured:
         return None
-    from ..fitfile import load_fit
-
-    fit = load_fit(args.fit)
-    known = fit.document.get("training_manoeuvres")
-    if known is None:
+    if fit.document.get("training_manoeuvres") is None:
         raise DiffshipError(f"{args.fit}: the fit file does not say which manoeuvre types it was trained on "
                             "(training_manoeuvres); refit with this version of python -m diffship.fit")
     from ..checks import check_rudder_sign
@@ -159,6 +156,22 @@ def _cross(args, pred):
     runs = load_runs(args.measured, columns=dict(c.split("=", 1) for c in args.columns) or None,
                      degrees=args.degrees, rudder_sign=args.rudder_sign, time_unit=args.time_unit, **log_kwargs(args))
     check_rudder_sign(runs, args.rudder_sign)  # a port-positive record read as starboard stops here
+    for r in runs:
+        if missing := [c for c in fit.model.input_names if not r.has(c)]:
+            raise DataError(f"--measured {r.metadata.get('source', r.name)}: no {', '.join(missing)} (its columns: "
+                            f"{', '.join(r.channel_names)}); a manoeuvre is judged by flying the model with its "
+                            f"measured inputs: map the column with --columns {missing[0]}=COLUMN or leave the run out")
+    return runs
+
+
+def _cross(args, pred, runs):
+    """Cross-manoeuvre validation on the ``--measured`` runs; training types from the fit file."""
+    if runs is None:
+        return None
+    from ..fitfile import load_fit
+
+    fit = load_fit(args.fit)
+    known = fit.document["training_manoeuvres"]
     return cross_validate(fit, [RunType.from_json(d) for d in known], runs,
                           samples=args.samples, length=pred.condition.length, trained_types=True)
 
