@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
@@ -64,6 +65,15 @@ def test_from_fit_on_the_model_class(fitted):
     assert m.param_values() == pytest.approx(res.params)
     with pytest.raises(ModelError, match="nomoto1.*not 'nomoto2'|holds a fit of model 'nomoto1'"):
         Nomoto2.from_fit(path)
+    doc = json.loads(Path(path).read_text())  # a value taken out or spoilt: named, never the model's default
+    del doc["params"]["T1"]
+    (Path(path).parent / "no_T1.json").write_text(json.dumps(doc))
+    with pytest.raises(DataError, match="no_T1.json: parameter.s. T1 of model nomoto1 missing"):
+        Nomoto1.from_fit(Path(path).parent / "no_T1.json")
+    doc["params"]["T1"] = "abc"
+    (Path(path).parent / "bad_T1.json").write_text(json.dumps(doc))
+    with pytest.raises(DataError, match="bad_T1.json: parameter T1 = 'abc' is not a finite number"):
+        Nomoto1.from_fit(Path(path).parent / "bad_T1.json")
 
 
 def test_bad_files_are_named(tmp_path):

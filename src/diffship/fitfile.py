@@ -48,7 +48,8 @@ from .models.terms import base_of, terms_of, with_terms
 if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
 
-__all__ = ["SCHEMA", "LoadedFit", "fit_document", "fit_warnings", "integrator_name", "load_fit", "save_fit"]
+__all__ = ["SCHEMA", "LoadedFit", "check_params", "fit_document", "fit_warnings", "integrator_name", "load_fit",
+           "save_fit"]
 
 SCHEMA = "diffship.fit/1"
 
@@ -304,7 +305,7 @@ def _number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def _check_params(path: Path, doc: dict[str, Any], model: AbstractModel) -> None:
+def check_params(path: Path, doc: dict[str, Any], model: AbstractModel) -> None:
     """``params`` holds a finite number for every parameter of ``model`` and nothing else; ``free`` and the
     covariance name parameters of it (a :class:`DataError` naming the file and the parameter otherwise)."""
     params = doc.get("params")
@@ -357,7 +358,7 @@ def load_fit(path: str | Path, model: AbstractModel | None = None) -> LoadedFit:
     if inputs is not None and tuple(inputs) != tuple(model.input_names):
         raise DataError(f"{path}: the fitted model has inputs {tuple(inputs)}, model {model.name} here has "
                         f"{model.input_names}; pass a model of the same structure: load_fit(path, model=...)")
-    _check_params(path, doc, model)
+    check_params(path, doc, model)
     model = model.with_params(doc["params"])
     cov = doc.get("covariance")
     integ = doc.get("integrator") or {}

@@ -246,6 +246,9 @@ class AbstractModel(eqx.Module):
         if inputs is not None and tuple(inputs) != tuple(model.input_names):
             raise ModelError(f"{path}: the fitted {name} has inputs {tuple(inputs)}, {cls.__name__}() has "
                              f"{model.input_names}; use diffship.load_fit(path)")
+        from ..fitfile import check_params  # every parameter present, finite, and the model's
+
+        check_params(path, doc, model)
         return model.with_params(doc["params"])
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
