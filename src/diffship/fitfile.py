@@ -44,6 +44,7 @@ from .errors import DataError
 from .integrators import RK4, AbstractIntegrator, Diffrax, Tsit5, get_integrator
 from .models import MODELS, AbstractModel
 from .models.terms import base_of, terms_of, with_terms
+from .params import check_values
 
 if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
@@ -301,29 +302,11 @@ def read_document(path: str | Path) -> dict[str, Any]:
     return doc
 
 
-def _number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def check_params(path: Path, doc: dict[str, Any], model: AbstractModel) -> None:
     """``params`` holds a finite number for every parameter of ``model`` and nothing else; ``free`` and the
     covariance name parameters of it (a :class:`DataError` naming the file and the parameter otherwise)."""
     params = doc.get("params")
-    if not isinstance(params, dict):
-        raise DataError(f"{path}: no parameter values ('params': {{name: value}}); the file is not a complete fit "
-                        "file: write it again with python -m diffship.fit ... --out DIR or --save FILE")
-    unknown = sorted(set(params) - set(model.param_names))
-    if unknown:
-        raise DataError(f"{path}: parameter(s) {', '.join(unknown)} are not parameters of model {model.name}")
-    for name, value in params.items():
-        if not _number(value):
-            raise DataError(f"{path}: parameter {name} = {value!r} is not a finite number; correct it in 'params' "
-                            "or fit again")
-    missing = [n for n in model.param_names if n not in params]
-    if missing:
-        raise DataError(f"{path}: parameter(s) {', '.join(missing)} of model {model.name} missing from 'params' "
-                        f"(a fit file holds every parameter of its model): is {model.name} the model these values "
-                        "are for? Fit again, or give the missing values")
+    check_values(str(path), params, model.param_names, model.name)
     cov = doc.get("covariance")
     names = [*doc.get("free", ()), *(cov.get("names", ()) if isinstance(cov, dict) else ())]
     if (bad := [n for n in names if n not in params]):

@@ -29,9 +29,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .errors import ModelError
+from .errors import DataError, ModelError
 
-__all__ = ["Param", "ParamSpec", "parse_assignments", "values_from_z"]
+__all__ = ["Param", "ParamSpec", "check_values", "parse_assignments", "values_from_z"]
 
 _LINEAR, _LOWER, _UPPER, _BOTH = 0, 1, 2, 3
 
@@ -294,3 +294,22 @@ def parse_assignments(items: Sequence[str] | None, what: str = "--fix") -> dict[
         except ValueError:
             raise ModelError(f"{what} {item!r}: {value!r} is not a number") from None
     return out
+
+
+def check_values(where: str, values, names: Sequence[str], owner: str) -> None:
+    """``values`` (a fit file's ``params``, read at ``where``) holds a finite number for every parameter ``names`` of
+    model ``owner`` and nothing else; a :class:`DataError` naming the place and the parameter otherwise."""
+    if not isinstance(values, Mapping):
+        raise DataError(f"{where}: no parameter values ('params': {{name: value}}); the file is not a complete fit "
+                        "file: write it again with python -m diffship.fit ... --out DIR or --save FILE")
+    if unknown := sorted(set(values) - set(names)):
+        raise DataError(f"{where}: parameter(s) {', '.join(unknown)} are not parameters of model {owner}")
+    for name, v in values.items():
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
+            raise DataError(f"{where}: parameter {name} = {v!r} is not a finite number; correct it in 'params' "
+                            "or fit again")
+    if missing := [n for n in names if n not in values]:
+        raise DataError(f"{where}: parameter(s) {', '.join(missing)} of model {owner} missing from 'params' (a fit "
+                        f"file holds every parameter of its model): is {owner} the model these values are for? Fit "
+                        "again, or give the missing values")
+

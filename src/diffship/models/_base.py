@@ -63,7 +63,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..errors import ModelError
-from ..params import Param, ParamSpec
+from ..params import Param, ParamSpec, check_values
 
 __all__ = ["AbstractModel", "LinearForm", "param", "parts", "scalar"]
 
@@ -246,9 +246,7 @@ class AbstractModel(eqx.Module):
         if inputs is not None and tuple(inputs) != tuple(model.input_names):
             raise ModelError(f"{path}: the fitted {name} has inputs {tuple(inputs)}, {cls.__name__}() has "
                              f"{model.input_names}; use diffship.load_fit(path)")
-        from ..fitfile import check_params  # every parameter present, finite, and the model's
-
-        check_params(path, doc, model)
+        check_values(str(path), doc.get("params"), model.param_names, model.name)  # present, finite, the model's
         return model.with_params(doc["params"])
 
     def canonical(self, values: Mapping[str, float]) -> dict[str, float]:
