@@ -83,3 +83,38 @@ def test_a_horizon_simulates_the_first_samples_exactly_and_skips_whole_blocks_af
         if last < n:
             assert np.all(xs[last:] == xs[last - 1]), "the blocks after the horizon are held, not simulated"
             assert not np.allclose(np.asarray(plain.xs)[last:], xs[last - 1])
+
+
+def _nomoto_case():
+    t = np.arange(50) * 0.2
+    return Nomoto1(K=0.2, T1=8.0), t, (0.1 * np.sin(0.3 * t))[:, None], np.array([0.0, 0.01])
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda t, u, x: (t[::-1], u, x), "strictly increasing|ts[1]"),
+    (lambda t, u, x: (np.r_[t[:5], t[4:-1]], u, x), "strictly increasing|ts[5]"),
+    (lambda t, u, x: (t, u[:-5], x), "us must have shape|(50, 1)|['delta']|got shape (45, 1)"),
+    (lambda t, u, x: (t, u[:, 0], x), "us must have shape|got shape (50,)"),
+    (lambda t, u, x: (t, np.hstack([u, u]), x), "us must have shape|got shape (50, 2)"),
+    (lambda t, u, x: (t, u, x[:1]), "x0 must have shape (2,)|['psi', 'r']|got shape (1,)"),
+])
+def test_arguments_that_do_not_fit_the_model_or_the_grid_stop_before_simulating(change, match):
+    from diffship.errors import DataError
+    m, t, u, x = _nomoto_case()
+    copies = [a.copy() for a in (t, u, x)]
+    with pytest.raises(DataError) as info:
+        simulate(m, *change(t, u, x))
+    for part in match.split("|"):
+        assert part in str(info.value)
+    for a, b in zip((t, u, x), copies):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_grid_order_is_checked_on_concrete_arrays_only_and_a_failed_simulation_shows_in_ok():
+    import equinox as eqx
+    m, t, u, x = _nomoto_case()
+    assert bool(jax.jit(lambda t, u, x: simulate(m, t, u, x).ok)(t, u, x))
+    broken = eqx.tree_at(lambda q: q.T1, m, jnp.asarray(0.0))  # an invalid model: the rate turns non-finite
+    sol = simulate(broken, t, u, x)
+    assert not bool(sol.ok) and not bool(sol.valid[-1])
+    assert "sol.ok" in simulate.__doc__

@@ -35,6 +35,8 @@ from diffship.errors import DataError
 from .channels import check_header, check_near_misses
 from .frozen import FrozenDict as _FrozenDict
 from .gaps import check_gaps
+from .runargs import as_column as _as_array
+from .runargs import check_containers, check_frame, timedelta_seconds
 from .units import TIME_UNITS, UnitsError, psi_unwrap
 from .units import check_units as check_column_units
 
@@ -72,15 +74,6 @@ def _where(name: str, source: Any) -> str:
     return f"{source}, run '{name}'" if source else f"run '{name}'"
 
 
-def _as_array(values: Any, where: str, column: str) -> np.ndarray:
-    try:
-        a = np.array(values, dtype=np.float64, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{where}: column '{column}' is not numeric ({exc}); "
-                        "convert it to numbers or leave it out.") from None
-    return a
-
-
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
 class Run:
     """One measured (or simulated) run.
@@ -114,6 +107,7 @@ class Run:
     check_units: bool = True
 
     def __post_init__(self) -> None:
+        check_containers(self.name, self.channels, self.metadata)
         meta = dict(self.metadata or {})
         if not isinstance(self.name, str) or not self.name:
             raise DataError(f"{meta.get('source') or 'Run'}: the run name must be a non-empty string.")
@@ -278,9 +272,10 @@ class Run:
             Extra metadata merged into the run's metadata.
         time_unit : str
             Unit of a numeric time column: ``"s"`` (default), ``"ms"`` or ``"us"`` (converted to s).
-            Date-time stamps (text or datetime64) are read as seconds from the first.
+            Date-time stamps (text or datetime64) are read as seconds from the first; timedelta64 as their seconds.
         """
         where = _where(name, source or "DataFrame")
+        check_frame(df, where)
         if rudder_sign not in ("starboard", "port"):
             raise DataError(f"{where}: rudder_sign must be 'starboard' or 'port', got {rudder_sign!r}.")
         if len(df) == 0:
@@ -308,6 +303,8 @@ class Run:
         arrays: dict[str, np.ndarray] = {}
         for ch, col in cmap.items():
             s = df[col]
+            if ch == "time" and pd.api.types.is_timedelta64_dtype(s):
+                s = timedelta_seconds(s, where, time_unit)
             if ch == "time" and not pd.api.types.is_datetime64_any_dtype(s) and not pd.api.types.is_numeric_dtype(s):
                 stamps = pd.to_datetime(s, errors="coerce", format="mixed") if s.notna().all() else None
                 if stamps is not None and stamps.notna().all():

@@ -140,6 +140,15 @@ def simulate(
 ) -> Solution:
     """Simulate ``model`` from ``x0`` over the strictly increasing grid ``ts``.
 
+    A simulation that fails (the state turns non-finite or exceeds ``max_abs``, e.g. with
+    parameters that make the model invalid) raises no error and returns finite numbers: the
+    state is frozen at its last good value. Check ``sol.ok`` (``False`` if any sample failed)
+    or ``sol.valid`` (per sample) before using ``sol.xs``/``sol.ys``.
+
+    Called with concrete arrays, the shapes and the grid are checked first and a
+    :class:`~diffship.errors.DataError` names what is wrong; under ``jax.jit``/``vmap`` only the
+    shapes are (values are not known while tracing).
+
     Args:
         model: any :class:`~diffship.models.AbstractModel`.
         ts: sample times [s].
@@ -154,9 +163,36 @@ def simulate(
     ts = jnp.asarray(ts, dtype=jnp.float64)
     us = jnp.asarray(us, dtype=jnp.float64)
     x0 = jnp.asarray(x0, dtype=jnp.float64)
+    _check_arguments(model, ts, us, x0)
     xs, valid = integrate(model.vector_field, ts, us, x0, integrator, max_abs, horizon)
     ys = jax.vmap(model.observe)(xs, us)
     return Solution(ts=ts, xs=xs, ys=ys, valid=valid)
+
+
+def _check_arguments(model: AbstractModel, ts, us, x0) -> None:
+    """Stop at ``ts``, ``us`` or ``x0`` that do not fit ``model`` or each other (shapes are known even while
+    tracing; the order of ``ts`` is checked only when its values are concrete)."""
+    inputs, states = tuple(model.input_names), tuple(model.state_names)
+    if ts.ndim != 1 or ts.shape[0] < 1:
+        raise DataError(f"simulate: ts must be a 1-D grid of sample times, got shape {ts.shape}.")
+    n = ts.shape[0]
+    if us.shape != (n, len(inputs)):
+        raise DataError(f"simulate: us must have shape (len(ts), n_inputs) = ({n}, {len(inputs)}), one column per "
+                        f"input of model {model.name} {list(inputs)} in that order, got shape {us.shape}; "
+                        "build it with diffship.simulate.model_inputs(model, run).")
+    if x0.shape != (len(states),):
+        raise DataError(f"simulate: x0 must have shape ({len(states)},), one value per state of model {model.name} "
+                        f"{list(states)} in that order, got shape {x0.shape}; build it with "
+                        "diffship.simulate.initial_state(model, run).")
+    if not isinstance(ts, jax.core.Tracer):
+        t = np.asarray(ts)
+        bad = ~np.isfinite(t)
+        bad[1:] |= ~(np.diff(t) > 0)
+        if bad.any():
+            i = int(np.argmax(bad))
+            what = f"ts[{i}] = {t[i]:.6g} s" + (f" follows ts[{i - 1}] = {t[i - 1]:.6g} s" if i else "")
+            raise DataError(f"simulate: ts must be finite and strictly increasing, but {what}; "
+                            "sort the times and drop repeated ones.")
 
 
 def model_inputs(model: AbstractModel, run: Run) -> np.ndarray:

@@ -278,3 +278,24 @@ def test_jitter_and_short_dropouts_are_not_gaps():
     t = np.delete(np.arange(500) * 0.02, range(100, 140))  # 50 Hz, 0.82 s without samples: under 1 s
     assert Run("tank", t, {"psi": np.zeros(t.size)}).n == 460
     raises("run 'sea'|no samples for 6", Run, "sea", np.r_[np.arange(20.0), 25.0 + np.arange(20.0)], {})
+
+
+# --- what a run is built from ------------------------------------------------------------
+def test_run_arguments_of_the_wrong_kind_stop_with_what_to_pass():
+    t, r = np.arange(50) * 0.1, np.zeros(50)
+    raises("run 'a'|column 'r' holds complex numbers|np.real", Run, "a", t, {"r": r + 1j})
+    raises("channels must be a mapping|got list", Run, "a", t, [r, r])
+    raises("channels must be a mapping|got NoneType", Run, "a", t, None)
+    raises("metadata must be a mapping|got list", Run, "a", t, {"r": r}, metadata=[1, 2])
+    raises("needs a pandas DataFrame|got dict|pd.DataFrame(data)", Run.from_dataframe, {"time": t, "r": r})
+    raises("needs a pandas DataFrame|got ndarray", Run.from_dataframe, np.c_[t, r])
+    assert Run("a", t, pd.DataFrame({"r": r})).channel_names == ("r",)
+
+
+def test_timedelta_time_column_is_read_as_its_seconds():
+    df = pd.DataFrame({"time": pd.to_timedelta(5.0 + np.arange(100) * 0.1, unit="s"), "r": np.zeros(100)})
+    before = df.copy()
+    run = Run.from_dataframe(df)
+    np.testing.assert_allclose(run.time, 5.0 + np.arange(100) * 0.1)
+    pd.testing.assert_frame_equal(df, before)
+    raises("holds timedeltas|time_unit='ms' does not apply", Run.from_dataframe, df, time_unit="ms")
