@@ -14,8 +14,9 @@ from diffship.discover.report import _held
 
 def _csv(path, n=600, dt=0.1):
     t = np.arange(n) * dt
-    pd.DataFrame({"time": t, "psi": 0.01 * t, "u": np.full(n, 1.5), "v": np.zeros(n), "r": np.full(n, 0.01),
-                  "tau_x": np.full(n, 100.0), "tau_y": np.zeros(n), "tau_z": np.full(n, 10.0)}).to_csv(path, index=False)
+    table = {"time": t, "psi": 0.01 * t, "u": np.full(n, 1.5), "v": np.zeros(n), "r": np.full(n, 0.01),
+             "tau_x": np.full(n, 100.0), "tau_y": np.zeros(n), "tau_z": np.full(n, 10.0)}
+    pd.DataFrame(table).to_csv(path, index=False)
     return str(path)
 
 
