@@ -528,3 +528,23 @@ def test_the_bundled_example_takes_the_resample_step():
     for dt, hz in ((None, "10 Hz"), (0.05, "20 Hz")):
         train, val = _example("nomoto2", lines.append, dt)
         assert train[0].dt == pytest.approx(dt or 0.1) and not val and hz in lines[-1]
+
+
+def test_shared_input_and_output_checks(tmp_path):
+    """:mod:`diffship.cli_options`'s checks that fit, diagnose and discover make before they read a run."""
+    from diffship.cli_options import held_out_problem, output_problem, too_short_problem
+
+    run = tmp_path / "a.csv"
+    run.write_text("time\n0\n")
+    (tmp_path / "d").mkdir()
+    assert held_out_problem([str(run)], [str(tmp_path / "d" / ".." / "a.csv")]).startswith("--validate ")
+    assert held_out_problem([str(run)], [str(tmp_path / "b.csv")]) is None
+    inputs = [("the training run", str(run))]
+    assert "is an existing file, not a folder" in output_problem(inputs, str(run), ("r.txt",))
+    assert "would write a.csv over the training run" in output_problem(inputs, str(tmp_path), ("a.csv",))
+    assert output_problem(inputs, files=[("--json", str(run))]).startswith(f"--json {run} is the training run")
+    assert output_problem(inputs, files=[("--json", str(tmp_path))]).endswith("is a folder: give a file name")
+    assert output_problem(inputs, str(tmp_path / "new"), ("r.txt",), [("--json", str(tmp_path / "x.json"))]) is None
+    assert not (tmp_path / "new").exists()
+    assert "too few to estimate 3 parameters (K)" in too_short_problem(59, 3, "K")
+    assert too_short_problem(60, 3, "K") is None

@@ -11,6 +11,12 @@ same names, meanings, defaults and checks in every command:
 * **bootstrap**: ``--bootstrap``, ``--bootstrap-method`` (fit, discover);
 * **output**: ``--out``, ``--json``, ``--quiet``.
 
+Checks every command makes before it reads a run: :func:`output_problem` (an output path that is a
+folder where a file is wanted or the reverse, that would overwrite an input file, that two outputs share
+or where nothing can be written) and :func:`held_out_problem` (a held-out run that is also a training
+run); after the runs are read and before any fit, :func:`too_short_problem` (training runs with fewer
+than :data:`SAMPLES_PER_PARAMETER` samples per estimated parameter).
+
 Every command also leaves the same way: :func:`exit_now` (``fleet`` excepted: its Dask workers' clean-up
 runs at the ordinary exit).
 
@@ -28,6 +34,7 @@ import argparse
 import math
 import os
 import sys
+import tempfile
 from pathlib import Path
 from typing import NoReturn
 
@@ -53,6 +60,11 @@ __all__ = [
     "names_of",
     "non_negative_int",
     "out_folder_problem",
+    "output_problem",
+    "input_files",
+    "held_out_problem",
+    "too_short_problem",
+    "SAMPLES_PER_PARAMETER",
     "parameter_name",
     "positive_float",
     "positive_int",
@@ -169,6 +181,106 @@ def out_folder_problem(path: str, option: str = "--out") -> str | None:
             return None if p.is_dir() else (f"{option} {path}: {p} is a file, not a folder; give a folder (it is "
                                               "created where missing) or move the file")
     return None
+
+
+def same_file(a: str, b: str) -> bool:
+    """Whether paths ``a`` and ``b`` name one file (the same file, or the same resolved path if one is missing)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def folder_problem(folder: Path) -> str | None:
+    """Why files cannot be written in ``folder`` (created if missing), or ``None``: found by creating the
+    missing folders and a temporary file there, and removing what was created."""
+    missing, p = [], folder
+    while not os.path.lexists(p) and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    if not p.is_dir():
+        return f"{p} is not a folder"
+    made = []
+    try:
+        for d in reversed(missing):
+            d.mkdir()
+            made.append(d)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        return f"cannot {'create' if missing else 'write in'} {folder} ({exc.strerror or exc})"
+    finally:
+        for d in reversed(made):
+            d.rmdir()
+    return None
+
+
+def input_files(args: argparse.Namespace) -> list[tuple[str, str]]:
+    """``(what, path)`` of the files a command reads: its training and held-out runs, and the files given to
+    ``--prior-file``, ``--vessel`` and ``--map`` (where they are files: a bundled vessel or map is a name)."""
+    inputs = [("the training run", p) for p in args.runs] + [("the held-out run", p) for p in args.validate]
+    return inputs + [(f"the {o} file", v) for o, v in (("--prior-file", getattr(args, "prior_file", None)),
+                                                         ("--vessel", getattr(args, "vessel", None)),
+                                                         ("--map", getattr(args, "map", None)))
+                     if v and os.path.isfile(v)]
+
+
+def output_problem(inputs, out: str | None = None, out_files=(), files=()) -> str | None:
+    """Why a command's outputs cannot be written as given, or ``None``, found before anything is read.
+
+    ``inputs``: ``(what, path)`` of the files the command reads ("the training run", ...); ``out``: the
+    ``--out`` folder, which receives ``out_files``; ``files``: ``(option, path)`` of single-file outputs
+    (``--json``, ``--save``, ``--html``). Refused: ``--out`` an existing file or a folder that cannot be
+    created, or whose files would overwrite an input; a file output that is an input, a folder, named twice,
+    or in a folder that cannot be created."""
+    if out is not None:
+        if os.path.lexists(out) and not os.path.isdir(out):
+            return (f"--out {out} is an existing file, not a folder: --out names the folder that receives "
+                    f"{', '.join(out_files[:4])}; give a new or an existing folder")
+        for f in out_files:
+            if (inp := next((i for i in inputs if same_file(str(Path(out) / f), i[1])), None)) is not None:
+                return f"--out {out} would write {f} over {inp[0]} {inp[1]}; give --out another folder"
+        if (why := folder_problem(Path(out))) is not None:
+            return f"--out {out}: {why}; give a folder that can be written"
+    files = [(o, v) for o, v in files if v]
+    for k, (opt, path) in enumerate(files):
+        if (inp := next((i for i in inputs if same_file(path, i[1])), None)) is not None:
+            return f"{opt} {path} is {inp[0]} {inp[1]}: writing it would overwrite that input; give {opt} another path"
+        if os.path.isdir(path):
+            return f"{opt} {path} is a folder: give a file name"
+        if (other := next((o for o, q in files[:k] if same_file(path, q)), None)) is not None:
+            return f"{other} and {opt} both name {path}: give each output its own file"
+        if (why := folder_problem(Path(path).parent)) is not None:
+            return f"{opt} {path}: {why}; give a path that can be written"
+    return None
+
+
+def held_out_problem(runs, validate) -> str | None:
+    """Why the held-out runs cannot judge a fit to the training runs, or ``None``: one of them is a training
+    run (the same file, resolved), whose fit it would only repeat."""
+    for held in validate or ():
+        if (train := next((r for r in runs if same_file(r, held)), None)) is not None:
+            same = held if held == train else f"{held} (the same file as {train})"
+            return (f"--validate {same} is also a training run: a held-out run must be one the fit never saw, or "
+                    "it cannot show how the model predicts new data; give another run to --validate, or drop it "
+                    "from the training runs")
+    return None
+
+
+#: Samples the training runs must hold together (time steps, all runs, after ``--resample``) per parameter
+#: the command estimates in its largest model: fewer, and the estimates are not determined by the data.
+SAMPLES_PER_PARAMETER = 20
+
+
+def too_short_problem(n_samples: int, n_params: int, what: str) -> str | None:
+    """Why training runs of ``n_samples`` samples together are too short to estimate ``n_params`` parameters
+    (``what``: the parameters named), or ``None``: fewer than :data:`SAMPLES_PER_PARAMETER` per parameter."""
+    need = SAMPLES_PER_PARAMETER * n_params
+    if n_samples >= need:
+        return None
+    return (f"the training runs hold {n_samples} samples together, too few to estimate {n_params} parameters "
+            f"({what}): at least {SAMPLES_PER_PARAMETER} samples per parameter, {need}, are needed; give longer "
+            "or more training runs (or a smaller --resample step)")
 
 
 def helm_rate(text: str) -> float:

@@ -95,3 +95,7 @@ def test_a_new_out_folder_is_checked_without_being_left_behind(tmp_path, capsys)
 def test_time_unit_and_resample_that_do_not_fit_the_runs_stop(csv, capsys):
     _stop([csv, "--time-unit", "ms"], capsys, "10000 Hz", "1000 Hz or slower", "--time-unit s", read=True)
     _stop([csv, "--resample", "100"], capsys, "--resample 100: run 'run' lasts 19.9 s", "at most 2.2 s", read=True)
+
+
+def test_a_held_out_run_that_is_a_training_run_stops(csv, capsys):
+    _stop([csv, "--validate", csv], capsys, f"--validate {csv} is also a training run", "never saw")

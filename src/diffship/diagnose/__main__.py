@@ -9,6 +9,14 @@ is fitted here by output error with those options (or started from ``--from-fit 
 verdict is read and warned about) and handed to :func:`diffship.diagnose.diagnose`; the
 diagnosis's workspace programs compile beside the fit
 (:func:`~diffship.diagnose.diagnosis.prefetch_workspace`).
+
+Before any run is read, :func:`input_problem` stops the command (exit status 2, one line) on a held-out
+run that is also a training run, an empty ``--effects`` list, and outputs that cannot be written or
+would overwrite an input (:func:`diffship.cli_options.output_problem`, as in ``python -m diffship.fit``).
+After the runs are read and before the base fit, training runs that are too short for the question stop
+it too. The rule: the training runs together (after ``--resample`` and ``--horizon``) hold at least
+:data:`~diffship.cli_options.SAMPLES_PER_PARAMETER` (20) samples per parameter of the largest model the
+diagnosis fits, the base model's free parameters and those of the candidate effect with the most.
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from ..cli_options import (
     add_data_options,
@@ -24,8 +33,12 @@ from ..cli_options import (
     add_parameter_options,
     add_prior_options,
     add_vessel_option,
+    held_out_problem,
+    input_files,
     names_of,
+    output_problem,
     positive_int,
+    too_short_problem,
 )
 from ..errors import DiffshipError
 from ..log_options import add_log_options, log_kwargs
@@ -75,6 +88,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: The files ``--out DIR`` writes (the figures among them where the diagnosis has them).
+OUT_FILES = ("diagnosis.md", "diagnosis.json", "residuals.png", "acf_ccf.png", "regimes.png", "overlay.png",
+             "waterfall.png", "data_checks.png")
+
+
+def input_problem(args) -> str | None:
+    """The one line that stops the command before it reads a run, or ``None``."""
+    if args.effects.strip() != "all" and not [e for e in args.effects.split(",") if e.strip()]:
+        from ..models.effects.registry import EFFECT_NAMES
+
+        return (f"--effects {args.effects!r}: the effects list is empty; give all, or a comma-separated list of "
+                f"effects from: {', '.join(EFFECT_NAMES)}")
+    inputs = input_files(args) + ([("the --from-fit file", args.from_fit)] if args.from_fit else [])
+    return held_out_problem(args.runs, args.validate) or output_problem(
+        inputs, args.out, OUT_FILES, [("--json", args.json), ("--html", args.html)])
+
+
 def precheck(args) -> str | None:
     """The particulars rule of ``python -m diffship.fit``, without JAX: the error line, or ``None``."""
     needs = MODEL_PARTICULARS.get(args.model)
@@ -92,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    problem = precheck(args)
+    problem = input_problem(args) or precheck(args)
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)
         return 2
@@ -111,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         files = write_report(d, args.out)
         say("wrote " + ", ".join(str(f) for f in files))
     if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)  # as the fit command's --json
         write_json(d, args.json)
         say(f"wrote {args.json}")
     if args.html:
@@ -160,6 +191,7 @@ def _diagnose(args, say):
     if args.horizon:  # the first seconds of each training run (held-out runs whole)
         train = [r.slice(None, r.time[0] + args.horizon) for r in train]
     check_runs(model, train, val, args.channels)
+    _enough_samples(model, spec, train, effects)
     if not args.skip_sign_check:
         check_rudder_sign(train + val, args.rudder_sign)
         check_yaw_direction(train + val)
@@ -200,6 +232,20 @@ def _diagnose(args, say):
         print(f"warning (base fit):{line[1:]}", file=sys.stderr)
     d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say, checked=checked)
     return d, fit
+
+
+def _enough_samples(model, spec, train, effects) -> None:
+    """Stop on training runs too short for the base model and its largest candidate effect (the module's rule)."""
+    from ..errors import DataError
+    from ..models.effects.registry import library
+
+    effs, _ = library(model, train, effects)
+    most = max(effs, key=lambda e: len(e.param_names), default=None)
+    n = len(spec.free_names) + (len(most.param_names) if most is not None else 0)
+    what = f"{model.name}'s {len(spec.free_names)} free" + (f" and {most.name}'s {len(most.param_names)}"
+                                                            if most is not None else "")
+    if (problem := too_short_problem(sum(len(r.time) for r in train), n, what)) is not None:
+        raise DataError(problem)
 
 
 def _same_model(args, loaded, model) -> None:

@@ -1,5 +1,13 @@
 """``python -m diffship.discover TRAIN.csv ... --validate HELD.csv ... --model fossen3`` (thin: parse, call,
-print). Errors a user can fix are one line ``error: ...`` with exit status 2."""
+print). Errors a user can fix are one line ``error: ...`` with exit status 2.
+
+Before any run is read, outputs that cannot be written or would overwrite an input
+(:func:`diffship.cli_options.output_problem`, as in ``python -m diffship.fit``) and a held-out run that is
+also a training run stop the command. After the runs are read and before any fit, training runs too short
+for the search stop it: the training runs together (after ``--resample``) must hold at least
+:data:`~diffship.cli_options.SAMPLES_PER_PARAMETER` (20) samples per parameter of the largest candidate,
+the base model's free parameters and ``--max-terms`` terms.
+"""
 
 from __future__ import annotations
 
@@ -10,11 +18,15 @@ import time
 from pathlib import Path
 
 from ..cli_options import (add_bootstrap_options, add_data_options, add_numerics_options, add_output_options,
-                           add_parameter_options, add_prior_options, add_vessel_option, positive_int)
+                           add_parameter_options, add_prior_options, add_vessel_option, held_out_problem, input_files,
+                           output_problem, positive_int, too_short_problem)
 from ..errors import DiffshipError
 from ..log_options import add_log_options, log_kwargs
 
-__all__ = ["build_parser", "main"]
+__all__ = ["OUT_FILES", "build_parser", "main"]
+
+#: The files ``--out DIR`` writes.
+OUT_FILES = ("report.txt", "report.json", "discover.png", "fit.json")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,6 +72,10 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args) -> int:
     if args.max_terms < 1:
         raise DiffshipError(f"--max-terms {args.max_terms}: give at least 1")
+    problem = held_out_problem(args.runs, args.validate) or output_problem(
+        input_files(args), args.out, OUT_FILES, [("--save", args.save), ("--json", args.json), ("--html", args.html)])
+    if problem is not None:
+        raise DiffshipError(problem)
     from ..models.terms import library_terms
 
     library_terms(args.library)  # unknown names fail here, before JAX work
@@ -87,6 +103,10 @@ def _run(args) -> int:
     val = load_runs(args.validate, **kw) if args.validate else []
     if args.resample:
         train, val = resample_runs(train, args.resample), resample_runs(val, args.resample)
+    n_free = len(spec.free_names)
+    if (problem := too_short_problem(sum(len(r.time) for r in train), n_free + args.max_terms,
+                                     f"{model.name}'s {n_free} free and {args.max_terms} terms, --max-terms")):
+        raise DiffshipError(problem)
     opts = OutputError(integrator=get_integrator(args.solver, hold=args.input_hold), reference_priors=not args.no_prior,
                        prior_rel_sd=args.prior_sd, **({"max_steps": args.max_steps} if args.max_steps else {}))
     flt = Filter.parse(args.filter) if args.filter != "kalman" else Filter()
@@ -116,6 +136,7 @@ def _run(args) -> int:
     if args.save:
         save_fit(d.selected.result, args.save, train, registry=args.model, extra=extra)
     if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)  # as the fit command's --json
         dump(doc, args.json)
     if args.html:  # one self-contained file with the figure --out writes
         from ..html import write_html_report

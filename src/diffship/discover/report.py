@@ -80,6 +80,11 @@ def discovery_json(d: Discovery, model_name: str) -> dict:
                 "refits": d.polish.refits, "seconds": d.polish.seconds}}
 
 
+def _held(v) -> str:
+    """A held-out score, or "—" where there is none (no held-out run)."""
+    return "—" if v is None or not math.isfinite(v) else f"{v:.3f}"
+
+
 def discovery_text(d: Discovery, model_name: str) -> str:
     """A short text report: the selected terms, the ranked candidates, held-out errors, warnings."""
     sel = d.selected
@@ -116,13 +121,13 @@ def discovery_text(d: Discovery, model_name: str) -> str:
         delta = lambda c: c.criteria[d.criterion] - sel.criteria[d.criterion]  # noqa: E731
         lines.append(f"equivalent explanations ({crit} within {MARGIN:g} of the selected; these runs do not decide "
                      "between them): " + "; ".join(f"{' + '.join(c.terms) or '(base)'} ({crit} {delta(c):+.1f}, "
-                                                   f"held-out RMSE/base {c.held_out:.3f})" for c in d.equivalent))
+                                                   f"held-out RMSE/base {_held(c.held_out)})" for c in d.equivalent))
         lines.append("  the manoeuvre that tells them apart: " + (d.separation.text() if d.separation is not None
                                                                   else "none found (every probe blew up)"))
     lines.append("")
     lines.append(f"  rank  {d.criterion.upper():>10s}  held-out RMSE/base  bootstrap wins  terms")
     for i, c in enumerate(d.candidates):
-        lines.append(f"  {i + 1:>4d}  {c.criteria[d.criterion]:>10.1f}  {c.held_out:>18.3f}  {c.wins:>14.2f}  "
+        lines.append(f"  {i + 1:>4d}  {c.criteria[d.criterion]:>10.1f}  {_held(c.held_out):>18s}  {c.wins:>14.2f}  "
                      + (" + ".join(c.terms) or "(base)") + ("   <- selected" if i == d.chosen else ""))
     if sel.validation is not None:
         lines.append("")

@@ -1,21 +1,22 @@
 """The fit command's checks of what it was given, before any file is read or any fit starts.
 
 :func:`input_problem` returns one line for a command line that cannot give what it asks for, or
-``None``: held-out runs (``--validate``) without a training run, options that contradict each other
+``None``: held-out runs (``--validate``) without a training run or that are also training runs
+(:func:`diffship.cli_options.held_out_problem`), options that contradict each other
 (``--fix`` with ``--free``, ``--init`` or ``--prior`` on the same parameter; ``--shooting multiple``
 with a method that fits no output error; ``--check-sampling`` without ``--resample``), and output
-paths that would overwrite an input file or cannot be written (``--out`` an existing file or a
-folder that cannot be created; ``--save``, ``--json``, ``--html`` a folder, the same file twice, or
-in a folder that cannot be created). Both :func:`diffship.fit.args.precheck` (before JAX is
+paths that would overwrite an input file or cannot be written
+(:func:`diffship.cli_options.output_problem`: ``--out`` an existing file or a folder that cannot be
+created; ``--save``, ``--json``, ``--html`` a folder, the same file twice, or in a folder that cannot
+be created). Both :func:`diffship.fit.args.precheck` (before JAX is
 imported) and :func:`diffship.fit.cli.main` ask it. Standard library only.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
-from pathlib import Path
+
+from ..cli_options import held_out_problem, input_files, output_problem
 
 __all__ = ["DEFAULT_OUT", "OUT_FILES", "input_problem"]
 
@@ -37,7 +38,7 @@ def _runs_problem(args) -> str | None:
                 f"({', '.join(args.validate)}); put the training files before --validate, or after --, e.g. "
                 "python -m diffship.fit TRAIN.csv --validate HELD.csv (the bundled example is fitted only when no "
                 "file is given)")
-    return None
+    return held_out_problem(args.runs, args.validate)
 
 
 def _items(items) -> dict[str, str]:
@@ -69,59 +70,8 @@ def _option_conflict(args) -> str | None:
     return None
 
 
-def _same(a: str, b: str) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
-def _folder_problem(folder: Path) -> str | None:
-    """Why files cannot be written in ``folder`` (created if missing), or ``None``: found by creating the
-    missing folders and a temporary file there, and removing what was created."""
-    missing, p = [], folder
-    while not os.path.lexists(p) and p != p.parent:
-        missing.append(p)
-        p = p.parent
-    if not p.is_dir():
-        return f"{p} is not a folder"
-    made = []
-    try:
-        for d in reversed(missing):
-            d.mkdir()
-            made.append(d)
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as exc:
-        return f"cannot {'create' if missing else 'write in'} {folder} ({exc.strerror or exc})"
-    finally:
-        for d in reversed(made):
-            d.rmdir()
-    return None
-
-
 def _output_problem(args) -> str | None:
-    inputs = [("the training run", p) for p in args.runs] + [("the held-out run", p) for p in args.validate]
-    inputs += [(f"the {o} file", v) for o, v in (("--prior-file", args.prior_file), ("--vessel", args.vessel),
-                                                   ("--map", getattr(args, "map", None))) if v and os.path.isfile(v)]
+    inputs = input_files(args)
     out = args.out or (None if args.runs else DEFAULT_OUT)
-    if out is not None:
-        if os.path.lexists(out) and not os.path.isdir(out):
-            return (f"--out {out} is an existing file, not a folder: --out names the folder that receives "
-                    f"{', '.join(OUT_FILES[:4])}; give a new or an existing folder")
-        for f in OUT_FILES:
-            if (inp := next((i for i in inputs if _same(str(Path(out) / f), i[1])), None)) is not None:
-                return f"--out {out} would write {f} over {inp[0]} {inp[1]}; give --out another folder"
-        if (why := _folder_problem(Path(out))) is not None:
-            return f"--out {out}: {why}; give a folder that can be written"
-    files = [(f"--{o}", v) for o in ("save", "json", "html") if (v := getattr(args, o, None))]
-    for k, (opt, path) in enumerate(files):
-        if (inp := next((i for i in inputs if _same(path, i[1])), None)) is not None:
-            return f"{opt} {path} is {inp[0]} {inp[1]}: writing it would overwrite that input; give {opt} another path"
-        if os.path.isdir(path):
-            return f"{opt} {path} is a folder: give a file name"
-        if (other := next((o for o, q in files[:k] if _same(path, q)), None)) is not None:
-            return f"{other} and {opt} both name {path}: give each output its own file"
-        if (why := _folder_problem(Path(path).parent)) is not None:
-            return f"{opt} {path}: {why}; give a path that can be written"
-    return None
+    files = [(f"--{o}", getattr(args, o, None)) for o in ("save", "json", "html")]
+    return output_problem(inputs, out, OUT_FILES, files)
