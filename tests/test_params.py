@@ -53,3 +53,16 @@ def test_bad_parameters_are_named():
         parse_assignments(["T1=abc"])
     assert parse_assignments(["T1=2.5", " K = 0.1"]) == {"T1": 2.5, "K": 0.1}
     assert math.isinf(_spec()["a"].upper)
+
+
+def test_fix_refuses_a_value_outside_the_bounds():
+    spec = ParamSpec((Param("K", 0.5), Param("T1", 5.0, lower=0.0, unit="s")))
+    for bad, words in ((-5.0, "-5 s"), (0.0, "on a bound"), (math.nan, "not finite"), ("x", "not a number")):
+        with pytest.raises(ModelError, match="parameter T1: fixed value") as e:
+            spec.fix({"T1": bad})
+        assert words in str(e.value)
+    assert spec.fix({"T1": 3.0})["T1"].free is False
+    with pytest.raises(ModelError, match="parameter T1: fixed value -5"):
+        spec.with_values({"T1": -5.0}).fix(["T1"])
+    held = ParamSpec((Param("Xudot", 0.0, upper=0.0, held_bounds=(0.0,)),))
+    assert held.fix({"Xudot": 0.0})["Xudot"].value == 0.0

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -48,6 +49,8 @@ class Param:
         scale: typical magnitude, used to scale the fit variable (must be > 0).
         unit: SI unit, for reports.
         description: one line for reports.
+        held_bounds: the bounds a model may hold as a value (not a fit start): those the declared
+            value sits on, e.g. a zero added mass whose sign bound is 0 (:func:`~diffship.models.param`).
     """
 
     name: str
@@ -58,6 +61,7 @@ class Param:
     scale: float = 1.0
     unit: str = ""
     description: str = ""
+    held_bounds: tuple[float, ...] = ()
 
     def __post_init__(self):
         if not self.scale > 0 or not math.isfinite(self.scale):
@@ -69,6 +73,28 @@ class Param:
     def kind(self) -> int:
         lo, hi = math.isfinite(self.lower), math.isfinite(self.upper)
         return _BOTH if lo and hi else _LOWER if lo else _UPPER if hi else _LINEAR
+
+    def check_held(self, value: Any, what: str = "value") -> float:
+        """``value`` as a float, or :class:`ModelError` unless it is one finite number within the bounds.
+
+        The bounds are open: a value on one is refused unless it is one of :attr:`held_bounds`. A free or
+        fixed parameter alike (what a model or a fixed parameter may hold; a fit's start is :meth:`check_value`).
+        """
+        try:
+            v = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            v = None
+        if v is None or v.ndim != 0 or isinstance(value, (str, bytes)):
+            raise ModelError(f"parameter {self.name}: {what} {value!r} is not a number; give one finite number")
+        v = float(v)
+        if not math.isfinite(v):
+            raise ModelError(f"parameter {self.name}: {what} {v} is not finite; give one finite number")
+        if not (self.lower < v < self.upper or v in self.held_bounds):
+            raise ModelError(
+                f"parameter {self.name}: {what} {v:g} {self.unit} is not strictly inside its bounds ({self.lower:g}, "
+                f"{self.upper:g}) (a value on a bound is refused); give a value inside them"
+            )
+        return v
 
     def check_value(self, value: float, what: str = "value") -> None:
         """Raise :class:`ModelError` unless ``value`` is finite and strictly inside the bounds."""
@@ -162,12 +188,18 @@ class ParamSpec:
         return spec
 
     def fix(self, values: Mapping[str, float] | Iterable[str]) -> ParamSpec:
-        """Hold parameters fixed, optionally at new values (a mapping) or at their current ones."""
+        """Hold parameters fixed, optionally at new values (a mapping) or at their current ones.
+
+        A new value must be one finite number within the parameter's bounds (:meth:`Param.check_held`).
+        """
         if isinstance(values, Mapping):
+            values = {n: self[n].check_held(v, "fixed value") for n, v in values.items()}
             spec = self.with_values(values)
             names = list(values)
         else:
             spec, names = self, list(values)
+            for n in names:
+                self[n].check_held(self[n].value, "fixed value")
         for n in names:
             spec = spec._replace(n, free=False)
         return spec

@@ -39,14 +39,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
-from ..errors import FitError
+from ..errors import DataError, FitError
 from ..models import AbstractModel
 from ..params import ParamSpec
 from .covariance import covariance, relabelled
@@ -55,7 +56,7 @@ from .identifiability import identifiability
 from .priors import Priors, default_priors, prior_table
 from .problem import NOT_FITTED_BY_DEFAULT, unfitted_positions
 from .result import FitResult, StartsReport
-from .starts import named_starts, spread_starts
+from .starts import checked_start, named_starts, spread_starts
 from .status import RESULTS, as_diffship, message
 
 __all__ = ["fit", "fit_priors", "DEFAULT_STARTS"]
@@ -76,6 +77,35 @@ def fit_priors(model: AbstractModel, spec: ParamSpec, estimator) -> tuple[Priors
     if e.priors is not None and len(e.priors):
         note += f"; {len(e.priors)} prior(s) from {e.priors.source}"
     return priors, note
+
+
+def _checked_runs(runs) -> list[Run]:
+    """``runs`` as a list of :class:`~diffship.data.Run`, or :class:`DataError` saying what was given."""
+    if isinstance(runs, Run):
+        raise DataError(f"runs: a single Run ({runs.name}) given; pass a list of runs, e.g. [run]")
+    if isinstance(runs, (str, bytes, Mapping)) or not isinstance(runs, Iterable):
+        raise DataError(f"runs: expected a list of diffship Run objects, got {type(runs).__name__}")
+    runs = list(runs)
+    bad = [f"item {i} ({type(r).__name__})" for i, r in enumerate(runs) if not isinstance(r, Run)]
+    if bad:
+        raise DataError(f"runs: {', '.join(bad)} not a diffship Run; read runs with diffship.data "
+                        "(e.g. load_runs) and pass a list of them")
+    return runs
+
+
+def _checked_channels(channels) -> tuple[str, ...] | None:
+    """``channels`` as a tuple of names (``None`` stays ``None``), or :class:`DataError`."""
+    if channels is None:
+        return None
+    if isinstance(channels, str):
+        raise DataError(f"channels={channels!r}: a single string; give a sequence of names, e.g. ({channels!r},)")
+    if not isinstance(channels, Iterable) or isinstance(channels, Mapping):
+        raise DataError(f"channels: expected a sequence of channel names, got {type(channels).__name__}")
+    channels = tuple(channels)
+    bad = [repr(c) for c in channels if not isinstance(c, str)]
+    if bad:
+        raise DataError(f"channels: {', '.join(bad)} not a channel name (a string)")
+    return channels
 
 
 def _reference(model: AbstractModel) -> dict[str, float]:
@@ -122,10 +152,17 @@ def fit(
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
+    runs, channels = _checked_runs(runs), _checked_channels(channels)
+    if n_starts is not None and (isinstance(n_starts, bool) or not isinstance(n_starts, numbers.Integral)
+                                 or n_starts < 1):
+        raise FitError(f"n_starts={n_starts!r}: give a whole number of starts, at least 1 "
+                       f"(or None for the default, {DEFAULT_STARTS})")
     spec = spec or model.spec()
     if init:
-        spec = spec.with_values(init)
-    model = model.with_params(spec.values())
+        spec = spec.with_values(checked_start(spec, init, "init", free_only=False))
+    starts = ({k: checked_start(spec, v, f"start {k!r}") for k, v in starts.items()} if isinstance(starts, Mapping)
+              else [checked_start(spec, v, f"start {i + 1}") for i, v in enumerate(starts)])
+    model = model.with_params(spec.nudged(spec.values())[0])  # a start beyond a bound is moved inside below
     n_p = len(spec.free_names)
     if n_p == 0:
         raise FitError("no free parameters: free at least one (remove it from --fix)")
@@ -142,7 +179,7 @@ def fit(
     reference = _reference(model)
     first = "your start (--init)" if init else "the model's values"
     cands = named_starts(spec, named, reference, first_label=first)
-    n_total = max(DEFAULT_STARTS if n_starts is None else int(n_starts), 1)
+    n_total = DEFAULT_STARTS if n_starts is None else int(n_starts)
     user = 0 if init else None
 
     # -- screen every start by its initial cost (a start that blows up is never used) ----------

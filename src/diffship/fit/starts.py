@@ -19,12 +19,37 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..errors import ModelError
 from ..params import ParamSpec
 
-__all__ = ["named_starts", "spread_starts", "SPREAD"]
+__all__ = ["checked_start", "named_starts", "spread_starts", "SPREAD"]
 
 #: Spread starts multiply every free parameter by a factor log-uniform in [1/SPREAD, SPREAD].
 SPREAD = 2.0
+
+
+def checked_start(spec: ParamSpec, values: Mapping[str, float], label: str,
+                  free_only: bool = True) -> dict[str, float]:
+    """A caller's start as floats, or :class:`ModelError` naming the parameter: each name a parameter of
+    the spec (and free, unless ``free_only`` is false), each value one finite number. A finite value on
+    or beyond a bound is kept: the fit moves it just inside (:meth:`ParamSpec.nudged`)."""
+    if not isinstance(values, Mapping):
+        raise ModelError(f"{label}: expected a mapping {{parameter: value}}, got {type(values).__name__}")
+    out = {}
+    for name, v in values.items():
+        if name not in spec:
+            raise ModelError(f"{label}: unknown parameter {name!r}; this model has: {', '.join(spec.names)}")
+        if free_only and not spec[name].free:
+            raise ModelError(f"{label}: parameter {name} is fixed (at {spec[name].value:g}), so a fit does not "
+                             f"start it; free it, or leave it out of the start")
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            raise ModelError(f"{label}: parameter {name}: value {v!r} is not a number") from None
+        if not math.isfinite(f):
+            raise ModelError(f"{label}: parameter {name}: value {f} is not finite; give a finite start value")
+        out[name] = f
+    return out
 
 
 def named_starts(spec: ParamSpec, starts: Sequence[Mapping[str, float]] | Mapping[str, Mapping[str, float]],

@@ -58,6 +58,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar, NamedTuple
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -101,10 +102,13 @@ def param(
 
     Args:
         default: reference value (the field default and ``Param.value`` in ``PARAMS``).
-        scale, lower, upper, free, unit, description: as in :class:`~diffship.params.Param`.
+        scale, lower, upper, free, unit, description: as in :class:`~diffship.params.Param`. A default
+            on a bound (a zero added mass with the sign bound 0) makes that bound a value the model may
+            hold (``Param.held_bounds``); a fit still starts inside it.
     """
+    held = tuple(b for b in (lower, upper) if b == default)
     meta = Param("", float(default), free=free, lower=lower, upper=upper, scale=scale, unit=unit,
-                 description=description)
+                 description=description, held_bounds=held)
     return eqx.field(converter=_as_f64, default=default, metadata={"param": meta})
 
 
@@ -200,8 +204,29 @@ class AbstractModel(eqx.Module):
     def theta(self) -> Float[Array, " n_params"]:
         return jnp.stack([getattr(self, n) for n in self.param_names]) if self.param_names else jnp.zeros((0,))
 
+    def __check_init__(self):
+        """A model built with concrete values holds only valid ones (:meth:`_check_values`); a model whose
+        parameters are per instance (a ``PARAMS`` property, e.g. a base with effects) is checked in ``with_params``."""
+        if isinstance(type(self).PARAMS, tuple):
+            self._check_values({n: getattr(self, n) for n in self.param_names}, what="model value")
+
+    def _check_values(self, values: Mapping[str, Any], what: str = "value") -> None:
+        """:class:`ModelError` unless every concrete value is one finite number within its parameter's
+        bounds (``Param.check_held``); traced values (inside ``jax.jit``/``vmap``) are not checked."""
+        params = {p.name: p for p in self.PARAMS}
+        for n, v in values.items():
+            if not isinstance(v, jax.core.Tracer):
+                try:
+                    params[n].check_held(v, what)
+                except ModelError as exc:
+                    raise ModelError(f"model {self.name}: {exc}") from None
+
     def with_params(self, theta: Float[Array, " n_params"] | Mapping[str, float]) -> AbstractModel:
-        """A copy with new parameter values (array in ``param_names`` order, or a mapping)."""
+        """A copy with new parameter values (array in ``param_names`` order, or a mapping).
+
+        Each value must be one finite number within its parameter's bounds (``Param.check_held``;
+        traced values are not checked); an array must have one entry per parameter.
+        """
         names = self.param_names
         if isinstance(theta, Mapping):
             unknown = set(theta) - set(names)
@@ -209,8 +234,20 @@ class AbstractModel(eqx.Module):
                 raise ModelError(
                     f"model {self.name}: unknown parameter(s) {', '.join(sorted(unknown))}; it has {', '.join(names)}"
                 )
+            self._check_values(theta)
             new = {n: _as_f64(theta[n]) if n in theta else getattr(self, n) for n in names}
         else:
+            if isinstance(theta, (str, bytes)):
+                theta = [theta]
+            shape = getattr(theta, "shape", None)
+            size = (shape[0] if shape else -1) if shape is not None else len(theta)
+            if size != len(names):
+                given = f"{size} parameter value(s)" if size >= 0 else "a single number"
+                raise ModelError(f"model {self.name}: {given} given, it has {len(names)} parameter(s) "
+                                 f"({', '.join(names)}); give one value per parameter, in that order, or a mapping")
+            if not isinstance(theta, jax.core.Tracer):
+                host = theta if isinstance(theta, (list, tuple)) else np.asarray(theta)
+                self._check_values({n: host[i] for i, n in enumerate(names)})
             new = {n: _as_f64(theta[i]) for i, n in enumerate(names)}
         return eqx.tree_at(lambda m: tuple(getattr(m, n) for n in names), self, tuple(new[n] for n in names))
 
