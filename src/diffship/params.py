@@ -74,11 +74,13 @@ class Param:
         lo, hi = math.isfinite(self.lower), math.isfinite(self.upper)
         return _BOTH if lo and hi else _LOWER if lo else _UPPER if hi else _LINEAR
 
-    def check_held(self, value: Any, what: str = "value") -> float:
-        """``value`` as a float, or :class:`ModelError` unless it is one finite number within the bounds.
+    def check_held(self, value: Any, what: str = "value", bounds: bool = True) -> float:
+        """``value`` as a float, or :class:`ModelError` unless it is one finite number (``bounds``: within the bounds).
 
-        The bounds are open: a value on one is refused unless it is one of :attr:`held_bounds`. A free or
-        fixed parameter alike (what a model or a fixed parameter may hold; a fit's start is :meth:`check_value`).
+        The bounds are open: a value on one is refused unless it is one of :attr:`held_bounds`. With ``bounds``,
+        what a fixed parameter of a fit may hold (a fit's start is :meth:`check_value`); a model itself may hold any
+        finite value (``bounds=False``: the bounds are the fit's, and a simulation may ask what a course-unstable
+        ship with T1 < 0 or a destabilising term does).
         """
         try:
             v = np.asarray(value, dtype=np.float64)
@@ -89,7 +91,7 @@ class Param:
         v = float(v)
         if not math.isfinite(v):
             raise ModelError(f"parameter {self.name}: {what} {v} is not finite; give one finite number")
-        if not (self.lower < v < self.upper or v in self.held_bounds):
+        if bounds and not (self.lower < v < self.upper or v in self.held_bounds):
             raise ModelError(
                 f"parameter {self.name}: {what} {v:g} {self.unit} is not strictly inside its bounds ({self.lower:g}, "
                 f"{self.upper:g}) (a value on a bound is refused); give a value inside them"

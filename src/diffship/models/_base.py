@@ -211,21 +211,21 @@ class AbstractModel(eqx.Module):
             self._check_values({n: getattr(self, n) for n in self.param_names}, what="model value")
 
     def _check_values(self, values: Mapping[str, Any], what: str = "value") -> None:
-        """:class:`ModelError` unless every concrete value is one finite number within its parameter's
-        bounds (``Param.check_held``); traced values (inside ``jax.jit``/``vmap``) are not checked."""
+        """:class:`ModelError` unless every concrete value is one finite number (``Param.check_held``; the bounds
+        are the fit's, not the model's); traced values (inside ``jax.jit``/``vmap``) are not checked."""
         params = {p.name: p for p in self.PARAMS}
         for n, v in values.items():
             if not isinstance(v, jax.core.Tracer):
                 try:
-                    params[n].check_held(v, what)
+                    params[n].check_held(v, what, bounds=False)
                 except ModelError as exc:
                     raise ModelError(f"model {self.name}: {exc}") from None
 
     def with_params(self, theta: Float[Array, " n_params"] | Mapping[str, float]) -> AbstractModel:
         """A copy with new parameter values (array in ``param_names`` order, or a mapping).
 
-        Each value must be one finite number within its parameter's bounds (``Param.check_held``;
-        traced values are not checked); an array must have one entry per parameter.
+        Each value must be one finite number (``Param.check_held``; traced values are not checked; the bounds are a
+        fit's, so a model may hold, say, a course-unstable T1 < 0); an array must have one entry per parameter.
         """
         names = self.param_names
         if isinstance(theta, Mapping):
