@@ -91,8 +91,8 @@ class Run:
         Free-form description (``source``, ``rudder_sign_in_source``, ``degrees_converted``,
         ``column_map``, ...). ``metadata["source"]`` is quoted in error messages.
     check_units : bool
-        Run the unit-sanity heuristics (degrees passed as radians). Structural checks
-        always run.
+        Run the unit-sanity heuristics (:func:`diffship.units.check_units`: degrees passed as radians,
+        radians declared degrees, time stamps in another unit than stated). Structural checks always run.
 
     Raises
     ------
@@ -143,7 +143,8 @@ class Run:
                                 f"at row {i} (t={t[i]:.6g} s); drop or fill these rows before loading.")
             chans[c] = a
         if self.check_units:
-            check_column_units(where, t, chans, str(meta.get("time_unit_in_source", "s")))
+            check_column_units(where, t, chans, str(meta.get("time_unit_in_source", "s")),
+                               degrees=tuple(meta.get("degrees_converted", ())))
         check_gaps(where, t)
         for a in (t, *chans.values()):
             a.flags.writeable = False
@@ -418,10 +419,12 @@ def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel
     if units:
         degs = list(dict.fromkeys(c for e in units for c in e.columns))
         tu = next((e.time_unit for e in units if e.time_unit), None)
+        drops = list(dict.fromkeys(c for e in units for c in e.drop_degrees))
         fixes = ([f"--degrees {' '.join(degs)}"] if degs else []) + ([f"--time-unit {tu}"] if tu else [])
-        raise UnitsError(f"{len(units)} files have unit problems: "
-                         + " | ".join(e.detail.split("; pass ")[0] for e in units)
-                         + f"; pass {' and '.join(fixes)} (Python: degrees=..., time_unit=...)", degs, tu)
+        tail = ([f"pass {' and '.join(fixes)} (Python: degrees=..., time_unit=...)"] if fixes else []) + (
+            [f"drop {' '.join(drops)} from --degrees (Python: from degrees=...)"] if drops else [])
+        detail = f"{len(units)} files have unit problems: " + " | ".join(e.detail for e in units)
+        raise UnitsError(f"{detail}; {' and '.join(tail)}", degs, tu, drops, detail)
     return runs
 
 

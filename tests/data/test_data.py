@@ -131,6 +131,72 @@ def test_time_unit_that_makes_the_log_faster_than_a_ship_log_is_named():
     assert Run.from_dataframe(make_df(), time_unit="ms", check_units=False).dt == pytest.approx(1e-4)
 
 
+
+def slow_turns(dt: float = 1.0, n: int = 120) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A log sampled every ``dt`` seconds, in seconds: heading with its yaw rate, and track with its surge speed."""
+    t = np.arange(n) * dt
+    yaw = pd.DataFrame({"time": t, "psi": 0.25 * (1 - np.cos(0.2 * t)), "r": 0.05 * np.sin(0.2 * t)})
+    track = pd.DataFrame({"time": t, "x0": 1.5 * t, "y0": 0.3 * t, "u": np.full(n, 1.53)})
+    return yaw, track
+
+
+def test_seconds_stated_as_ms_at_a_ship_log_rate_are_named_by_the_rates():
+    """A 1 Hz log in seconds read as ms is a 1000 Hz log, which the rate limit lets pass: the heading's rate
+    against r (or the track against u) is then 1000 times too high, named with time_unit='s'; µs stated for ms
+    likewise; the same data in the right unit, and a genuine ms log, load."""
+    from diffship.data import UnitsError
+
+    for df in slow_turns():
+        with pytest.raises(UnitsError) as e:
+            Run.from_dataframe(df, time_unit="ms")
+        msg = str(e.value)
+        assert e.value.time_unit == "s" and "time column looks like seconds" in msg and "--time-unit s" in msg, msg
+        assert "1000 times too close" in msg and "time_unit='s'" in msg, msg
+        assert Run.from_dataframe(df).dt == pytest.approx(1.0)
+        ms = df.assign(time=df["time"] * 1000.0)
+        assert Run.from_dataframe(ms, time_unit="ms").dt == pytest.approx(1.0)
+        with pytest.raises(UnitsError) as e:
+            Run.from_dataframe(ms, time_unit="us")
+        assert e.value.time_unit == "ms" and "--time-unit ms" in str(e.value), e.value
+        fast = slow_turns(0.1, 400)[0].assign(time=lambda d: d["time"] * 1000.0)
+        assert Run.from_dataframe(fast, time_unit="ms").dt == pytest.approx(0.1)
+
+
+def zigzag(heading_deg: float = 20.0, rudder: float = 0.17) -> pd.DataFrame:
+    """A zigzag at 10 Hz: heading swinging ±``heading_deg`` [deg], rudder ±``rudder`` in the file's numbers."""
+    t = np.arange(300) * 0.1
+    psi = np.radians(heading_deg) * np.sin(2 * np.pi * t / 15)
+    return pd.DataFrame({"time": t, "psi": psi, "r": np.gradient(psi, t),
+                         "delta": rudder * np.sign(np.sin(2 * np.pi * t / 15))})
+
+
+def test_rudder_in_radians_declared_degrees_is_named(tmp_path):
+    """A rudder in radians declared in degrees is a rudder under 1° while the ship turns through 40°: named, with
+    the fix to drop it from --degrees (never to add it, also when several files are joined); a straight run with
+    a small rudder and true degrees load."""
+    from diffship.data import UnitsError
+
+    with pytest.raises(UnitsError) as e:
+        Run.from_dataframe(zigzag(), "zig", degrees=["delta"])
+    msg = str(e.value)
+    assert e.value.drop_degrees == ("delta",) and not e.value.columns and e.value.time_unit is None, msg
+    assert "'zig'" in msg and "'delta'" in msg and "drop delta from --degrees" in msg and "40°" in msg, msg
+    assert "0.17°" in msg and "looks like radians" in msg and "\n" not in msg, msg
+    with pytest.raises(UnitsError) as e:
+        Run.from_dataframe(zigzag().rename(columns={"delta": "delta_n"}), degrees=["delta_n"])
+    assert e.value.drop_degrees == ("delta_n",) and "drop delta_n from --degrees" in str(e.value), e.value
+    assert Run.from_dataframe(zigzag()).n == 300
+    assert Run.from_dataframe(zigzag(3.0, 0.5), degrees=["delta"]).n == 300
+    assert np.max(np.abs(Run.from_dataframe(zigzag(20.0, 10.0), degrees=["delta"])["delta"])) == pytest.approx(
+        np.radians(10.0))
+    a = write(tmp_path, zigzag(), "a.csv")
+    b = write(tmp_path, zigzag().assign(time=lambda d: d["time"] * 1000.0), "b.csv")
+    with pytest.raises(UnitsError) as e:
+        load_runs([a, b], degrees=["delta"])
+    msg = str(e.value)
+    assert "2 files" in msg and "a.csv" in msg and "b.csv" in msg and "drop delta from --degrees" in msg, msg
+    assert "--time-unit ms" in msg and "--degrees delta" not in msg and e.value.drop_degrees == ("delta",), msg
+
 def test_slice_and_with_channels():
     run = Run.from_dataframe(make_df())
     part = run.slice(1.0, 2.0)
