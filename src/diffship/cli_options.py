@@ -14,8 +14,9 @@ same names, meanings, defaults and checks in every command:
 Checks every command makes before it reads a run: :func:`output_problem` (an output path that is a
 folder where a file is wanted or the reverse, that would overwrite an input file, that two outputs share
 or where nothing can be written) and :func:`held_out_problem` (a held-out run that is also a training
-run); after the runs are read and before any fit, :func:`too_short_problem` (training runs with fewer
-than :data:`SAMPLES_PER_PARAMETER` samples per estimated parameter).
+run); once the model's parameters are set, :func:`init_problem` (an ``--init`` of a parameter the command
+does not estimate); after the runs are read and before any fit, :func:`too_short_problem` (training runs
+with fewer than :data:`SAMPLES_PER_PARAMETER` samples per estimated parameter).
 
 Every command also leaves the same way: :func:`exit_now` (``fleet`` excepted: its Dask workers' clean-up
 runs at the ordinary exit).
@@ -63,6 +64,7 @@ __all__ = [
     "output_problem",
     "input_files",
     "held_out_problem",
+    "init_problem",
     "too_short_problem",
     "SAMPLES_PER_PARAMETER",
     "parameter_name",
@@ -262,6 +264,25 @@ def held_out_problem(runs, validate) -> str | None:
             return (f"--validate {same} is also a training run: a held-out run must be one the fit never saw, or "
                     "it cannot show how the model predicts new data; give another run to --validate, or drop it "
                     "from the training runs")
+    return None
+
+
+def init_problem(init_items, fix_items=(), spec=None) -> str | None:
+    """Why an ``--init NAME=VALUE`` item gives no start value, or ``None``: ``NAME`` is also given to ``--fix``
+    (known from the command line alone), or, with ``spec`` (the command's parameters, free and fixed as
+    ``--free``, ``--free-hydrodynamic`` and ``--fix`` set them, held at the vessel's or the model's values;
+    anything with ``free_names`` and ``spec[name].value``), ``NAME`` is not estimated. A start value for a
+    parameter the fit holds would silently become the value it is held at: a different model, unasked."""
+    fixed = {i.partition("=")[0].strip(): i for i in fix_items or ()}
+    for item in init_items or ():
+        name, _, value = (t.strip() for t in item.partition("="))
+        if name in fixed:
+            return (f"--fix {fixed[name]} and --init {item}: a fixed parameter is not estimated and takes no start "
+                    f"value; drop --init {name}, or drop --fix {name} to estimate it from {value}")
+        if spec is not None and name in spec and name not in spec.free_names:
+            return (f"--init {item}: {name} is not estimated (it is held at {spec[name].value:g}); --init gives start "
+                    f"values to estimated parameters: add --free {name} to estimate it from {value}, or --fix "
+                    f"{name}={value} to hold it there")
     return None
 
 

@@ -369,19 +369,24 @@ def model_spec(name: str, vessel_path: str | None, fix_items: Iterable[str], ini
                free: Iterable[str]):
     """What every command line does first (``--model``, ``--vessel``, ``--fix``, ``--init``, ``--free``):
     ``(model with its particulars, spec with free and fixed set, fix, init)``; an unknown parameter
-    name or a missing particular stops with one line naming it."""
+    name, a missing particular or an ``--init`` of a parameter not estimated (its start value would become
+    the value it is held at: :func:`diffship.cli_options.init_problem`) stops with one line naming it."""
+    from .cli_options import init_problem
     from .models import get_model
     from .params import parse_assignments
 
+    fix_items, init_items, free = list(fix_items), list(init_items), list(free)
     fix = parse_assignments(fix_items, "--fix")
     init = parse_assignments(init_items, "--init")
-    free = list(free)
     model, _ = require_particulars(get_model(name), load_vessel(vessel_path) if vessel_path else None,
                                    fixed=fix, freed=free)
     spec = model.spec()
     for n in list(fix) + list(init) + free:
         spec[n]  # unknown names fail early, with the list of valid ones
-    return model, spec.free(free).fix(fix), fix, init
+    spec = spec.free(free).fix(fix)
+    if (problem := init_problem(init_items, fix_items, spec)) is not None:
+        raise ModelError(problem)
+    return model, spec, fix, init
 
 
 def require_particulars(model: AbstractModel, vessel: Vessel | None, fixed: Iterable[str] = (),

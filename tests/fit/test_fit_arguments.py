@@ -32,6 +32,18 @@ def test_a_start_for_a_fixed_parameter(runs):
         fit_output_error(m, runs, spec=m.spec().fix(["delta0"]), starts=[{"delta0": 0.01}])
 
 
+def test_an_init_of_a_fixed_parameter_is_refused(runs):
+    """``init`` gives start values: for a fixed parameter it would silently replace the value the fit holds it at."""
+    from diffship.fit import fit_both
+
+    m = Nomoto1()
+    spec = m.spec().fix({"delta0": 0.0})
+    with pytest.raises(ModelError, match=r"^init: parameter delta0 is fixed \(at 0\)"):
+        fit_output_error(m, runs, spec=spec, init={"T1": 5.0, "delta0": 0.01})
+    with pytest.raises(ModelError, match=r"^init: parameter delta0 is fixed"):  # before equation error runs
+        fit_both(m, runs, spec=spec, init={"delta0": 0.01})
+
+
 @pytest.mark.parametrize("n", [0, -3, 2.5, True])
 def test_n_starts_must_be_a_whole_number_at_least_1(runs, n):
     with pytest.raises(FitError, match=f"n_starts={n!r}"):

@@ -20,10 +20,10 @@ def csv(tmp_path):
     return str(path)
 
 
-def _stop(argv, capsys, *words, read=False):
-    """The fit's exit status 2 and its one line, which holds ``words``; unless the runs must be ``read`` to find
-    it, the JAX-free precheck says the same."""
-    argv = [*argv, "--model", "nomoto1", "--quiet"]
+def _stop(argv, capsys, *words, read=False, model="nomoto1"):
+    """The fit's exit status 2 and its one line, which holds ``words``; unless the runs (or the model's parameters)
+    must be ``read`` to find it, the JAX-free precheck says the same."""
+    argv = [*argv, "--model", model, "--quiet"]
     code = fit_main(argv)
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.startswith("error: ") and err.count("\n") == 0, (argv, err)
@@ -99,3 +99,33 @@ def test_time_unit_and_resample_that_do_not_fit_the_runs_stop(csv, capsys):
 
 def test_a_held_out_run_that_is_a_training_run_stops(csv, capsys):
     _stop([csv, "--validate", csv], capsys, f"--validate {csv} is also a training run", "never saw")
+
+
+def test_an_init_of_a_parameter_the_fit_holds_stops(csv, capsys):
+    """fossen3 holds Yr (not in its default free set) and takes m from the vessel: a start value for either would
+    silently become the value the fit holds it at; freed by --free or --free-hydrodynamic, the start is taken
+    (the command goes on, to the runs, which lack fossen3's channels: no fit)."""
+    from diffship.models import Fossen3
+
+    held = Fossen3().spec()["Yr"].value
+    _stop([csv, "--vessel", "usv", "--init", "Yr=-0.5"], capsys, "--init Yr=-0.5: Yr is not estimated",
+          f"held at {held:g}", "add --free Yr to estimate it from -0.5", "--fix Yr=-0.5 to hold it there",
+          read=True, model="fossen3")
+    _stop([csv, "--vessel", "usv", "--init", "m=30"], capsys, "--init m=30: m is not estimated", read=True,
+          model="fossen3")
+    for free in (["--free", "Yr"], ["--free-hydrodynamic"]):
+        err = _stop([csv, "--vessel", "usv", *free, "--init", "Yr=-0.5"], capsys, read=True, model="fossen3")
+        assert "--init" not in err, (free, err)
+
+
+def test_diagnose_and_discover_refuse_an_init_of_a_held_parameter():
+    """Their shared first step (:func:`diffship.vessel.model_spec`) applies the same rule, and names --fix too."""
+    from diffship.errors import ModelError
+    from diffship.vessel import model_spec
+
+    with pytest.raises(ModelError, match=r"^--init Yr=-0.5: Yr is not estimated .*add --free Yr"):
+        model_spec("fossen3", "usv", [], ["Yr=-0.5"], [])
+    with pytest.raises(ModelError, match=r"^--fix Yr=-1 and --init Yr=-0.5: a fixed parameter is not estimated"):
+        model_spec("fossen3", "usv", ["Yr=-1"], ["Yr=-0.5"], ["Yr"])
+    _, spec, _, init = model_spec("fossen3", "usv", [], ["Yr=-0.5"], ["Yr"])
+    assert spec["Yr"].free and init == {"Yr": -0.5}

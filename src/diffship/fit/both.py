@@ -13,6 +13,7 @@ from ..preprocess import Filter
 from .equation_error import fit_equation_error
 from .output_error import OutputErrorOptions, fit_output_error
 from .result import FitResult
+from .starts import checked_start
 
 __all__ = ["fit_both"]
 
@@ -37,7 +38,9 @@ def fit_both(
     Output error runs through the one driver (:func:`diffship.fit.fit`): its starts are the user's
     ``init`` values (or the model's values), the equation-error estimate, the reference values and
     spread starts up to ``n_starts``, tried together; the lowest cost wins, and the result says how
-    many starts reached it and whether the user's own start ended higher.
+    many starts reached it and whether the user's own start ended higher. ``init`` names free parameters
+    only: a fixed one raises :class:`~diffship.errors.ModelError` before either method runs (as in
+    :func:`~diffship.fit.fit`: its start value would silently become the value it is held at).
     ``flt`` is the equation-error differentiation filter (and the filter for initial states);
     ``ee_filter`` (e.g. a :class:`~diffship.fit.smoother.KalmanSmoother`) replaces it for equation error only;
     ``estimate_x0=None`` (default) keeps ``options.estimate_x0`` (``"auto"``: the one initial-state rule,
@@ -47,6 +50,7 @@ def fit_both(
     """
     say = progress or (lambda s: None)
     spec = spec or model.spec()
+    init = checked_start(spec, init, "init") if init else None  # equation error starts there too
     out: dict[str, FitResult] = {}
     starts: dict[str, dict[str, float]] = {}
     if "equation_error" in methods:

@@ -49,7 +49,7 @@ from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .hints import NextStep, next_step, next_steps
-from .inputs import DEFAULT_OUT, input_problem
+from .inputs import DEFAULT_OUT, input_problem, spec_problem
 from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
@@ -224,6 +224,8 @@ def _fit(args, say) -> int:
     for n in list(fix) + list(init) + list(args.free):
         spec[n]  # unknown names fail early, with the list of valid ones
     spec = spec.free(args.free).fix(fix)
+    if (problem := spec_problem(args, spec)) is not None:  # an --init of a parameter the fit holds
+        raise DiffshipError(problem)
     if args.runs:
         train = _load(args, args.runs)
         val = _load(args, args.validate) if args.validate else []

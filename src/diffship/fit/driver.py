@@ -140,8 +140,10 @@ def fit(
         estimator: how residuals are assembled and solved (a settings object).
         spec: free/fixed flags, bounds and scales (default ``model.spec()``); its values are the
             fixed values and the first start.
-        init: the user's own start values (``--init``); the result says if this start ended
-            higher than another.
+        init: the user's own start values (``--init``) of free parameters; the result says if this
+            start ended higher than another. A fixed parameter named here raises :class:`~diffship.errors.ModelError`
+            (its start value would silently become the value it is held at): hold it at a value with
+            ``spec.fix({name: value})``, or free it to start it there.
         starts: further named starts (``{label: values}`` or a sequence).
         n_starts: how many starts in all (default :data:`DEFAULT_STARTS`; ``1``: the best named
             start alone). Named starts are never dropped.
@@ -159,7 +161,7 @@ def fit(
                        f"(or None for the default, {DEFAULT_STARTS})")
     spec = spec or model.spec()
     if init:
-        spec = spec.with_values(checked_start(spec, init, "init", free_only=False))
+        spec = spec.with_values(checked_start(spec, init, "init"))  # free parameters only: a held value is spec's
     starts = ({k: checked_start(spec, v, f"start {k!r}") for k, v in starts.items()} if isinstance(starts, Mapping)
               else [checked_start(spec, v, f"start {i + 1}") for i, v in enumerate(starts)])
     model = model.with_params(spec.nudged(spec.values())[0])  # a start beyond a bound is moved inside below

@@ -1,4 +1,4 @@
-"""The fit command's checks of what it was given, before any file is read or any fit starts.
+"""The fit command's checks of what it was given, before any run is read or any fit starts.
 
 :func:`input_problem` returns one line for a command line that cannot give what it asks for, or
 ``None``: held-out runs (``--validate``) without a training run or that are also training runs
@@ -9,16 +9,19 @@ paths that would overwrite an input file or cannot be written
 (:func:`diffship.cli_options.output_problem`: ``--out`` an existing file or a folder that cannot be
 created; ``--save``, ``--json``, ``--html`` a folder, the same file twice, or in a folder that cannot
 be created). Both :func:`diffship.fit.args.precheck` (before JAX is
-imported) and :func:`diffship.fit.cli.main` ask it. Standard library only.
+imported) and :func:`diffship.fit.cli.main` ask it. Once the model and the vessel have set the
+parameters, and before a run is read, :func:`spec_problem` stops an ``--init`` of a parameter the fit
+does not estimate (not in ``--free``, not freed by ``--free-hydrodynamic``, nor free by the model's
+default): its start value would silently become the value the fit holds it at. Standard library only.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from ..cli_options import held_out_problem, input_files, output_problem
+from ..cli_options import held_out_problem, init_problem, input_files, output_problem
 
-__all__ = ["DEFAULT_OUT", "OUT_FILES", "input_problem"]
+__all__ = ["DEFAULT_OUT", "OUT_FILES", "input_problem", "spec_problem"]
 
 #: Where the bundled example's fit writes its report, figure, JSON and fit file when ``--out`` is not given.
 DEFAULT_OUT = "diffship_fit"
@@ -52,10 +55,8 @@ def _option_conflict(args) -> str | None:
         if n in fix:
             return (f"--fix {fix[n]} and --free {n}: a parameter is either held at a value (--fix) or estimated "
                     "(--free); drop one of them")
-    for n, item in _items(args.init).items():
-        if n in fix:
-            return (f"--fix {fix[n]} and --init {item}: a fixed parameter is not estimated and takes no start value; "
-                    f"drop --init {n}, or drop --fix {n} to estimate it from {item.partition('=')[2]}")
+    if (problem := init_problem(_items(args.init).values(), args.fix)) is not None:
+        return problem
     for n, item in _items(args.prior).items():
         if n in fix:
             return (f"--fix {fix[n]} and --prior {item}: a prior weighs the estimate of a free parameter, and a "
@@ -68,6 +69,14 @@ def _option_conflict(args) -> str | None:
         return ("--check-sampling without --resample: it refits at the files' own rate to compare with the fit at "
                 "the --resample step; add --resample DT or drop --check-sampling")
     return None
+
+
+def spec_problem(args: argparse.Namespace, spec) -> str | None:
+    """The one line that stops the fit command once its parameters are set (``spec``: free from ``--free`` and
+    ``--free-hydrodynamic``, fixed by ``--fix`` or by the model, held at the vessel's or the model's values),
+    before any run is read, or ``None``: an ``--init`` of a parameter the fit does not estimate, whose start
+    value would otherwise silently become the value the fit holds it at."""
+    return init_problem(_items(args.init).values(), args.fix, spec)
 
 
 def _output_problem(args) -> str | None:

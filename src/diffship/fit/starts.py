@@ -28,20 +28,21 @@ __all__ = ["checked_start", "named_starts", "spread_starts", "SPREAD"]
 SPREAD = 2.0
 
 
-def checked_start(spec: ParamSpec, values: Mapping[str, float], label: str,
-                  free_only: bool = True) -> dict[str, float]:
-    """A caller's start as floats, or :class:`ModelError` naming the parameter: each name a parameter of
-    the spec (and free, unless ``free_only`` is false), each value one finite number. A finite value on
-    or beyond a bound is kept: the fit moves it just inside (:meth:`ParamSpec.nudged`)."""
+def checked_start(spec: ParamSpec, values: Mapping[str, float], label: str) -> dict[str, float]:
+    """A caller's start as floats, or :class:`ModelError` naming the parameter: each name a free parameter
+    of the spec (a fixed one is held at the spec's value, which a start must not change unasked), each
+    value one finite number. A finite value on or beyond a bound is kept: the fit moves it just inside
+    (:meth:`ParamSpec.nudged`)."""
     if not isinstance(values, Mapping):
         raise ModelError(f"{label}: expected a mapping {{parameter: value}}, got {type(values).__name__}")
     out = {}
     for name, v in values.items():
         if name not in spec:
             raise ModelError(f"{label}: unknown parameter {name!r}; this model has: {', '.join(spec.names)}")
-        if free_only and not spec[name].free:
+        if not spec[name].free:
             raise ModelError(f"{label}: parameter {name} is fixed (at {spec[name].value:g}), so a fit does not "
-                             f"start it; free it, or leave it out of the start")
+                             f"start it; free it, or leave it out of the start (spec.fix({{{name!r}: value}}) "
+                             "holds it at another value)")
         try:
             f = float(v)
         except (TypeError, ValueError):
