@@ -137,6 +137,27 @@ def test_model_that_diverges_from_every_start(tmp_path, capsys):
     assert code == 2 and "diverges from every start" in err, err
 
 
+def test_a_fit_that_diverges_from_every_start_says_so_in_the_files_it_was_asked_for(nomoto_csvs, tmp_path, capsys):
+    """T1 held at 1 µs: explicit RK4 at 0.2 s explodes from every start. Exit status 2 and one line, as before; the
+    files asked for say so (before: an earlier fit's report, fit file and figure were left in --out, usable)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "fit.png").write_bytes(b"an earlier fit's figure")
+    (out / "fit.json").write_text(json.dumps({"schema": "diffship.fit/1", "usable": True}))
+    code = fit_main([nomoto_csvs[0], "--model", "nomoto1", "--fix", "T1=1e-6", "--method", "output-error", "--starts",
+                     "1", "--out", str(out), "--json", str(tmp_path / "r.json"), "--save", str(tmp_path / "s.json"),
+                     "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("error: model nomoto1 diverges from every start"), err
+    assert "diverges from every start" in (out / "report.txt").read_text() and not (out / "fit.png").exists()
+    for path in (out / "report.json", tmp_path / "r.json"):
+        doc = json.loads(path.read_text())
+        assert doc["usable"] is False and "diverges from every start" in doc["error"], doc
+    for path in (out / "fit.json", tmp_path / "s.json"):
+        doc = json.loads(path.read_text())
+        assert doc["usable"] is False and doc["verdict"]["label"] == "FAILED" and "diverges" in doc["error"], doc
+
+
 def test_subprocess_exit_code_and_no_traceback(tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("time,psi,r,delta\n0,0,0,0\n0,0,0,0\n")

@@ -136,3 +136,29 @@ def test_structure_is_checked_on_load(tmp_path):
         Fossen3.from_fit(path)
     with pytest.raises(DataError, match="inputs"):
         diffship.load_fit(path, model=Fossen3())
+
+
+def test_a_fit_file_of_a_command_that_stopped_without_a_fit_is_refused_with_its_error(tmp_path):
+    """Where a command stopped without a fit (every start diverged) it writes a fit file that says so: usable false,
+    the verdict FAILED and the error, which load_fit and Model.from_fit refuse, naming the error."""
+    from diffship.fitfile import stopped_document
+
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(stopped_document("model nomoto1 diverges from every start", "nomoto1")))
+    doc = json.loads(path.read_text())
+    assert doc["schema"] == SCHEMA and doc["usable"] is False and doc["verdict"]["label"] == "FAILED"
+    with pytest.raises(DataError, match="holds no fit: .*diverges from every start"):
+        diffship.load_fit(path)
+    with pytest.raises(ModelError, match="holds no fit: .*diverges from every start"):
+        Nomoto1.from_fit(path)
+
+
+def test_a_parameter_on_its_bound_is_a_warning_of_the_fit_file(fitted, tmp_path):
+    from diffship.fitfile import fit_warnings
+
+    res, runs, _, _ = fitted
+    verdict = {"label": "usable", "usable": True, "reasons": [], "runs": [], "unidentified": [],
+               "on_bound": ["T1 = 1e-06 is on its bound 0: the data push it past what the model allows"]}
+    path = save_fit(res, tmp_path / "fit.json", runs, extra={"usable": True, "verdict": verdict})
+    warnings = fit_warnings(diffship.load_fit(path))
+    assert any(w.startswith("warning: parameter on its bound: T1 = 1e-06") for w in warnings), warnings

@@ -1,6 +1,7 @@
 """Verdicts: a run the model does not follow is named with its channel and onset; a parameter
 the data do not determine is named with the cause; a fit is FAILED only when nothing is followed."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -90,3 +91,22 @@ def test_a_missed_held_out_manoeuvre_of_a_trained_type_makes_the_fit_not_usable(
     turn = NS(kind="turning_circle", label="turning circle 35°")
     other = NS(train_types=(zz,), checks=(NS(run="turn", type=turn, metrics=(miss,)),))
     assert verdict(_result(truth), ev, runs[:1], ev, runs[1:], manoeuvres=other).usable
+
+
+def test_a_failed_verdict_still_names_unidentified_parameters_and_parameters_on_a_bound():
+    """A FAILED verdict whose first reason is the simulation still lists, for a program reading the JSON, a
+    parameter the data do not determine (SE ≫ value) and one the fit left on its bound (its identifiability); a
+    usable fit with a parameter on its bound says so in its lines and its JSON."""
+    truth = Nomoto1(K=0.2, T1=8.0, delta0=0.01)
+    runs = nomoto_runs(truth, n_runs=2, duration=60.0, dt=0.1, seed=4)
+    bound = {"identifiability": {"on_bound": [{"name": "T1", "value": 1e-6, "bound": 0.0}]}}
+    res = dataclasses.replace(_result(truth, stderr={"K": 0.01, "T1": 500.0}), info=bound)
+    bad = [_drifting(r, 10.0, 4.0) for r in runs]
+    v = verdict(res, evaluate(truth, bad), bad)
+    assert not v.usable and "every training run" in v.reasons[0], v
+    doc = v.as_json()
+    assert [w.split(" = ")[0] for w in doc["unidentified"]] == ["T1"], doc
+    assert doc["on_bound"] and doc["on_bound"][0].startswith("T1 = 1e-06 is on its bound 0"), doc
+    ok = verdict(dataclasses.replace(_result(truth), info=bound), evaluate(truth, runs), runs)
+    assert ok.usable and ok.as_json()["on_bound"] and any("on its bound: T1" in x for x in ok.lines()), ok.lines()
+    assert verdict(_result(truth), evaluate(truth, runs), runs).as_json()["on_bound"] == []

@@ -20,6 +20,10 @@ without the data or the code that made it:
   duration, rudder sign in the source, resampling — and ``ship`` (length and model scale where
   known).
 
+A command that stopped without a fit (every start diverged) writes, where it was asked for a fit file, a document
+of the same schema with ``usable: false``, a FAILED ``verdict`` and ``error`` (:func:`stopped_document`), which
+:func:`load_fit` refuses with that error.
+
 Angles are radians and every value SI, as everywhere in diffship. Writing is
 :func:`save_fit`; reading is :func:`load_fit` (a :class:`LoadedFit` with the model rebuilt from
 the registry) or, for the parameter values only, ``Model.from_fit(path)``.
@@ -50,7 +54,7 @@ if TYPE_CHECKING:  # type hints only
     from .fit.result import FitResult
 
 __all__ = ["SCHEMA", "LoadedFit", "check_params", "fit_document", "fit_warnings", "integrator_name", "load_fit",
-           "save_fit"]
+           "save_fit", "stopped_document"]
 
 SCHEMA = "diffship.fit/1"
 
@@ -187,6 +191,17 @@ def fit_document(result: FitResult, runs: Sequence[Run] = (), *, registry: str |
     return doc
 
 
+def stopped_document(message: str, model_name: str, registry: str | None = None) -> dict[str, Any]:
+    """The fit file of a command that stopped without a fit (``message``: why, e.g. the model diverges from every
+    start): schema ``diffship.fit/1`` with ``usable: false``, the verdict FAILED and ``error``, so that no fit file
+    of an earlier command is left where this one was asked to write; :func:`load_fit` refuses it, naming the error."""
+    return {"schema": SCHEMA, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "model": {"name": model_name, "registry": registry or model_name}, "error": message, "usable": False,
+            "converged": False, "status": message,
+            "verdict": {"label": "FAILED", "usable": False, "reasons": [message], "runs": [], "unidentified": [],
+                        "on_bound": []}}
+
+
 def _json_default(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -262,7 +277,7 @@ class LoadedFit:
 
 def fit_warnings(fit: LoadedFit) -> list[str]:
     """What a user of a fit file must be told before using it: a fit labelled FAILED (not usable), not
-    converged, with unidentified parameters or training runs it does not follow (the verdict
+    converged, with unidentified parameters, parameters on a bound or training runs it does not follow (the verdict
     ``python -m diffship.fit`` recorded, :mod:`diffship.usability`)."""
     doc = fit.document
     v = doc.get("verdict") or {}
@@ -275,6 +290,8 @@ def fit_warnings(fit: LoadedFit) -> list[str]:
         out.append(f"warning: the fit did NOT converge ({fit.status}): treat these predictions with care")
     for w in v.get("unidentified", ()):
         out.append(f"warning: parameter not identified by the data: {w}")
+    for b in v.get("on_bound", ()):
+        out.append(f"warning: parameter on its bound: {b}")
     runs = v.get("runs", ())
     if runs:
         out.append("warning: runs the fit does not follow: " + "; ".join(
@@ -299,6 +316,8 @@ def read_document(path: str | Path) -> dict[str, Any]:
         hint = (" (this is the --json report of a fit; the fit file is --out DIR/fit.json or --save FILE)"
                 if isinstance(doc, dict) and "methods" in doc else "")
         raise DataError(f"{path}: schema {schema!r} is not {SCHEMA!r}{hint}")
+    if doc.get("error"):  # written by a command that stopped without a fit (stopped_document)
+        raise DataError(f"{path}: holds no fit: the command that wrote it stopped without one ({doc['error']})")
     return doc
 
 

@@ -27,6 +27,10 @@ with what the whole-horizon simulations of the training and held-out runs show
   where the data show it (a degree of freedom that hardly varies: "surge speed hardly varies:
   excite it or fix Xu").
 
+Whatever the label, a verdict names every parameter the data do not determine (``unidentified``) and every
+parameter on one of its bounds (``on_bound``, from the fit's identifiability: the data push it past what the
+model allows, so its standard error is no interval), also in a FAILED verdict whose first reason is another.
+
 The verdict travels: the fit file (``usable``, ``verdict``), the JSON report, the text report and
 the exit status of ``python -m diffship.fit`` (1 when no method is usable, the reason on the last
 line); ``predict`` and ``diagnose`` read it from the fit file and warn.
@@ -44,7 +48,7 @@ from .data import Run
 from .metrics import Evaluation
 
 __all__ = ["HELD_OUT_SHARE", "WEAK_RATIO", "RunProblem", "Verdict", "held_out_problem", "manoeuvre_miss",
-           "run_problems", "unidentified", "verdict"]
+           "on_bound", "run_problems", "unidentified", "verdict"]
 
 #: A free parameter whose standard error exceeds this multiple of its magnitude is not identified.
 WEAK_RATIO = 10.0
@@ -85,8 +89,9 @@ class RunProblem:
 @dataclasses.dataclass(frozen=True)
 class Verdict:
     """One method's verdict: ``label`` (``"usable"``, ``"FAILED"``, ``"not converged"``,
-    ``"unidentifiable"``), ``usable``, ``reasons`` (sentences), ``runs`` (per-run problems) and
-    ``weak`` (parameters the data do not determine, with the cause where known)."""
+    ``"unidentifiable"``), ``usable``, ``reasons`` (sentences), ``runs`` (per-run problems),
+    ``weak`` (parameters the data do not determine, with the cause where known) and ``bound``
+    (parameters on one of their bounds, in words)."""
 
     method: str
     label: str
@@ -94,6 +99,7 @@ class Verdict:
     reasons: tuple[str, ...] = ()
     runs: tuple[RunProblem, ...] = ()
     weak: tuple[str, ...] = ()
+    bound: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         name = self.method.replace('_', ' ')
@@ -104,11 +110,13 @@ class Verdict:
             head, rest = f"{name}: {self.label}", self.reasons
         out = [head] + [f"  - {r}" for r in rest] + [f"  - {p.text()}" for p in self.runs]
         out += [f"  - not identified: {w}" for w in self.weak]
+        out += [f"  - on its bound: {b}" for b in self.bound]
         return out
 
     def as_json(self) -> dict:
         return {"label": self.label, "usable": self.usable, "reasons": list(self.reasons),
-                "runs": [p.as_json() for p in self.runs], "unidentified": list(self.weak)}
+                "runs": [p.as_json() for p in self.runs], "unidentified": list(self.weak),
+                "on_bound": list(self.bound)}
 
 
 def _onset(t: np.ndarray, e: np.ndarray, level: float) -> float:
@@ -183,6 +191,15 @@ def unidentified(params: Mapping[str, float], stderr: Mapping[str, float], free:
     return out
 
 
+def on_bound(result) -> list[str]:
+    """Free parameters the fit left on one of their bounds (its identifiability, :mod:`diffship.fit.identifiability`),
+    each in words: the data push it past what the model allows, so its standard error is no interval."""
+    found = ((result.info or {}).get("identifiability") or {}).get("on_bound") or ()
+    return [f"{b['name']} = {b['value']:.4g} is on its bound {b['bound']:g}: the data push it past what the model "
+            "allows, so its standard error is no interval; look for a missing effect (diagnose) or reconsider the bound"
+            for b in found]
+
+
 def held_out_problem(train_ev: Evaluation | None, val_ev: Evaluation | None, channels: Sequence[str]) -> str:
     """Why a fit does not predict its held-out runs, or "": a fitted channel whose pooled held-out NRMSE fit is
     below :data:`HELD_OUT_SHARE` of its training fit (or below 0 %), or a held-out simulation that blows up."""
@@ -223,15 +240,18 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
     the held-out runs (trained types included), whose misses of a trained type make the fit not usable."""
     m = result.method
     angles = tuple(getattr(result.model, "angle_outputs", ("psi",)))
-    if not result.usable:
+    if not result.usable:  # no estimate (every start diverged, ...): its standard errors say nothing of the data
         return Verdict(m, "FAILED", False, (result.status,))
+    # named in every verdict, FAILED ones included: a program reading the JSON finds them whatever the first reason
+    weak = tuple(unidentified(result.params, result.stderr, result.free, train))
+    bound = tuple(on_bound(result))
     chans = [c for c in (result.channels or ()) if train_ev is not None and c in train_ev.channels]
     if train_ev is not None and not chans:
         chans = [c for c in train_ev.channels if c not in ("x0", "y0")]
     reasons, probs = [], []
     if train_ev is not None:
         if not train_ev.ok:
-            return Verdict(m, "FAILED", False, ("its simulation of the training runs blows up",))
+            return Verdict(m, "FAILED", False, ("its simulation of the training runs blows up",), (), weak, bound)
         probs = run_problems(train_ev, train, chans, angles, "training")
     vprobs = run_problems(val_ev, val, chans, angles, "validation") if val_ev is not None and val else []
     bad_train = {p.run for p in probs}
@@ -241,19 +261,19 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
         worst = min(probs, key=lambda p: p.fit)
         return Verdict(m, "FAILED", False, (f"its simulation is worse than the measured mean on every training run "
                                             f"(worst: {worst.run}, {worst.channel} fit {worst.fit:.0f} %)",),
-                       tuple(probs + vprobs))
+                       tuple(probs + vprobs), weak, bound)
     if pooled_bad and not val_followed:
         worst = min(((c, train_ev.fit_percent.get(c, math.nan)) for c in chans), key=lambda x: x[1])
         return Verdict(m, "FAILED", False, (f"its simulation of the training runs is worse than the measured mean "
                                             f"({worst[0]} fit {worst[1]:.0f} %)"
                                             + ("" if val else "; no held-out run shows it predicts"),),
-                       tuple(probs + vprobs))
+                       tuple(probs + vprobs), weak, bound)
     held = held_out_problem(train_ev, val_ev, chans) if val else None
     if held:
-        return Verdict(m, "FAILED", False, (held,), tuple(probs + vprobs))
+        return Verdict(m, "FAILED", False, (held,), tuple(probs + vprobs), weak, bound)
     miss = manoeuvre_miss(manoeuvres) if manoeuvres is not None else None
     if miss:
-        return Verdict(m, "FAILED", False, (miss,), tuple(probs + vprobs))
+        return Verdict(m, "FAILED", False, (miss,), tuple(probs + vprobs), weak, bound)
     label = "usable"
     if probs:
         followed = len(train) - len(bad_train)
@@ -262,7 +282,6 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
     if not result.converged:
         label = "not converged"
         reasons.append(result.status)
-    weak = unidentified(result.params, result.stderr, result.free, train)
     lost = [n for n in result.free if math.isinf(float(result.stderr.get(n, 0.0)))]
     if weak and not result.converged and not lost:
         # the solver stopped before its optimum along a direction the data do not determine: where it stopped
@@ -271,7 +290,7 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
         return Verdict(m, "FAILED", False, (f"the solver did not converge and the data do not determine "
                                             f"{', '.join(names)} (SE > {WEAK_RATIO:g}× value): the values are where "
                                             "the steps ran out; fix some of them (--fix NAME=VALUE), give priors, or "
-                                            "add runs that excite them",), tuple(probs + vprobs), tuple(weak))
+                                            "add runs that excite them",), tuple(probs + vprobs), weak, bound)
     if lost or (weak and len(weak) == len(result.free)):
         # values the data leave entirely free (a rank-deficient Jacobian), or not one parameter determined:
         # whatever the simulation shows, these values are not an identification of anything
@@ -279,10 +298,10 @@ def verdict(result, train_ev: Evaluation | None, train: Sequence[Run], val_ev: E
                "deficient); the values are arbitrary" if lost else
                f"not one of the {len(weak)} free parameters is determined by the data (SE > {WEAK_RATIO:g}× value)")
         return Verdict(m, "FAILED", False, (why + "; fix some of them (--fix NAME=VALUE), give priors, or add runs "
-                                            "that excite them",), tuple(probs + vprobs), tuple(weak))
+                                            "that excite them",), tuple(probs + vprobs), weak, bound)
     if weak and label == "usable":
         label = "unidentifiable"
     if weak:
         reasons.append(f"{len(weak)} free parameter(s) not determined by the data (SE > {WEAK_RATIO:g}× value); "
                        "their values are arbitrary, predictions that depend on them are not supported")
-    return Verdict(m, label, True, tuple(reasons), tuple(probs + vprobs), tuple(weak))
+    return Verdict(m, label, True, tuple(reasons), tuple(probs + vprobs), weak, bound)

@@ -21,7 +21,8 @@ OPTIONS = DiagnoseOptions(effects=("input_delay", "actuator_lag", "damping_rr"))
 JSON_KEYS = ["model", "channels", "verdict", "where", "gap_budget", "screen", "ranking", "selected", "possible", "partial", "waiting", "path",
              "validation_rmse_before", "validation_rmse_after", "validation_E_before", "validation_E_after",
              "noise_floor", "noise_estimate", "shrink", "shrink_definition", "shrink_total_error", "base_params", "base_starts", "final_params",
-             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "in_data", "sea_state", "timings_s"]
+             "not_applicable", "reference", "gap_gate", "start", "notes", "time_variation", "in_base", "in_data", "sea_state", "timings_s",
+             "base_verdict"]
 
 
 def _runs(truth, seed):
@@ -170,3 +171,46 @@ def test_rudder_offset_on_a_nomoto_ship_is_attributed():
     assert d.final_model.param_values()["delta_off"] == pytest.approx(0.8 * D, rel=0.1)
     assert d.base_fit.params["delta0"] == 0.0 and "delta0" not in d.base_fit.free
     assert any("delta0" in n for n in d.notes)
+
+
+def _csvs(tmp_path, runs):
+    paths = []
+    for r in runs:
+        p = tmp_path / f"{r.name}.csv"
+        r.to_dataframe().to_csv(p, index=False)
+        paths.append(str(p))
+    return paths
+
+
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
+def test_a_base_fit_that_diverges_says_so_in_the_files_asked_for(tmp_path, capsys):
+    """T1 held at 1 µs: the base fit diverges from every start. Exit status 2 and one line, as before; diagnosis.md
+    and the JSON now say so (before: nothing was written, an earlier diagnosis in --out stayed)."""
+    train, val = _runs(Nomoto1(**TRUTH), 4)
+    paths = _csvs(tmp_path, train[:1] + val[:1])
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "overlay.png").write_bytes(b"an earlier diagnosis's figure")
+    rc = main([paths[0], "--validate", paths[1], "--model", "nomoto1", "--fix", "T1=1e-6", "--starts", "1",
+               "--effects", "input_delay", "--out", str(out), "--json", str(tmp_path / "d.json"), "--quiet"])
+    assert rc == 2 and "diverges from every start" in capsys.readouterr().err
+    assert "error: model nomoto1 diverges" in (out / "diagnosis.md").read_text() and not (out / "overlay.png").exists()
+    for path in (out / "diagnosis.json", tmp_path / "d.json"):
+        doc = json.loads(path.read_text())
+        assert doc["usable"] is False and "diverges from every start" in doc["error"], doc
+
+
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
+def test_a_base_fit_that_did_not_converge_is_said_in_the_diagnosis(tmp_path, capsys):
+    """--max-steps 2: the base fit stops at its step limit. The warning was on stderr only; the report's notes and
+    the JSON (notes, base_verdict) now carry it."""
+    train, val = _runs(Nomoto1(**TRUTH), 5)
+    paths = _csvs(tmp_path, train[:1] + val[:1])
+    rc = main([paths[0], "--validate", paths[1], "--model", "nomoto1", "--max-steps", "2", "--starts", "1",
+               "--effects", "input_delay", "--out", str(tmp_path / "out"), "--quiet"])
+    assert rc == 0, capsys.readouterr().err
+    doc = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    said = doc["base_verdict"]
+    assert said["label"] == "not converged" and said["usable"] is True, said
+    assert any(n.startswith("base fit: not converged") for n in doc["notes"]), doc["notes"]
+    assert "- note: base fit: not converged" in (tmp_path / "out" / "diagnosis.md").read_text()

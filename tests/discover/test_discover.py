@@ -154,3 +154,31 @@ def test_discover_shares_the_fit_commands_options():
     for p in (discover_parser(), fit_parser()):
         opts = {o for a in p._actions for o in a.option_strings}
         assert set(shared) <= opts, set(shared) - opts
+
+
+@pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
+def test_a_selected_model_that_is_not_usable_is_said_and_exits_1(tmp_path, capsys):
+    """Straight runs of a USV whose truth has Xu = +100 kg/s, Xu (upper bound 0) the one free parameter: the fit
+    leaves it on its bound, not determined. The command said nothing of it (exit status 0, no verdict); now the
+    verdict comes first in the report, in the JSON and in the fit file, and the exit status is 1, the reason last."""
+    from diffship.synthetic import simulate_run, usv_excitation, usv_truth
+
+    truth, paths = usv_truth().with_params({"Xu": 100.0}), []
+    for i in range(2):
+        t, inp = usv_excitation(60.0, 0.1, seed=i)
+        run = simulate_run(truth, t, {"tau_x": inp["tau_x"], "tau_y": 0 * t, "tau_z": 0 * t},
+                           np.array([0, 0, 0, 2.0, 0, 0]), name=f"straight{i}", noise="realistic", seed=30 + i)
+        paths.append(str(tmp_path / f"straight{i}.csv"))
+        run.to_dataframe().to_csv(paths[-1], index=False)
+    fixed = ["Xudot=-400", "Yvdot=-600", "Nrdot=-8000", "Yv=-300", "Nv=1700", "Nr=-1800", "Xuu=-320", "Yvv=-2800",
+             "Nrr=-2400"]
+    code = main([paths[0], "--validate", paths[1], "--vessel", "usv", "--no-prior", "--starts", "1", "--fix", *fixed,
+                 "--library", "N_r", "--max-terms", "1", "--candidates", "2", "--out", str(tmp_path / "out"),
+                 "--quiet"])
+    cap = capsys.readouterr()
+    assert code == 1 and cap.err.strip().splitlines()[-1].startswith("error: no usable fit was found"), cap.err
+    assert cap.out.splitlines()[1].startswith("selected model: FAILED"), cap.out
+    doc = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert doc["selected"]["usable"] is False and doc["selected"]["verdict"]["on_bound"], doc["selected"]["verdict"]
+    fit = json.loads((tmp_path / "out" / "fit.json").read_text())
+    assert fit["usable"] is False and fit["verdict"]["label"] == "FAILED"

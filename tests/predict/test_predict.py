@@ -122,6 +122,20 @@ def test_command_line_writes_table_figure_json(tmp_path, capsys):
     assert (tmp_path / "p" / "prediction.png").stat().st_size > 10_000
 
 
+def test_a_failed_fit_is_said_in_the_prediction_json_for_a_program(tmp_path, capsys):
+    """A fit file labelled FAILED: the warning was only a note's text in prediction.json; ``fit`` now says it."""
+    path = _fit_file(tmp_path / "f.json")
+    doc = json.loads(path.read_text())
+    doc.update(usable=False, verdict={"label": "FAILED", "usable": False, "reasons": ["it does not predict its "
+                                      "held-out runs"], "runs": [], "unidentified": [], "on_bound": []})
+    path.write_text(json.dumps(doc))
+    code = predict_main([str(path), "--manoeuvre", "zigzag:10/10", "--speed", str(U), "--length", str(L), "--scale",
+                         str(LAM), "--samples", "0", "--no-compare", "--out", str(tmp_path / "p"), "--quiet"])
+    assert code == 0 and "WARNING: this fit is labelled FAILED" in capsys.readouterr().err
+    pred = json.loads((tmp_path / "p" / "prediction.json").read_text())
+    assert pred["fit"] == {"usable": False, "converged": True, "verdict": "FAILED"}, pred["fit"]
+
+
 def test_command_line_errors_are_one_line(tmp_path, capsys):
     path = _fit_file(tmp_path / "f.json")
     assert predict_main([str(path), "--manoeuvre", "spiral", "--speed", "1"]) == 2

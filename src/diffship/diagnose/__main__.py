@@ -17,6 +17,11 @@ After the runs are read and before the base fit, training runs that are too shor
 it too. The rule: the training runs together (after ``--resample`` and ``--horizon``) hold at least
 :data:`~diffship.cli_options.SAMPLES_PER_PARAMETER` (20) samples per parameter of the largest model the
 diagnosis fits, the base model's free parameters and those of the candidate effect with the most.
+
+A base fit that is not usable (its verdict, :mod:`diffship.usability`) ends the command with exit status 1, one that
+cannot be carried out (every start diverges) with 2; either way the reason is the last line and the files asked for
+say so (:mod:`diffship.stopped`). A usable base fit's doubts (not converged, parameters not determined or on a bound)
+are notes of the diagnosis (JSON ``notes``, ``base_verdict``).
 """
 
 from __future__ import annotations
@@ -126,13 +131,20 @@ def main(argv: list[str] | None = None) -> int:
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)
         return 2
+    from ..errors import FitError
+    from ..stopped import stopped_command
+
     try:
         d, base = _diagnose(args, say)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        if isinstance(exc, FitError):  # no base fit: the files asked for say so, none of an earlier command's is left
+            stopped_command(args, str(exc), OUT_FILES, "diffship diagnose")
         return 2
-    if d is None:
-        print(f"error: no usable base fit was found ({base}); the diagnosis needs one", file=sys.stderr)
+    if d is None:  # the base fit's verdict (FAILED): said on the last line and in the files asked for
+        why = f"no usable base fit was found ({'; '.join(base.reasons) or base.label}); the diagnosis needs one"
+        stopped_command(args, why, OUT_FILES, "diffship diagnose", extra={"base_verdict": base.as_json()})
+        print(f"error: {why}", file=sys.stderr)
         return 1
     from .report import to_markdown, write_json, write_report
 
@@ -160,7 +172,7 @@ def _load(args, paths):
 
 
 def _diagnose(args, say):
-    """``(diagnosis, base fit)``, or ``(None, reason)`` when the base fit is not usable."""
+    """``(diagnosis, base fit)``, or ``(None, its verdict)`` when the base fit is not usable."""
     from ..checks import check_rudder_sign, check_runs, check_yaw_direction
     from ..errors import DataError
     from ..fit import OutputErrorOptions, fit_output_error
@@ -227,7 +239,7 @@ def _diagnose(args, say):
     if not v.usable:
         if pre is not None:
             pre.cancel()
-        return None, "; ".join(v.reasons) or v.label
+        return None, v
     for line in v.lines()[1:]:
         print(f"warning (base fit):{line[1:]}", file=sys.stderr)
     d = diagnose(fit.model, train, val, fit=fit, spec=spec, options=options, progress=say, checked=checked)

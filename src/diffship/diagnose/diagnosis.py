@@ -38,6 +38,7 @@ from ..metrics import Evaluation, evaluate
 from ..models import AbstractModel
 from ..params import ParamSpec
 from ..simulate import simulation_request
+from ..usability import verdict as fit_verdict
 from ..models.effects import POSSIBLE_ONLY, Augmented, applicability, is_ship3, library
 from .options import DiagnoseOptions
 from .screen import ScreenResult, Workspace
@@ -91,7 +92,8 @@ class Diagnosis:
     against the track and over-ground u, v; the yaw rate against the heading; the time the motion
     follows the logged rudder), each with its estimate, interval and whether it is a finding
     (then a verdict line "In the data"); ``sea_state`` the check for a stochastic narrow-band disturbance
-    (:mod:`.sea_state`; a verdict line "Sea state"), ``None`` when it did not run.
+    (:mod:`.sea_state`; a verdict line "Sea state"), ``None`` when it did not run; ``base_verdict`` the base fit's
+    verdict (:mod:`diffship.usability`, as JSON; a base fit that is not plainly usable is also in ``notes``).
     """
 
     model_name: str
@@ -128,6 +130,7 @@ class Diagnosis:
     waiting: tuple[tuple[str, float], ...] = ()
     in_data: dict[str, DataFinding] = dataclasses.field(default_factory=dict)
     sea_state: SeaState | None = None
+    base_verdict: dict | None = None
 
     @property
     def gap_gate(self) -> float:
@@ -176,6 +179,7 @@ class Diagnosis:
             "sea_state": ({**self.sea_state.to_dict(), "estimates": self.sea_state.compare(
                 self.base_fit.params, self.base_fit.stderr)} if self.sea_state is not None else None),
             "timings_s": self.timings,
+            "base_verdict": self.base_verdict,
         }
 
 
@@ -347,6 +351,10 @@ def diagnose(
                 pre.cancel()
             raise
     timings["base_fit"] = time.perf_counter() - t0
+    base_verdict = fit_verdict(fit, None, train)  # a doubtful base fit is said in the report, not only on the screen
+    said = base_verdict.lines()
+    if not base_verdict.usable or len(said) > 1:  # one note: the label, then each finding
+        notes.append("base fit: " + "; ".join([said[0].split(": ", 1)[-1]] + [x.strip()[2:] for x in said[1:]]))
     base = fit.model
     chans = tuple(fit.channels)
     base_spec = spec.with_values({n: fit.params[n] for n in spec.names})
@@ -506,4 +514,5 @@ def diagnose(
                "base": before.start.to_dict() if before.start else None,
                "final": sel.final.start.to_dict() if sel.final.start else None},
         notes=tuple(notes), time_variation=tv, in_base=twins, waiting=sel.waiting, in_data=in_data, sea_state=sea,
+        base_verdict=base_verdict.as_json(),
     )

@@ -1,5 +1,10 @@
 """``python -m diffship.discover TRAIN.csv ... --validate HELD.csv ... --model fossen3`` (thin: parse, call,
-print). Errors a user can fix are one line ``error: ...`` with exit status 2.
+print). Errors a user can fix are one line ``error: ...`` with exit status 2, and so is a base fit that cannot be
+carried out (every start diverges; the files asked for then say so, :mod:`diffship.stopped`). The selected model
+is judged as ``python -m diffship.fit`` judges a fit (:func:`diffship.usability.verdict`: FAILED, not converged,
+unidentifiable): its verdict comes first in the report, in the JSON (``usable``, ``verdict`` of ``selected`` and
+``base``) and in the fit file, and a selected model that is not usable ends the command with exit status 1, the
+reason on the last line.
 
 Before any run is read, outputs that cannot be written or would overwrite an input
 (:func:`diffship.cli_options.output_problem`, as in ``python -m diffship.fit``) and a held-out run that is
@@ -20,8 +25,9 @@ from pathlib import Path
 from ..cli_options import (add_bootstrap_options, add_data_options, add_numerics_options, add_output_options,
                            add_parameter_options, add_prior_options, add_vessel_option, held_out_problem, input_files,
                            output_problem, positive_int, too_short_problem)
-from ..errors import DiffshipError
+from ..errors import DiffshipError, FitError
 from ..log_options import add_log_options, log_kwargs
+from ..stopped import stopped_command
 
 __all__ = ["OUT_FILES", "build_parser", "main"]
 
@@ -66,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        if isinstance(exc, FitError):  # no fit: the files asked for say so, none of an earlier command's is left
+            stopped_command(args, str(exc), OUT_FILES, "diffship discover")
         return 2
 
 
@@ -113,8 +121,12 @@ def _run(args) -> int:
     d = discover(model.with_params(spec.values()), train, val, spec=spec, library=args.library,
                  max_terms=args.max_terms, max_candidates=args.candidates, criterion=args.criterion, options=opts,
                  flt=flt, n_starts=args.starts or 1, x0=args.x0, progress=say)
-    text = discovery_text(d, model.name)
-    doc = discovery_json(d, model.name)
+    from ..usability import verdict
+
+    verdicts = {k: verdict(c.result, c.train, train, c.validation, val) for k, c in (("selected", d.selected),
+                                                                                    ("base", d.base))}
+    text = discovery_text(d, model.name, verdicts["selected"])
+    doc = discovery_json(d, model.name, verdicts)
     if args.bootstrap:  # percentile intervals of the discovered model from refits of resamples
         from ..fit.bootstrap import bootstrap_report
 
@@ -124,6 +136,7 @@ def _run(args) -> int:
     print(text)
     dump = lambda obj, path: Path(path).write_text(json.dumps(obj, indent=2, default=float))  # noqa: E731
     extra = {"discover": {"terms": list(d.selected.terms), "confirmed": d.confirmed},
+             "usable": verdicts["selected"].usable, "verdict": verdicts["selected"].as_json(),
              "metrics": {"train": doc["selected"]["train"], "validation": doc["selected"]["validation"],
                          "validation_runs": [r.name for r in val]}}
     if args.out:
@@ -145,6 +158,11 @@ def _run(args) -> int:
             plot_discovery(d, model.name, train, val, folder / "discover.png")
             return [folder / "discover.png"]
         say(f"wrote {write_html_report(args.html, f'diffship discover: {model.name}', text, figures)}")
+    if not verdicts["selected"].usable:  # as python -m diffship.fit: the reason on the last line, exit status 1
+        v = verdicts["selected"]
+        print(f"error: no usable fit was found (selected model: {v.reasons[0] if v.reasons else v.label})",
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -7,7 +7,8 @@ plus ``terms`` (value, standard error, inclusion probability of the output-error
 screen's inclusion, readable form), ``confirmed``, ``possible`` (terms not selected: inclusion probability
 and readable form), ``not_selected`` (why better-ranked structures were passed over), ``tradeoffs``,
 ``equivalent`` (structures within the criterion's margin: terms, criterion difference, held-out RMSE) and
-``separating_manoeuvre``;
+``separating_manoeuvre``; ``usable`` and ``verdict`` (:mod:`diffship.usability`, as in the fit's JSON) where the
+command gives the verdicts;
 ``base`` the same for the base model; ``candidates`` the ranked table (with each structure's bootstrap
 win frequency and whether it is the selected one); ``screen`` the equation-error screen; ``oe_screen``
 the output-error screen's forward path (score statistics, linearised values); ``polish`` the polish of the
@@ -16,6 +17,7 @@ best-ranked structure (its start, the structure it ends at, each move taken with
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -34,9 +36,11 @@ def _metrics(ev) -> dict:
             "per_run": {k: {"rmse": v["rmse"], "fit_percent": v["fit_percent"], "ok": v["ok"]} for k, v in ev.per_run.items()}}
 
 
-def _method(c: Candidate, d: Discovery) -> dict:
+def _method(c: Candidate, d: Discovery, v=None) -> dict:
     r = c.result
-    return {"terms": {t: {"value": r.params[t], "stderr": r.stderr.get(t, math.nan),
+    said = {"usable": v.usable, "verdict": v.as_json()} if v is not None else {}
+    return {**said,
+            "terms": {t: {"value": r.params[t], "stderr": r.stderr.get(t, math.nan),
                           "inclusion_probability": d.inclusion.get(t, math.nan),
                           "screen_inclusion": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
                       for t in c.terms},
@@ -45,9 +49,11 @@ def _method(c: Candidate, d: Discovery) -> dict:
             "held_out_relative_rmse": c.held_out, "train": _metrics(c.train), "validation": _metrics(c.validation)}
 
 
-def discovery_json(d: Discovery, model_name: str) -> dict:
-    """The ``--json`` document (module docstring)."""
-    sel = {**_method(d.selected, d), "confirmed": d.confirmed,
+def discovery_json(d: Discovery, model_name: str, verdicts=None) -> dict:
+    """The ``--json`` document (module docstring); ``verdicts``: ``{"selected": Verdict, "base": Verdict}``
+    (:func:`diffship.usability.verdict`) where known."""
+    verdicts = verdicts or {}
+    sel = {**_method(d.selected, d, verdicts.get("selected")), "confirmed": d.confirmed,
            "possible": {t: {"inclusion_probability": d.inclusion.get(t, 0.0),
                             "screen_inclusion": d.screen.inclusion.get(t, math.nan), "label": term_label(t)}
                         for t in d.possible},
@@ -63,7 +69,8 @@ def discovery_json(d: Discovery, model_name: str) -> dict:
              for i, c in enumerate(d.candidates)]
     sc = d.screen
     return {"schema": "diffship.discover/1", "model": model_name, "criterion": d.criterion,
-            "effective_samples": d.n_eff, "seconds": d.seconds, "ranking_bootstrap": d.n_boot, "selected": sel, "base": _method(d.base, d),
+            "effective_samples": d.n_eff, "seconds": d.seconds, "ranking_bootstrap": d.n_boot, "selected": sel,
+            "base": _method(d.base, d, verdicts.get("base")),
             "candidates": table,
             "screen": {"library": list(sc.terms), "inclusion": sc.inclusion, "coefficients": sc.coefficients,
                        "forward_path": [list(v) for v in sc.path.values()], "min_gain": sc.threshold,
@@ -85,12 +92,15 @@ def _held(v) -> str:
     return "—" if v is None or not math.isfinite(v) else f"{v:.3f}"
 
 
-def discovery_text(d: Discovery, model_name: str) -> str:
-    """A short text report: the selected terms, the ranked candidates, held-out errors, warnings."""
+def discovery_text(d: Discovery, model_name: str, verdict=None) -> str:
+    """A short text report: the selected model's verdict first where it is given (``verdict``,
+    :func:`diffship.usability.verdict`), the selected terms, the ranked candidates, held-out errors, warnings."""
     sel = d.selected
     lines = [f"structure discovery on {model_name}: {len(d.screen.terms)} library terms screened, "
              f"{len(d.candidates)} structures refitted by output error, ranked by {d.criterion.upper()} on output "
              f"residuals ({d.seconds:.0f} s)"]
+    if verdict is not None:  # FAILED, not converged, unidentified parameters: said before the terms
+        lines += dataclasses.replace(verdict, method="selected model").lines()
     if sel.terms:
         lines.append("selected terms (value ± standard error, inclusion probability: bootstrap of the output-error "
                      "ranking; screen: of the equation-error screen):")

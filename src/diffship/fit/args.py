@@ -30,7 +30,7 @@ from ..log_options import add_log_options
 from ..particulars import MODEL_PARTICULARS, missing_message, missing_particulars
 from .inputs import input_problem
 
-__all__ = ["INTEGRATOR_NAMES", "build_parser", "precheck"]
+__all__ = ["INTEGRATOR_NAMES", "build_parser", "precheck", "starts_option"]
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -150,3 +150,8 @@ def precheck(argv: Sequence[str] | None = None) -> str | None:
     if not missing:
         return None
     return missing_message(needs.name, needs.particulars, needs.reference_vessel, missing)
+
+
+def starts_option(args) -> dict:
+    """``--starts N`` for the fit driver; ``{}`` when not given."""
+    return {} if args.starts is None else {"n_starts": args.starts}

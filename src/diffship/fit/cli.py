@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..checks import check_channels, check_rudder_sign, check_runs, check_yaw_direction  # noqa: F401 (also this module's)
 from ..data import example_runs, load_runs, resample_runs
-from ..errors import DiffshipError
+from ..errors import DiffshipError, FitError
 from ..integrators import get_integrator
 from ..metrics import evaluate
 from ..models import ConstantThrust, get_model
@@ -42,14 +42,15 @@ from ..log_options import log_kwargs
 from ..predict.cross import cross_validate, train_types_json
 from ..predict.cross_report import cross_json, cross_text, plot_cross
 from ..report import failed_methods, plot_fit, text_report, to_json_dict, write_json
+from ..stopped import stopped_command
 from ..usability import verdict
-from .args import build_parser
+from .args import build_parser, starts_option
 from .conditioning import thinning
 from .feedback import loop_evidence
 from .both import fit_both
 from .output_error import OutputErrorOptions
 from .hints import NextStep, next_step, next_steps
-from .inputs import DEFAULT_OUT, input_problem, spec_problem
+from .inputs import DEFAULT_OUT, OUT_FILES, input_problem, spec_problem
 from .priors import default_priors, format_priors, load_priors, parse_priors
 from .prediction_error import PredictionErrorOptions, fit_prediction_error
 from .shooting import fit_multiple_shooting, parse_shooting
@@ -143,7 +144,7 @@ def _example(model_name: str, say, dt: float | None = None):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status (0 done, 1 no fit converged, 2 user error)."""
+    """Run the command line; returns the exit status (0 done, 1 no usable fit, 2 user error or no fit at all)."""
     args = build_parser().parse_args(argv)
     say = _progress(args.quiet)
     try:
@@ -152,6 +153,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fit(args, say)
     except DiffshipError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        if isinstance(exc, FitError):  # no fit: the files asked for say so, none of an earlier command's is left
+            stopped_command(args, str(exc), OUT_FILES, "diffship fit")
         return 2
 
 
@@ -261,7 +264,7 @@ def _fit(args, say) -> int:
     try:
         results = fit_both(model, fit_runs, spec=spec, methods=first, init=init or None, flt=flt,
                            estimate_x0=_x0(args, model), channels=args.channels, options=options, progress=say,
-                           ee_filter=ee_filter, **_starts(args)) if first else {}
+                           ee_filter=ee_filter, **starts_option(args)) if first else {}
     except DiffshipError:  # equation error alone before multiple shooting: its failure was said; output error goes on
         if not multiple:
             raise
@@ -357,11 +360,6 @@ def _fit(args, say) -> int:
         print(f"error: no usable fit was found ({why})", file=sys.stderr)
         return 1
     return 0
-
-
-def _starts(args) -> dict:
-    """``--starts N`` for the fit driver; ``{}`` when not given."""
-    return {} if args.starts is None else {"n_starts": args.starts}
 
 
 # -- vessel particulars: --vessel, --rigid-body-cg, --propulsion, plausibility, fixed values --

@@ -275,6 +275,8 @@ class AbstractModel(eqx.Module):
             raise ModelError(f"{path}: cannot read a fit file ({exc})") from None
         if not isinstance(doc, dict) or doc.get("schema") != "diffship.fit/1":
             raise ModelError(f"{path}: not a diffship fit file (schema 'diffship.fit/1')")
+        if doc.get("error"):  # the fit file of a command that stopped without a fit (diffship.fitfile.stopped_document)
+            raise ModelError(f"{path}: holds no fit: the command that wrote it stopped without one ({doc['error']})")
         model = cls()
         name = doc.get("model", {}).get("name")
         if name != model.name:

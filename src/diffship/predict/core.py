@@ -185,7 +185,8 @@ class ManoeuvrePrediction:
 
 @dataclasses.dataclass(frozen=True)
 class Prediction:
-    """What :func:`predict` returns."""
+    """What :func:`predict` returns; ``fit``: the fit file's own word on the fit (``usable``, ``converged``, the
+    verdict's ``label``: ``None`` where the file has none), which a program reads beside the ``notes``' warnings."""
 
     model_name: str
     fit_path: str
@@ -195,6 +196,7 @@ class Prediction:
     criteria_scale: str
     interval_method: str
     notes: tuple[str, ...]
+    fit: dict | None = None
 
 
 def _full(name: str, value: float, scale: FroudeScale | None) -> float:
@@ -477,5 +479,7 @@ def predict(fit: LoadedFit | str | Path, manoeuvres: Sequence[str | ManoeuvreSpe
     crit = check_criteria(by_key, cond.l_over_v_full)
     where = (f"full scale (λ = {scale:g}: L/V = {cond.l_over_v_full:.3g} s)" if scale and cond.l_over_v_full
              else "the fit's scale (no --scale given: L/V is the model's, the criteria are for the full-scale ship)")
+    said = {"usable": fit.document.get("usable"), "converged": fit.converged,
+            "verdict": (fit.document.get("verdict") or {}).get("label")}
     return Prediction(model.name, str(fit.path), cond, tuple(out), tuple(crit), where, method,
-                      tuple(notes + [f"helm rate {rate:.3g}°/s at the fit's scale: {rate_src}"]))
+                      tuple(notes + [f"helm rate {rate:.3g}°/s at the fit's scale: {rate_src}"]), said)

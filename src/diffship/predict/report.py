@@ -122,10 +122,12 @@ def _clean(v):
 
 
 def prediction_json(p: Prediction) -> dict:
-    """JSON document: condition, metrics per manoeuvre (model and full scale, intervals), criteria."""
+    """JSON document: condition, metrics per manoeuvre (model and full scale, intervals), criteria; ``fit``: what
+    the fit file says of its fit (``usable``, ``converged``, ``verdict``: a FAILED fit's predictions are not
+    supported, as the notes say)."""
     c = p.condition
     return _clean({
-        "schema": "diffship.prediction/1", "model": p.model_name, "fit_file": p.fit_path,
+        "schema": "diffship.prediction/1", "model": p.model_name, "fit_file": p.fit_path, "fit": p.fit,
         "units": {k: u for k, (_, u) in METRIC_KINDS.items()},
         "condition": {"speed": c.speed, "inputs": c.inputs, "approach": c.approach, "helm_rate_deg_s": c.helm_rate_deg_s,
                       "helm_rate_source": c.helm_rate_source, "delay_s": c.delay_s, "scale": c.scale,
