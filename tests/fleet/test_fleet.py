@@ -1,5 +1,6 @@
 """Fleet mode on Dask distributed: manifest checks, grouping, per-vessel failure isolation,
-rerun skips what is done, one results table, a killed worker loses only its own fits (slow)."""
+rerun skips what is done, one results table, every fit's verdict in its row, fit file and the summary,
+a killed worker loses only its own fits (slow)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from diffship.errors import DataError
 from diffship.fleet import read_manifest
 from diffship.fleet.__main__ import main
 from diffship.fleet.engine import group_jobs, run_fleet
+from diffship.fleet.worker import fit_group
 
 
 def _fleet(tmp_path, n, bad=(), duration=30.0):
@@ -67,12 +69,59 @@ def test_failures_are_isolated_and_a_rerun_skips_what_is_done(tmp_path, capsys):
     (out / "rows").mkdir(parents=True)
     (out / "rows" / "boat9__d1.json").write_text(json.dumps(done_row))
     assert main([str(manifest), "--out", str(out), "--workers", "1", "--batch", "2"]) == 1
-    assert "0 fitted, 3 failed, 0 skipped" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "0 fitted, 3 failed, 0 skipped" in said
+    assert "3 FAILED (3 without a fit)" in said and "NOT USABLE: boat0__d1 (no fit: DataError" in said
     df = pd.read_parquet(out / "results.parquet").set_index("key")
     assert set(df.index) == {"boat0__d1", "boat1__d1", "boat2__d1", "boat9__d1"}
     assert (df.loc[["boat0__d1", "boat1__d1", "boat2__d1"], "status"] == "failed").all()
     assert df.loc["boat0__d1", "error"].startswith("DataError") and "delta" in df.loc["boat0__d1", "error"]
+    assert (df.loc["boat0__d1", "verdict"], bool(df.loc["boat0__d1", "usable"])) == ("FAILED", False)
+    assert json.loads(Path(df.loc["boat0__d1", "fit_file"]).read_text())["error"].startswith("DataError")
     assert df.loc["boat9__d1", "status"] == "ok"  # untouched
+
+
+def test_every_fit_carries_its_verdict_in_the_table_the_fit_file_and_the_summary(tmp_path, capsys):
+    """Two tiny Nomoto vessel-runs: a zigzag (usable) and a run whose rudder never moves (nothing excites K, T1
+    or delta0: FAILED). The worker's group runs in this process (no cluster: seconds); the command then finds
+    both fitted and reports from their rows: the verdict counts, the vessel-run that is not usable by name, and
+    exit status 1 (one vessel-run without a usable fit)."""
+    import numpy as np
+
+    from diffship.fitfile import fit_warnings, load_fit
+    from diffship.models import get_model
+    from diffship.synthetic import nomoto_runs, simulate_run
+
+    (zigzag,) = nomoto_runs(n_runs=1, duration=20.0, dt=0.2, seed=1)
+    zigzag.to_dataframe().to_csv(tmp_path / "zigzag.csv", index=False)
+    t = np.arange(0.0, 20.0 + 1e-9, 0.2)
+    model = get_model("nomoto1")
+    flat = simulate_run(model, t, {"delta": np.zeros_like(t)}, np.zeros(len(model.state_names)), name="flat",
+                        noise="realistic", seed=3)
+    flat.to_dataframe().to_csv(tmp_path / "flat.csv", index=False)
+    manifest = tmp_path / "fleet.csv"
+    manifest.write_text("vessel,run,runs,model\ngood,r,zigzag.csv,nomoto1\nquiet,r,flat.csv,nomoto1\n")
+    out = tmp_path / "out"
+    rows = {r["key"]: r for r in fit_group(read_manifest(manifest), str(out))}
+    assert rows["good__r"]["status"] == "ok" and rows["quiet__r"]["status"] == "not usable"
+
+    assert main([str(manifest), "--out", str(out), "--quiet"]) == 1  # both fitted before: skipped, no cluster
+    said = capsys.readouterr().out
+    assert "0 fitted, 0 failed, 2 skipped" in said
+    assert "verdicts: 1 usable, 1 FAILED, 0 not converged, 0 unidentifiable; 1 of 2 vessel-runs NOT USABLE" in said
+    assert "NOT USABLE: quiet__r (FAILED: " in said and "good__r" not in said
+    df = pd.read_parquet(out / "results.parquet").set_index("key")
+    good, quiet = df.loc["good__r"], df.loc["quiet__r"]
+    assert (good["verdict"], bool(good["usable"]), good["unidentified"], good["on_bound"]) == ("usable", True, "", "")
+    assert (quiet["verdict"], bool(quiet["usable"]), quiet["status"]) == ("FAILED", False, "not usable")
+    assert set(quiet["unidentified"].split(",")) == {"K", "T1", "delta0"} and quiet["reason"]
+    assert df[~df["usable"]].index.tolist() == ["quiet__r"]  # a program filters on the boolean column
+    for key, usable in (("good__r", True), ("quiet__r", False)):
+        doc = json.loads(Path(df.loc[key, "fit_file"]).read_text())
+        assert doc["usable"] is usable and doc["verdict"]["usable"] is usable
+        assert doc["metrics"]["train"]["fit_percent"]
+    assert fit_warnings(load_fit(df.loc["quiet__r", "fit_file"]))[0].startswith("WARNING: this fit is labelled FAILED")
+    assert fit_warnings(load_fit(df.loc["good__r", "fit_file"])) == []
 
 
 @pytest.mark.slow

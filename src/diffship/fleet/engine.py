@@ -18,7 +18,22 @@ starts run in threads (:meth:`diffship.fit.kernel.Kernel.solve_many`); each loca
 share of the cores for them (``cores // workers``, at least one), so that the workers together do not
 oversubscribe the machine (the answers do not depend on it). A task
 writes each vessel-run's fit file and row as it finishes (:mod:`diffship.fleet.worker`); a rerun
-skips every vessel-run whose row says ``ok`` or ``not converged`` and whose fit file exists.
+skips every vessel-run whose row says ``ok``, ``not converged`` or ``not usable``, holds a verdict and whose fit
+file exists (the same data give the same fit: a rerun retries the vessel-runs without one, and refits rows
+written without a verdict).
+
+The results table ``results.parquet`` has one row per vessel-run: ``key``, ``vessel``, ``run``, ``model``;
+``status``: ``ok`` (fitted, usable), ``not converged`` (fitted, usable, the solver at its step limit),
+``not usable`` (fitted, its verdict FAILED) or ``failed`` (no fit: ``error`` says why); the fit's verdict as
+``python -m diffship.fit`` gives it (:func:`diffship.usability.verdict`): ``verdict`` (``usable``, ``FAILED``,
+``not converged``, ``unidentifiable``; ``FAILED`` for a vessel-run without a fit), ``usable`` (boolean),
+``reason`` (the verdict's first reason, or the error), ``unidentified`` and ``on_bound`` (the names of the
+parameters the data do not determine and of those on one of their bounds, comma-separated, ``""`` when none:
+``df[df.unidentified != ""]``); then ``solver_status``, ``converged``, ``cost``, ``samples``, ``pieces``,
+``fit_file``, ``seconds``, ``cpu_seconds``, the parameters ``p_*`` and their standard errors ``se_*``, and the
+worker's ``worker_pid``, ``worker_fit_index``, ``cache_hits``. The summary (:class:`FleetSummary`) counts
+the verdicts of every vessel-run of the manifest (those skipped as done included) and names those that are not
+usable and those usable with a warning.
 A task lost with a killed worker (``--retries 0``) records its unfinished vessel-runs as failed
 ("worker lost"), unless it had not started (a marker file says when it did): then it was only
 queued on that worker, and is submitted once more to the workers left.
@@ -37,14 +52,19 @@ from typing import Any
 
 from .manifest import FleetJob, read_manifest
 
-__all__ = ["PAD", "FleetSummary", "group_jobs", "run_fleet"]
+__all__ = ["LABELS", "PAD", "FleetSummary", "group_jobs", "run_fleet", "verdicts"]
 
 PAD = 256  # [samples] run-length bucket of a group
-_DONE = ("ok", "not converged")
+_DONE = ("ok", "not converged", "not usable")  # fitted: a rerun would give the same fit
+LABELS = ("usable", "FAILED", "not converged", "unidentifiable")  # diffship.usability.Verdict.label
 
 
 class FleetSummary(dict):
-    """``{"done", "failed", "skipped", "total", "seconds", "table"}`` of a fleet run."""
+    """``{"done", "failed", "skipped", "total", "seconds", "table"}`` of a fleet run (``done``: fitted,
+    ``failed``: without a fit, in this run), and the verdicts of every vessel-run of the manifest: ``verdicts``
+    (``{label: count}``, :data:`LABELS`; a vessel-run without a fit counts as FAILED), ``no_fit`` (how many of
+    the FAILED have no fit), ``not_usable`` (``[(key, label, reason)]``) and ``warned`` (``[(key, text)]``:
+    usable, but not converged, with unidentified parameters or parameters on a bound)."""
 
 
 def _length(job: FleetJob) -> int:
@@ -65,16 +85,40 @@ def group_jobs(jobs: Sequence[FleetJob], batch: int) -> list[list[FleetJob]]:
     return groups
 
 
-def _done_keys(out: Path) -> set[str]:
-    done = set()
-    for f in (out / "rows").glob("*.json"):
+def _rows(out: Path) -> dict[str, dict]:
+    rows = {}
+    for f in sorted((out / "rows").glob("*.json")):
         try:
             row = json.loads(f.read_text())
         except (OSError, ValueError):
             continue
-        if row.get("status") in _DONE and Path(row.get("fit_file", "")).is_file():
-            done.add(row["key"])
-    return done
+        rows[row.get("key", f.stem)] = row
+    return rows
+
+
+def _done_keys(out: Path) -> set[str]:
+    return {k for k, row in _rows(out).items()
+            if row.get("status") in _DONE and "verdict" in row and Path(row.get("fit_file", "")).is_file()}
+
+
+def verdicts(out: str | Path, jobs: Sequence[FleetJob]) -> dict[str, Any]:
+    """The verdict entries of :class:`FleetSummary` for ``jobs`` from the rows in ``out``."""
+    rows = _rows(Path(out))
+    counts, no_fit, bad, warned = dict.fromkeys(LABELS, 0), 0, [], []
+    for job in jobs:
+        row = rows.get(job.key, {"status": "failed", "reason": "no result row"})
+        label = row.get("verdict") or "FAILED"
+        counts[label] = counts.get(label, 0) + 1
+        no_fit += row.get("status") == "failed"
+        if row.get("status") == "failed" or row.get("usable") is not True:
+            bad.append((job.key, label if row.get("status") != "failed" else "no fit",
+                        row.get("reason") or row.get("error") or ""))
+            continue
+        what = [label] if label != "usable" else []
+        what += [f"{k.replace('_', ' ')}: {row[k]}" for k in ("unidentified", "on_bound") if row.get(k)]
+        if what:
+            warned.append((job.key, "; ".join(what)))
+    return {"verdicts": counts, "no_fit": no_fit, "not_usable": bad, "warned": warned}
 
 
 def _bar(done: int, failed: int, total: int, t0: float, stream) -> None:
@@ -89,14 +133,13 @@ def _bar(done: int, failed: int, total: int, t0: float, stream) -> None:
 def _write_table(out: Path) -> Path:
     import pandas as pd
 
-    rows = []
-    for f in sorted((out / "rows").glob("*.json")):
-        try:
-            rows.append(json.loads(f.read_text()))
-        except (OSError, ValueError):
-            continue
+    df = pd.DataFrame(list(_rows(out).values()))
+    for c, kind in (("usable", "boolean"), ("converged", "boolean"), ("verdict", "string"), ("reason", "string"),
+                    ("unidentified", "string"), ("on_bound", "string")):
+        if c in df:  # one type per column, missing where a row has no entry (a row written without a verdict)
+            df[c] = df[c].astype(kind)
     path = out / "results.parquet"
-    pd.DataFrame(rows).to_parquet(path, index=False)
+    df.to_parquet(path, index=False)
     return path
 
 
@@ -118,7 +161,7 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
     import dask
     from distributed import Client, LocalCluster, as_completed
 
-    from .worker import fit_group
+    from .worker import failed_row, fit_group
 
     out = Path(out)
     (out / "rows").mkdir(parents=True, exist_ok=True)
@@ -131,7 +174,7 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
     summary = FleetSummary(total=len(jobs), skipped=len(jobs) - len(todo), done=0, failed=0)
     stream = sys.stderr
     if not todo:
-        summary.update(seconds=0.0, table=str(_write_table(out)))
+        summary.update(seconds=0.0, table=str(_write_table(out)), **verdicts(out, jobs))
         return summary
     for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(k, "1")  # spawned workers inherit it: one BLAS thread per worker (XLA_FLAGS are left
@@ -169,15 +212,13 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
                         futures[new] = group
                         pending.add(new)
                         continue
-                    finished = _done_keys(out)
+                    finished, written = _done_keys(out), _rows(out)
                     rows = []
                     for job in group:
                         if job.key in finished:
-                            rows.append({"key": job.key, "status": "ok"})
+                            rows.append(written[job.key])
                             continue
-                        row = {"key": job.key, "vessel": job.vessel, "run": job.run, "model": job.model,
-                               "status": "failed", "converged": False,
-                               "error": f"worker lost: {type(exc).__name__}: {exc}".splitlines()[0][:500]}
+                        row = failed_row(job, out, f"worker lost: {type(exc).__name__}: {exc}".splitlines()[0][:500])
                         (out / "rows" / f"{job.key}.json").write_text(json.dumps(row))
                         rows.append(row)
                 summary["done"] += sum(r["status"] in _DONE for r in rows)
@@ -192,5 +233,5 @@ def run_fleet(manifest: str | Path, out: str | Path, *, workers: int = 2, addres
             client.close()
             if cluster is not None:
                 cluster.close()
-    summary.update(seconds=time.perf_counter() - t0, table=str(_write_table(out)))
+    summary.update(seconds=time.perf_counter() - t0, table=str(_write_table(out)), **verdicts(out, jobs))
     return summary
