@@ -35,6 +35,7 @@ from diffship.errors import DataError
 from .channels import check_header, check_near_misses
 from .frozen import FrozenDict as _FrozenDict
 from .gaps import check_gaps
+from .hold import held_means
 from .runargs import as_column as _as_array
 from .runargs import check_containers, check_frame, timedelta_seconds
 from .units import TIME_UNITS, UnitsError, psi_unwrap
@@ -214,17 +215,17 @@ class Run:
     def _derive(self, time: np.ndarray, channels: Mapping[str, np.ndarray], **note: Any) -> Run:
         return Run(self.name, time, channels, {**self.metadata, **note}, check_units=False)
 
-    def resample(self, dt: float) -> Run:
-        """Linear interpolation onto the uniform grid ``t0, t0 + dt, ...`` up to the last time.
-
-        ``psi`` is unwrapped before interpolation and stays unwrapped.
-        """
+    def resample(self, dt: float, held: Sequence[str] = ()) -> Run:
+        """Linear interpolation onto the uniform grid ``t0, t0 + dt, ...`` up to the last time; the inputs
+        ``held`` over each sample (``--input-hold zero``) as their means over the new intervals
+        (:func:`diffship.hold.held_means`). ``psi`` is unwrapped before interpolation and stays unwrapped."""
         if not (np.isfinite(dt) and dt > 0):
             raise DataError(f"{self._loc}: resample step dt must be positive and finite, got {dt}.")
         k = int(np.floor(self.duration / dt + 1e-9))
         t = self.t0 + dt * np.arange(k + 1)
-        chans = {c: np.interp(t, self.time, psi_unwrap(a)[0] if c == "psi" else a)
-                 for c, a in self.channels.items()}
+        end = float(self.time[-1] + np.median(np.diff(self.time)))
+        chans = {c: held_means(self.time, a, t, end) if c in held else
+                 np.interp(t, self.time, psi_unwrap(a)[0] if c == "psi" else a) for c, a in self.channels.items()}
         return self._derive(t, chans, resampled_dt=float(dt))
 
     def slice(self, t_start: float | None = None, t_end: float | None = None) -> Run:
@@ -428,15 +429,16 @@ def load_runs(paths: str | os.PathLike | Iterable[os.PathLike | str], *, channel
     return runs
 
 
-def resample_runs(runs: Sequence[Run], dt: float, option: str = "--resample") -> list[Run]:
-    """Every run resampled to the step ``dt`` [s]; a run left with fewer than ``MIN_SAMPLES`` stops with ``option``,
-    the run's length and the longest step that keeps every run."""
+def resample_runs(runs: Sequence[Run], dt: float, option: str = "--resample", held: Sequence[str] = ()) -> list[Run]:
+    """Every run resampled to the step ``dt`` [s] (``held``: inputs held over each sample, :meth:`Run.resample`); a
+    run left with fewer than ``MIN_SAMPLES`` stops with ``option``, the run's length and the longest step that keeps
+    every run."""
     for r in runs:
         if (k := int(np.floor(r.duration / dt + 1e-9)) + 1) < MIN_SAMPLES:
             most = 0.995 * min(q.duration for q in runs) / (MIN_SAMPLES - 1)
             raise DataError(f"{option} {dt:g}: run '{r.name}' lasts {r.duration:.4g} s, so a step of {dt:g} s leaves "
                             f"{k} sample(s) (at least {MIN_SAMPLES} needed); give a step of at most {most:.3g} s")
-    return [r.resample(dt) for r in runs]
+    return [r.resample(dt, held) for r in runs]
 
 
 def example_path(name: str) -> Path:

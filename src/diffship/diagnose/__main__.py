@@ -163,12 +163,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _load(args, paths):
+def _load(args, paths, held=()):
     from ..data import load_runs, resample_runs
 
     runs = load_runs(paths, columns=dict(c.split("=", 1) for c in args.columns) or None, degrees=args.degrees,
                      rudder_sign=args.rudder_sign, time_unit=args.time_unit, **log_kwargs(args))
-    return resample_runs(runs, args.resample) if args.resample else runs
+    return resample_runs(runs, args.resample, held=held) if args.resample else runs
 
 
 def _diagnose(args, say):
@@ -199,7 +199,8 @@ def _diagnose(args, say):
         init = {**{n: v for n, v in loaded.params.items() if n in spec and n not in fix}, **init}
     if init:
         spec = spec.with_values(init)
-    train, val = _load(args, args.runs), _load(args, args.validate)
+    held = model.input_names if args.input_hold == "zero" else ()  # inputs held over each sample
+    train, val = _load(args, args.runs, held), _load(args, args.validate, held)
     if args.horizon:  # the first seconds of each training run (held-out runs whole)
         train = [r.slice(None, r.time[0] + args.horizon) for r in train]
     check_runs(model, train, val, args.channels)

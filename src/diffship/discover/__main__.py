@@ -110,7 +110,8 @@ def _run(args) -> int:
     train = load_runs(args.runs, **kw)
     val = load_runs(args.validate, **kw) if args.validate else []
     if args.resample:
-        train, val = resample_runs(train, args.resample), resample_runs(val, args.resample)
+        held = model.input_names if args.input_hold == "zero" else ()  # inputs held over each sample
+        train, val = resample_runs(train, args.resample, held=held), resample_runs(val, args.resample, held=held)
     n_free = len(spec.free_names)
     if (problem := too_short_problem(sum(len(r.time) for r in train), n_free + args.max_terms,
                                      f"{model.name}'s {n_free} free and {args.max_terms} terms, --max-terms")):

@@ -116,10 +116,11 @@ def _columns(args) -> dict[str, str]:
     return dict(c.split("=", 1) for c in args.columns)
 
 
-def _load(args, paths):
+def _load(args, paths, held=()):
+    """The runs (``--resample``: on its grid, the inputs ``held`` under ``--input-hold zero`` as held means)."""
     runs = load_runs(paths, columns=_columns(args) or None, degrees=args.degrees, rudder_sign=args.rudder_sign,
                      time_unit=args.time_unit, **log_kwargs(args))
-    return resample_runs(runs, args.resample) if args.resample else runs
+    return resample_runs(runs, args.resample, held=held) if args.resample else runs
 
 
 def _example(model_name: str, say, dt: float | None = None):
@@ -230,8 +231,9 @@ def _fit(args, say) -> int:
     if (problem := spec_problem(args, spec)) is not None:  # an --init of a parameter the fit holds
         raise DiffshipError(problem)
     if args.runs:
-        train = _load(args, args.runs)
-        val = _load(args, args.validate) if args.validate else []
+        held = model.input_names if args.input_hold == "zero" else ()
+        train = _load(args, args.runs, held)
+        val = _load(args, args.validate, held) if args.validate else []
     else:
         train, val = _example(args.model, say, args.resample)  # no file given (held-out runs need a training run: input_problem)
         if args.out is None:  # the main job shows its figure: written where the report says
@@ -253,7 +255,7 @@ def _fit(args, say) -> int:
     thin = None
     if not args.resample:  # the rate chosen from the data and the model, said in one line
         thin = thinning(model, fit_runs, known=bool(len(default_priors(model, spec, 0.5)[0])))
-        fit_runs = thin.apply(fit_runs)
+        fit_runs = thin.apply(fit_runs, model.input_names, args.input_hold)
         say(thin.text)
     shooting = parse_shooting(args.shooting)
     multiple = shooting is not None and "output_error" in methods

@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import Run
+from ..hold import held_means
 from ..models import AbstractModel
 from ..simulate import initial_state, model_inputs
 
@@ -56,16 +57,29 @@ def fastest_time_constant(model: AbstractModel, runs: Sequence[Run]) -> float:
     return float(1.0 / lam.max()) if lam.size else math.inf
 
 
-def block_average(run: Run, k: int) -> Run:
+def block_average(run: Run, k: int, inputs: Sequence[str] = (), hold: str = "linear") -> Run:
     """``run`` averaged over consecutive blocks of ``k`` samples (time: each block's mean; headings
-    unwrapped first); a last incomplete block is dropped. The run given is not changed."""
+    unwrapped first); a last incomplete block is dropped. The run given is not changed.
+
+    ``inputs`` held between samples (``hold="zero"``: a digital command; :mod:`diffship.integrators`) are averaged
+    over the interval each averaged sample holds them, from its time to the next one's, not over its block: a
+    block's mean stands at the block's mean time, and held from there it reaches the model (k − 1)/2 samples late
+    (measured: a USV's surge added mass 15–22 % high, 20 Hz commands averaged to 5 Hz). Under the linear hold the
+    block's mean is the signal's value at the block's mean time, which is what that hold reads."""
     n = (run.n // k) * k
     if k <= 1 or n < 2 * k:
         return run
-    t = np.asarray(run.time[:n], dtype=np.float64).reshape(-1, k).mean(axis=1)
+    time = np.asarray(run.time, dtype=np.float64)
+    t = time[:n].reshape(-1, k).mean(axis=1)
+    held = set(inputs) if hold == "zero" else set()
+    t_end = float(time[-1] + np.median(np.diff(time)))
     chans = {}
     for c, a in run.channels.items():
-        a = np.asarray(a, dtype=np.float64)[:n]
+        a = np.asarray(a, dtype=np.float64)
+        if c in held:
+            chans[c] = held_means(time, a, t, t_end)
+            continue
+        a = a[:n]
         if c in ("psi", "phi", "theta"):
             a = np.unwrap(a)
         chans[c] = a.reshape(-1, k).mean(axis=1)
@@ -82,8 +96,10 @@ class Thinning:
     dt: float
     text: str
 
-    def apply(self, runs: Sequence[Run]) -> list[Run]:
-        return [block_average(r, self.factor) for r in runs] if self.factor > 1 else list(runs)
+    def apply(self, runs: Sequence[Run], inputs: Sequence[str] = (), hold: str = "linear") -> list[Run]:
+        """The runs averaged over blocks of ``factor`` samples (:func:`block_average`; ``inputs`` and ``hold``
+        as there: the model's inputs and the integrator's input hold)."""
+        return [block_average(r, self.factor, inputs, hold) for r in runs] if self.factor > 1 else list(runs)
 
 
 def thinning(model: AbstractModel, runs: Sequence[Run], known: bool = True) -> Thinning:
