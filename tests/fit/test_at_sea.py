@@ -142,6 +142,7 @@ def test_a_wave_logged_slowly_is_found_from_the_disturbance_dominated_start():
         assert abs(pe.params[n] - tv[n]) < 3 * pe.stderr[n], (n, pe.params[n], pe.stderr[n])
 
 
+@pytest.mark.slow  # the screen and the full fit, about 40 s on 2 cores: the default suite keeps the fit above
 def test_the_screen_keeps_a_wave_logged_slowly():
     """The sea-state check's short screen (:data:`~diffship.diagnose.sea_state.SCREEN_STEPS` steps) must not rule
     out a sea state that the full fit finds only from its disturbance-dominated noise start (the heavy sea logged at
