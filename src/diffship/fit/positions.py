@@ -109,7 +109,8 @@ class PositionsTest:
                     f"--positions off leaves them out")
         return (f"positions ({chans}) not fitted: {self.reason or 'the fit with them disagrees with the fit without'} "
                 f"({test}{moved}: where the model misses, a position's drift decides the fit); --channels with them "
-                f"fits them anyway")
+                f"fits them anyway; what the model misses: python -m diffship.diagnose, or, for inputs logged as "
+                f"commands held between samples, --input-hold zero")
 
     def as_json(self) -> dict:
         return {"channels": list(self.channels), "statistic": self.statistic, "dof": self.dof,
