@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from clitools import write_csvs
 from diffship.fit.cli import main as fit_main
 from diffship.synthetic import nomoto_runs
 
@@ -21,13 +22,8 @@ def nomoto_csvs(tmp_path_factory):
     d = tmp_path_factory.mktemp("runs")
     from diffship.models import Nomoto1
 
-    runs = nomoto_runs(Nomoto1(K=0.2, T1=8.0, delta0=0.01), n_runs=3, duration=40.0, dt=0.2, noise="realistic")
-    paths = []
-    for r in runs:
-        p = d / f"{r.name}.csv"
-        r.to_dataframe().to_csv(p, index=False)
-        paths.append(str(p))
-    return paths
+    return write_csvs(nomoto_runs(Nomoto1(K=0.2, T1=8.0, delta0=0.01), n_runs=3, duration=40.0, dt=0.2,
+                                  noise="realistic"), d)
 
 
 def test_fit_json_contract(nomoto_csvs, tmp_path, capsys):

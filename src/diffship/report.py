@@ -31,6 +31,7 @@ __all__ = [
     "comparison",
     "failed_methods",
     "is_failed",
+    "metrics_json",
     "plot_fit",
     "text_report",
     "to_json_dict",
@@ -372,7 +373,9 @@ def _limits(ax, ys, xs=None, pad=0.08) -> None:
             setter(lo - d, hi + d)
 
 
-def _metrics(ev: Evaluation | None) -> dict:
+def metrics_json(ev: Evaluation | None) -> dict:
+    """One evaluation's metrics as the JSON report and the fit file write them (``rmse``, ``fit_percent``, ``ok``,
+    ``per_run``); empty tables for ``None``."""
     if ev is None:
         return {"rmse": {}, "fit_percent": {}}
     return {"rmse": dict(ev.rmse), "fit_percent": dict(ev.fit_percent), "ok": ev.ok,
@@ -403,8 +406,8 @@ def to_json_dict(model_name: str, results: Mapping[str, FitResult], train: Mappi
             "compile_seconds": r.compile_seconds,
             "programs": r.info.get("programs", ""),
             "integrator": r.info.get("integrator", ""),
-            "train": _metrics(train.get(m)),
-            "validation": _metrics(validation.get(m)),
+            "train": metrics_json(train.get(m)),
+            "validation": metrics_json(validation.get(m)),
             "messages": list(r.messages),
             "filter": r.info.get("filter"),
             "smoother": r.info.get("smoother"),

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import diffship  # noqa: F401
+from clitools import write_csvs
 from diffship.diagnose import DiagnoseOptions, augment, diagnose
 from diffship.diagnose.__main__ import main
 from diffship.diagnose.report import write_report
@@ -95,11 +96,7 @@ def test_no_effect_data_raise_no_alarm():
 def test_cli_contract_and_bad_input(tmp_path, capsys):
     truth = augment(Nomoto1(**TRUTH), "actuator_lag", T_act=2.5)
     train, val = _runs(truth, 3)
-    paths = []
-    for r in train + val:
-        p = tmp_path / f"{r.name}.csv"
-        r.to_dataframe().to_csv(p, index=False)
-        paths.append(str(p))
+    paths = write_csvs(train + val, tmp_path)
     out = tmp_path / "json" / "d.json"
     out.parent.mkdir()
     rc = main(paths[:3] + ["--validate"] + paths[3:] + ["--model", "nomoto1", "--effects", "input_delay,actuator_lag,damping_rr",
@@ -173,21 +170,12 @@ def test_rudder_offset_on_a_nomoto_ship_is_attributed():
     assert any("delta0" in n for n in d.notes)
 
 
-def _csvs(tmp_path, runs):
-    paths = []
-    for r in runs:
-        p = tmp_path / f"{r.name}.csv"
-        r.to_dataframe().to_csv(p, index=False)
-        paths.append(str(p))
-    return paths
-
-
 @pytest.mark.slow  # CI time budget: run with python -m pytest -m slow
 def test_a_base_fit_that_diverges_says_so_in_the_files_asked_for(tmp_path, capsys):
     """T1 held at 1 µs: the base fit diverges from every start. Exit status 2 and one line, as before; diagnosis.md
     and the JSON now say so (before: nothing was written, an earlier diagnosis in --out stayed)."""
     train, val = _runs(Nomoto1(**TRUTH), 4)
-    paths = _csvs(tmp_path, train[:1] + val[:1])
+    paths = write_csvs(train[:1] + val[:1], tmp_path)
     out = tmp_path / "out"
     out.mkdir()
     (out / "overlay.png").write_bytes(b"an earlier diagnosis's figure")
@@ -205,7 +193,7 @@ def test_a_base_fit_that_did_not_converge_is_said_in_the_diagnosis(tmp_path, cap
     """--max-steps 2: the base fit stops at its step limit. The warning was on stderr only; the report's notes and
     the JSON (notes, base_verdict) now carry it."""
     train, val = _runs(Nomoto1(**TRUTH), 5)
-    paths = _csvs(tmp_path, train[:1] + val[:1])
+    paths = write_csvs(train[:1] + val[:1], tmp_path)
     rc = main([paths[0], "--validate", paths[1], "--model", "nomoto1", "--max-steps", "2", "--starts", "1",
                "--effects", "input_delay", "--out", str(tmp_path / "out"), "--quiet"])
     assert rc == 0, capsys.readouterr().err

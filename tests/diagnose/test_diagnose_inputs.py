@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from clitools import stops_with_one_line
 from diffship.diagnose.__main__ import main
 
 
@@ -23,11 +24,7 @@ def runs(tmp_path):
 
 
 def _stop(argv, capsys, *words):
-    code = main([*argv, "--model", "nomoto1", "--quiet"])
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and err.startswith("error: ") and err.count("\n") == 0, (argv, err)
-    for w in words:
-        assert w in err, (w, err)
+    stops_with_one_line(main, [*argv, "--model", "nomoto1", "--quiet"], capsys, *words)
 
 
 def test_outputs_are_checked_before_any_fit(runs, tmp_path, capsys):

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from clitools import stops_with_one_line
 from diffship.fit.args import build_parser, precheck
 from diffship.fit.cli import main as fit_main
 
@@ -24,11 +25,7 @@ def _stop(argv, capsys, *words, read=False, model="nomoto1"):
     """The fit's exit status 2 and its one line, which holds ``words``; unless the runs (or the model's parameters)
     must be ``read`` to find it, the JAX-free precheck says the same."""
     argv = [*argv, "--model", model, "--quiet"]
-    code = fit_main(argv)
-    err = capsys.readouterr().err.strip()
-    assert code == 2 and err.startswith("error: ") and err.count("\n") == 0, (argv, err)
-    for w in words:
-        assert w in err, (w, err)
+    err = stops_with_one_line(fit_main, argv, capsys, *words)
     assert read or precheck(argv) == err.removeprefix("error: "), (precheck(argv), err)
     return err
 

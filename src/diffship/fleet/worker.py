@@ -63,11 +63,9 @@ def _names(items: Sequence[str]) -> str:
 
 def _metrics(ev) -> dict[str, Any]:
     """The fit file's ``metrics`` (as the fit command writes them; no held-out runs)."""
-    train = {"rmse": {}, "fit_percent": {}} if ev is None else {
-        "rmse": dict(ev.rmse), "fit_percent": dict(ev.fit_percent), "ok": ev.ok,
-        "per_run": {k: {"rmse": v["rmse"], "fit_percent": v["fit_percent"], "ok": v["ok"]}
-                    for k, v in ev.per_run.items()}}
-    return {"train": train, "validation": {"rmse": {}, "fit_percent": {}}, "validation_runs": []}
+    from ..report import metrics_json
+
+    return {"train": metrics_json(ev), "validation": metrics_json(None), "validation_runs": []}
 
 
 def fit_one(job: FleetJob, out: Path) -> dict[str, Any]:
